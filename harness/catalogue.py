@@ -1,0 +1,119 @@
+"""The catalogue of named scenes: parameters (default, range, unit) and a builder each.
+
+A new scene is one `SceneSpec` entry: data plus the function that turns effective
+parameter values into a `Scene`.  See PHYSICS.md §2 for the three bar-heating variants.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+from harness.scene import (
+    ALUMINIUM,
+    Box,
+    FaceTemperature,
+    Param,
+    PatchTemperature,
+    PointTemperature,
+    Scene,
+    SceneError,
+    resolve_params,
+)
+
+BOX = Box()
+HOT_CORNER = (0.0, BOX.height, 0.0)
+FROZEN_CORNERS = {
+    "back-edge": ((BOX.width, 0.0, 0.0), (BOX.width, 0.0, BOX.length)),
+    "diagonal": ((BOX.width, 0.0, 0.0), (0.0, 0.0, BOX.length)),
+}
+
+T_MAX = Param("t_max", 500.0, "K", "hot temperature (relative results are T/t_max)", low=0.0, high=1e5, low_open=True)
+PLACEMENT = Param("placement", "back-edge", "", "which two bottom corners are frozen", choices=tuple(FROZEN_CORNERS),
+                  kind=str)
+
+
+@dataclass(frozen=True)
+class SceneSpec:
+    """A named scene: one-line description, its parameters, and the builder."""
+
+    name: str
+    description: str
+    parameters: tuple[Param, ...]
+    build: Callable[[dict[str, Any]], Scene]
+
+    def make(self, **given: Any) -> Scene:
+        values = resolve_params(self.parameters, given, f"scene {self.name!r}")
+        return self.build(values)
+
+
+def _corners(placement: str) -> list[tuple[tuple[float, float, float], float]]:
+    return [(HOT_CORNER, 1.0)] + [(c, 0.0) for c in FROZEN_CORNERS[placement]]
+
+
+def _paper(p: dict[str, Any]) -> Scene:
+    cons = tuple(PointTemperature(pt, frac * p["t_max"]) for pt, frac in _corners(p["placement"]))
+    return Scene("bar-heat-paper", CATALOGUE["bar-heat-paper"].description, BOX, ALUMINIUM,
+                 frozenset({"conduction"}), cons, t_max=p["t_max"], params=tuple(sorted(p.items())))
+
+
+def _patch(p: dict[str, Any]) -> Scene:
+    cons = tuple(PatchTemperature(pt, p["rho"], frac * p["t_max"]) for pt, frac in _corners(p["placement"]))
+    return Scene("bar-heat-patch", CATALOGUE["bar-heat-patch"].description, BOX, ALUMINIUM,
+                 frozenset({"conduction"}), cons, t_max=p["t_max"], params=tuple(sorted(p.items())))
+
+
+def _faces(p: dict[str, Any]) -> Scene:
+    if p["mode"] == "transient" and p["dt"] > p["t_end"]:
+        raise SceneError(f"dt={p['dt']!r} is out of range; allowed: number in (0, t_end={p['t_end']:g}] s")
+    cons = (FaceTemperature("z0", p["t_max"]), FaceTemperature("zL", 0.0))
+    return Scene("bar-heat-faces", CATALOGUE["bar-heat-faces"].description, BOX, ALUMINIUM,
+                 frozenset({"conduction"}), cons, t_max=p["t_max"], mode=p["mode"],
+                 t_end=p["t_end"] if p["mode"] == "transient" else 0.0,
+                 dt=p["dt"] if p["mode"] == "transient" else 0.0,
+                 initial_temperature=0.0, params=tuple(sorted(p.items())))
+
+
+CATALOGUE: dict[str, SceneSpec] = {
+    spec.name: spec
+    for spec in (
+        SceneSpec(
+            "bar-heat-paper",
+            "Steady conduction, insulated bar, hot corner at t_max and two frozen corners at 0 K fixed at "
+            "points (the paper's setting; mesh-dependent in 3-D)",
+            (PLACEMENT, T_MAX),
+            _paper,
+        ),
+        SceneSpec(
+            "bar-heat-patch",
+            "As bar-heat-paper, but each corner temperature is held on a spherical-octant patch of radius "
+            "rho (well-posed; mesh-converged reference)",
+            (PLACEMENT, T_MAX, Param("rho", 1e-3, "m", "patch radius", low=0.0, high=4e-3, low_open=True)),
+            _patch,
+        ),
+        SceneSpec(
+            "bar-heat-faces",
+            "Face z=0 at t_max, face z=L at 0 K, other faces insulated: linear steady profile, "
+            "Fourier-series transient from 0 K (analytic reference)",
+            (
+                T_MAX,
+                Param("mode", "steady", "", "steady or transient", choices=("steady", "transient"), kind=str),
+                Param("t_end", 1.0, "s", "end time of the transient", low=0.0, high=1e4, low_open=True),
+                Param("dt", 0.01, "s", "continuum time step of the transient", low=0.0, high=1e4, low_open=True),
+            ),
+            _faces,
+        ),
+    )
+}
+
+
+def scene_names() -> list[str]:
+    return list(CATALOGUE)
+
+
+def make_scene(name: str, **params: Any) -> Scene:
+    """Build the named scene with parameter overrides; unknown names or bad values raise SceneError."""
+    if name not in CATALOGUE:
+        raise SceneError(f"scene={name!r} is unknown; allowed: one of {', '.join(CATALOGUE)}")
+    return CATALOGUE[name].make(**params)

@@ -1,0 +1,285 @@
+"""Scene model: the vocabulary that solvers consume.
+
+A scene is an immutable, validated value: geometry, material, constraints, time
+settings and the sample points every solver reports at.  This module imports
+nothing else of the harness, so solvers may import it (and only it).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import math
+from dataclasses import dataclass, field
+from typing import Any, Union
+
+import numpy as np
+
+Vec3 = tuple[float, float, float]
+
+SAMPLE_SETS = ("nodes", "front_top_edge", "bottom_back_edge")
+FACES = ("x0", "xW", "y0", "yH", "z0", "zL")
+
+
+class SceneError(ValueError):
+    """A scene or solver parameter outside its allowed range (message names it)."""
+
+
+@dataclass(frozen=True)
+class Param:
+    """Specification of one named parameter: default, unit, allowed range or choices."""
+
+    name: str
+    default: Any
+    unit: str = ""
+    description: str = ""
+    low: float | None = None
+    high: float | None = None
+    low_open: bool = False
+    choices: tuple[Any, ...] | None = None
+    kind: type = float
+    optional: bool = False  # None is an allowed value
+
+    def allowed(self) -> str:
+        """Human-readable allowed range, used in every error message."""
+        if self.choices is not None:
+            return "one of " + ", ".join(str(c) for c in self.choices)
+        lo = "-inf" if self.low is None else f"{self.low:g}"
+        hi = "inf" if self.high is None else f"{self.high:g}"
+        left = "(" if (self.low is None or self.low_open) else "["
+        right = ")" if self.high is None else "]"
+        what = {int: "integer", float: "number", bool: "true/false", str: "text"}[self.kind]
+        suffix = " or none" if self.optional else ""
+        return f"{what} in {left}{lo}, {hi}{right}{' ' + self.unit if self.unit else ''}{suffix}"
+
+    def parse(self, text: str) -> Any:
+        """Convert a command-line string to this parameter's type, then check it."""
+        if self.optional and text.strip().lower() in ("none", "null", ""):
+            return None
+        try:
+            if self.kind is bool:
+                low = text.strip().lower()
+                if low not in ("true", "false", "1", "0", "yes", "no", "on", "off"):
+                    raise ValueError(text)
+                value: Any = low in ("true", "1", "yes", "on")
+            elif self.kind is int:
+                value = int(text)
+            elif self.kind is float:
+                value = float(text)
+            else:
+                value = text
+        except ValueError:
+            raise SceneError(f"{self.name}={text!r} is not valid; allowed: {self.allowed()}") from None
+        return self.check(value)
+
+    def check(self, value: Any) -> Any:
+        """Return the value (coerced to the declared kind) or raise SceneError."""
+        if value is None and self.optional:
+            return None
+        bad = SceneError(f"{self.name}={value!r} is out of range; allowed: {self.allowed()}")
+        if self.choices is not None:
+            if value not in self.choices:
+                raise bad
+            return value
+        if self.kind is bool:
+            if not isinstance(value, (bool, np.bool_)):
+                raise bad
+            return bool(value)
+        if self.kind is str:
+            if not isinstance(value, str):
+                raise bad
+            return value
+        if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
+            raise bad
+        if self.kind is int:
+            if float(value) != int(value):
+                raise bad
+            value = int(value)
+        else:
+            value = float(value)
+        if not math.isfinite(value):
+            raise bad
+        if self.low is not None and (value < self.low or (self.low_open and value == self.low)):
+            raise bad
+        if self.high is not None and value > self.high:
+            raise bad
+        return value
+
+
+def resolve_params(specs: tuple[Param, ...], given: dict[str, Any], owner: str) -> dict[str, Any]:
+    """Effective values of `specs` given overrides; unknown names are an error."""
+    names = {p.name for p in specs}
+    unknown = sorted(set(given) - names)
+    if unknown:
+        raise SceneError(
+            f"unknown parameter {unknown[0]!r} for {owner}; known: {', '.join(sorted(names)) or 'none'}"
+        )
+    return {p.name: p.check(given[p.name]) if p.name in given else p.default for p in specs}
+
+
+@dataclass(frozen=True)
+class Material:
+    """Material constants in SI units; NaN where a scene does not need one."""
+
+    name: str
+    density: float
+    conductivity: float = math.nan
+    heat_capacity: float = math.nan
+    youngs_modulus: float = math.nan
+    poisson_ratio: float = math.nan
+
+    @property
+    def diffusivity(self) -> float:
+        """Thermal diffusivity k / (rho c) in m^2/s."""
+        return self.conductivity / (self.density * self.heat_capacity)
+
+
+ALUMINIUM = Material("aluminium", density=2700.0, conductivity=237.0, heat_capacity=897.0)
+DURALUMIN = Material("duralumin", density=2800.0, youngs_modulus=70e9, poisson_ratio=0.33)
+
+
+@dataclass(frozen=True)
+class Box:
+    """The bar: x across (width), y vertical (height), z along (length)."""
+
+    width: float = 0.01
+    height: float = 0.01
+    length: float = 0.03
+
+    @property
+    def extent(self) -> np.ndarray:
+        return np.array([self.width, self.height, self.length])
+
+    @property
+    def volume(self) -> float:
+        return self.width * self.height * self.length
+
+
+@dataclass(frozen=True)
+class PointTemperature:
+    """Temperature prescribed at a point (the paper's corner constraint; ill-posed in 3-D)."""
+
+    point: Vec3
+    value: float
+
+
+@dataclass(frozen=True)
+class PatchTemperature:
+    """Temperature prescribed on the solid inside a sphere of `radius` about `centre` (a corner)."""
+
+    centre: Vec3
+    radius: float
+    value: float
+
+
+@dataclass(frozen=True)
+class FaceTemperature:
+    """Temperature prescribed on a whole face: one of FACES (x0, xW, y0, yH, z0, zL)."""
+
+    face: str
+    value: float
+
+
+Constraint = Union[PointTemperature, PatchTemperature, FaceTemperature]
+
+
+def lattice_shape(n: int) -> tuple[int, int, int]:
+    """Nodes per axis of the simple-cubic lattice family: n x n x (3n - 2)."""
+    return (n, n, 3 * n - 2)
+
+
+def lattice_points(box: Box, n: int) -> np.ndarray:
+    """Lattice nodes of resolution n, shape (N, 3), ordered x slowest, z fastest.
+
+    Node (i, j, k) has index (i * ny + j) * nz + k.  Spacing a = width / (n - 1).
+    """
+    if int(n) != n or n < 2:
+        raise SceneError(f"n={n!r} is out of range; allowed: integer >= 2")
+    nx, ny, nz = lattice_shape(n)
+    axes = [np.linspace(0.0, ext, cnt) for ext, cnt in zip(box.extent, (nx, ny, nz))]
+    grid = np.meshgrid(*axes, indexing="ij")
+    return np.stack([g.ravel() for g in grid], axis=1)
+
+
+def lattice_spacing(box: Box, n: int) -> float:
+    """Spacing a of the lattice of resolution n."""
+    return box.width / (n - 1)
+
+
+@dataclass(frozen=True)
+class Scene:
+    """One simulated situation, validated at construction.
+
+    `physics` names what a solver must be able to do (e.g. {"conduction"}).
+    `mode` is "steady" or "transient"; a transient scene starts from
+    `initial_temperature` and is reported at `t_end` (continuum solvers step with `dt`).
+    `t_max` scales reported temperatures: solutions report T / t_max.
+    `params` holds the effective catalogue parameters that built the scene.
+    """
+
+    name: str
+    description: str
+    box: Box
+    material: Material
+    physics: frozenset[str]
+    constraints: tuple[Constraint, ...]
+    t_max: float = 500.0
+    mode: str = "steady"
+    t_end: float = 0.0
+    dt: float = 0.0
+    initial_temperature: float = 0.0
+    params: tuple[tuple[str, Any], ...] = field(default=())
+
+    def __post_init__(self) -> None:
+        if self.mode not in ("steady", "transient"):
+            raise SceneError(f"mode={self.mode!r} is not allowed; allowed: steady, transient")
+        for name in ("width", "height", "length"):
+            v = getattr(self.box, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+                raise SceneError(f"box.{name}={v!r} is out of range; allowed: number in (0, inf) m")
+        if not (math.isfinite(self.t_max) and self.t_max > 0):
+            raise SceneError(f"t_max={self.t_max!r} is out of range; allowed: number in (0, inf) K")
+        if self.mode == "transient":
+            if not (math.isfinite(self.t_end) and self.t_end > 0):
+                raise SceneError(f"t_end={self.t_end!r} is out of range; allowed: number in (0, inf) s")
+            if not (math.isfinite(self.dt) and 0 < self.dt <= self.t_end):
+                raise SceneError(f"dt={self.dt!r} is out of range; allowed: number in (0, t_end={self.t_end:g}] s")
+        for c in self.constraints:
+            if isinstance(c, FaceTemperature) and c.face not in FACES:
+                raise SceneError(f"face={c.face!r} is not allowed; allowed: {', '.join(FACES)}")
+            if isinstance(c, PatchTemperature) and not (math.isfinite(c.radius) and c.radius > 0):
+                raise SceneError(f"rho={c.radius!r} is out of range; allowed: number in (0, inf) m")
+
+    @property
+    def param_dict(self) -> dict[str, Any]:
+        return dict(self.params)
+
+    def sample_sets(self, n: int) -> dict[str, np.ndarray]:
+        """Sample points at resolution n: lattice nodes and the paper's two edges."""
+        nodes = lattice_points(self.box, n)
+        z = np.linspace(0.0, self.box.length, lattice_shape(n)[2])
+        zeros = np.zeros_like(z)
+        front_top = np.stack([zeros, zeros + self.box.height, z], axis=1)
+        bottom_back = np.stack([zeros + self.box.width, zeros, z], axis=1)
+        return {"nodes": nodes, "front_top_edge": front_top, "bottom_back_edge": bottom_back}
+
+    def content_hash(self) -> str:
+        """Stable hash of everything that defines the scene (not of Python object ids)."""
+        payload = json.dumps(_plain(self), sort_keys=True, default=str)
+        return hashlib.sha256(payload.encode()).hexdigest()[:16]
+
+
+def _plain(obj: Any) -> Any:
+    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
+        fields = {f.name: _plain(getattr(obj, f.name)) for f in dataclasses.fields(obj)}
+        return {"type": type(obj).__name__, **fields}
+    if isinstance(obj, dict):
+        return {str(k): _plain(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_plain(v) for v in obj]
+    if isinstance(obj, (set, frozenset)):
+        return sorted(_plain(v) for v in obj)
+    if isinstance(obj, float):
+        return repr(obj)
+    return obj

@@ -1,0 +1,1 @@
+"""Analytic solutions and figures taken from the papers (with their source)."""

@@ -1,0 +1,152 @@
+"""Solver protocol and the Solution every solver returns.
+
+A solver turns (scene, resolution, parameters) into a Solution: values at the
+scene's sample points, the cost, and diagnostics.  Solvers know nothing about
+studies or reports; they may import `harness.scene` and nothing else of the harness.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+import numpy as np
+
+from harness.scene import Param, Scene, SceneError, resolve_params
+
+STATUSES = ("ok", "unstable", "skipped", "non-stationary", "defect", "failed")
+
+
+@dataclass(frozen=True)
+class Resolution:
+    """Lattice resolution n (n x n x (3n - 2) nodes) and, for grids, an integer refinement."""
+
+    n: int
+    refine: int = 1
+
+    def __post_init__(self) -> None:
+        if isinstance(self.n, bool) or not isinstance(self.n, (int, np.integer)) or not 2 <= self.n <= 1000:
+            raise SceneError(f"n={self.n!r} is out of range; allowed: integer in [2, 1000]")
+        if isinstance(self.refine, bool) or not isinstance(self.refine, (int, np.integer)) or not 1 <= self.refine <= 1000:
+            raise SceneError(f"refine={self.refine!r} is out of range; allowed: integer in [1, 1000]")
+
+    def spacing(self, width: float) -> float:
+        """Grid spacing h = a / refine with a = width / (n - 1)."""
+        return width / (self.n - 1) / self.refine
+
+
+@dataclass
+class Solution:
+    """What a solver returns: sample values, cost, diagnostics (JSON-ready via to_dict).
+
+    samples: per sample-set name, {"points": (k, 3) array, "values": (k,) array}; for heat
+    scenes the values are T / t_max (particle solvers: relative hotness).
+    work: counters (unknowns, time_steps, pair_steps, iterations, ...).
+    summary: scalar results (bulk_median, volume_mean, ... solvers may add keys, never rename).
+    """
+
+    scene: str
+    solver: str
+    params: dict[str, Any]
+    resolution: dict[str, Any]
+    samples: dict[str, dict[str, np.ndarray]]
+    unknowns: int
+    wall_s: float
+    status: str = "ok"
+    reason: str = ""
+    quantity: str = "T/t_max"
+    work: dict[str, Any] = field(default_factory=dict)
+    summary: dict[str, Any] = field(default_factory=dict)
+    diagnostics: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if self.status not in STATUSES:
+            raise ValueError(f"status={self.status!r}; allowed: {', '.join(STATUSES)}")
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain JSON-serialisable dict (the public `--json` interface)."""
+        return _jsonable(
+            {
+                "scene": self.scene,
+                "solver": self.solver,
+                "params": self.params,
+                "resolution": self.resolution,
+                "unknowns": self.unknowns,
+                "wall_s": self.wall_s,
+                "status": self.status,
+                "reason": self.reason,
+                "quantity": self.quantity,
+                "samples": self.samples,
+                "summary": self.summary,
+                "work": self.work,
+                "diagnostics": self.diagnostics,
+            }
+        )
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> Solution:
+        samples = {
+            k: {"points": np.asarray(v["points"], dtype=float), "values": np.asarray(v["values"], dtype=float)}
+            for k, v in d["samples"].items()
+        }
+        keys = ("scene", "solver", "params", "resolution", "unknowns", "wall_s", "status", "reason",
+                "quantity", "work", "summary", "diagnostics")
+        return cls(**{k: d[k] for k in keys if k in d}, samples=samples)
+
+
+def _jsonable(obj: Any) -> Any:
+    if isinstance(obj, dict):
+        return {str(k): _jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_jsonable(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return _jsonable(obj.tolist())
+    if isinstance(obj, (np.bool_, bool)):
+        return bool(obj)
+    if isinstance(obj, (np.integer,)):
+        return int(obj)
+    if isinstance(obj, (float, np.floating)):
+        v = float(obj)
+        return v if math.isfinite(v) else None
+    return obj
+
+
+class Solver(Protocol):
+    """The solver protocol (see DESIGN.md, Contracts)."""
+
+    name: str
+    version: str  # bump when results change; part of the cache key
+    parameters: tuple[Param, ...]
+
+    def supports(self, scene: Scene) -> tuple[bool, str]:
+        """Whether this solver can do `scene`, and if not, why."""
+        ...
+
+    def solve(
+        self,
+        scene: Scene,
+        resolution: Resolution,
+        samples: dict[str, np.ndarray] | None = None,
+        **params: Any,
+    ) -> Solution:
+        """Solve `scene` at `resolution`; report at `samples` (default: scene.sample_sets(n))."""
+        ...
+
+
+def effective_params(solver: Solver, given: dict[str, Any]) -> dict[str, Any]:
+    """All effective parameter values of `solver`; unknown or out-of-range values raise SceneError."""
+    return resolve_params(solver.parameters, given, f"solver {solver.name!r}")
+
+
+def skipped(scene: Scene, solver: Solver, resolution: Resolution, reason: str) -> Solution:
+    """A Solution that records a skip and its reason (never a pass, never silent)."""
+    return Solution(
+        scene=scene.name, solver=solver.name, params={}, resolution={"n": resolution.n, "refine": resolution.refine},
+        samples={}, unknowns=0, wall_s=0.0, status="skipped", reason=reason,
+    )
+
+
+def heat_summary(values_at_nodes: np.ndarray, volume_mean: float) -> dict[str, float]:
+    """Summary scalars every heat solver reports: bulk median over nodes and the volume mean."""
+    return {"bulk_median": float(np.median(values_at_nodes)), "volume_mean": float(volume_mean)}
