@@ -12,7 +12,7 @@ import hashlib
 import json
 import math
 from dataclasses import dataclass, field
-from typing import Any, Union
+from typing import Any
 
 import numpy as np
 
@@ -181,7 +181,7 @@ class FaceTemperature:
     value: float
 
 
-Constraint = Union[PointTemperature, PatchTemperature, FaceTemperature]
+Constraint = PointTemperature | PatchTemperature | FaceTemperature
 
 
 def lattice_shape(n: int) -> tuple[int, int, int]:
@@ -197,7 +197,7 @@ def lattice_points(box: Box, n: int) -> np.ndarray:
     if int(n) != n or n < 2:
         raise SceneError(f"n={n!r} is out of range; allowed: integer >= 2")
     nx, ny, nz = lattice_shape(n)
-    axes = [np.linspace(0.0, ext, cnt) for ext, cnt in zip(box.extent, (nx, ny, nz))]
+    axes = [np.linspace(0.0, ext, cnt) for ext, cnt in zip(box.extent, (nx, ny, nz), strict=True)]
     grid = np.meshgrid(*axes, indexing="ij")
     return np.stack([g.ravel() for g in grid], axis=1)
 

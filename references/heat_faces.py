@@ -23,7 +23,7 @@ def steady(z: np.ndarray, length: float, t_max: float) -> np.ndarray:
 def terms_needed(t: float, length: float, alpha: float, tol: float = 1e-12) -> int:
     """Number of series terms K such that the tail sum_{k>K} (2/(k pi)) e^{-c k^2} < tol (c = alpha pi^2 t / L^2)."""
     if t <= 0:
-        raise ValueError(f"t={t!r} is out of range; allowed: number in (0, inf) s (the series does not converge at t=0)")
+        raise ValueError(f"t={t!r} is out of range; allowed: number in (0, inf) s (no convergence at t=0)")
     c = alpha * math.pi**2 * t / length**2
     k = 1
     # tail <= (2 / (k pi)) e^{-c (k+1)^2} / (1 - e^{-c (2k + 3)}), a geometric bound

@@ -26,10 +26,10 @@ class Resolution:
     refine: int = 1
 
     def __post_init__(self) -> None:
-        if isinstance(self.n, bool) or not isinstance(self.n, (int, np.integer)) or not 2 <= self.n <= 1000:
-            raise SceneError(f"n={self.n!r} is out of range; allowed: integer in [2, 1000]")
-        if isinstance(self.refine, bool) or not isinstance(self.refine, (int, np.integer)) or not 1 <= self.refine <= 1000:
-            raise SceneError(f"refine={self.refine!r} is out of range; allowed: integer in [1, 1000]")
+        for name, low in (("n", 2), ("refine", 1)):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or not low <= v <= 1000:
+                raise SceneError(f"{name}={v!r} is out of range; allowed: integer in [{low}, 1000]")
 
     def spacing(self, width: float) -> float:
         """Grid spacing h = a / refine with a = width / (n - 1)."""
