@@ -1,0 +1,379 @@
+"""FiPy finite-volume heat solver (steady and transient conduction) on the bar.
+
+Cell layout: the node-centred ("dual") grid.  The lattice of resolution n, refined by an
+integer `refine`, has spacing h = a / refine per axis (a = extent / (nodes - 1)); every node of
+the refined lattice owns one cell, interior cells are h wide, boundary cells h/2 wide
+(FiPy `Grid3D` with non-uniform dx = [h/2, h, ..., h, h/2], i.e. `NonUniformGrid3D`).  The
+number of unknowns equals the number of refined lattice nodes; at refine=1 each particle of the
+paper's lattice is one cell (16 / 63 / 160 cells at n = 2 / 3 / 4) and each box corner is its own
+cell.  Cell centres of boundary cells sit h/4 inside the face (not on the node).
+
+How constraints reach the equations (all of it FiPy's discretisation):
+- FaceTemperature: `T.constrain(value, where=mesh.facesXxx)` on the exterior faces; FiPy's
+  DiffusionTerm then couples the boundary cell to the face value over the half distance h/4.
+  FiPy's Grid3D names: facesLeft/Right = x, facesBottom/Top = y, facesFront/Back = z (PHYSICS §1).
+- PointTemperature: the cell containing the point is fixed with a penalty source
+  `-ImplicitSourceTerm(B) + B*T_fix` (B = penalty * k / h^2; default penalty 1e8).  A
+  `CellVariable.constrain(where=cell_mask)` does not reach the equations (PHYSICS §5).
+  When solving, rows of fully fixed cells are eliminated (T = T_fix exactly, their coupling moved
+  to the right-hand side), so the value of B neither limits the accuracy of the fixed cells nor
+  spoils the conditioning or the stopping test of CG; with FiPy's own solvers the penalty rows
+  would hold the cell to ~6/penalty relative.
+- PatchTemperature (the sphere of radius rho about a corner), param `patch`:
+  * "staircase": cells whose centre lies within rho are fixed (as above);
+  * "fraction" (default): f = volume fraction of the cell inside the sphere (8^3 sub-samples per
+    cell, vectorised).  f = 1 cells are fixed; partially covered cells get the penalty
+    B_c = f / (1 - f) * D_c / V_c, D_c the cell's conduction diagonal, so their row reads
+    T_c = f T_fix + (1 - f) * (conductance-weighted mean of the neighbours): the constraint varies
+    continuously with the geometry under refinement instead of jumping cell by cell.
+  FiPy grids are tensor-product grids and cannot be warped to conform to the sphere, so the patch
+  surface is always represented to O(h) (a conforming patch is the scikit-fem solver's job).
+  The penalty source is added as FiPy's ImplicitSourceTerm discretises it (S_P V_P on the
+  diagonal, S_P V_P T_fix on the right); a test checks this against FiPy's own combined build.
+
+Steady: K T = f with (K, f) the negated matrix / RHS FiPy assembles for DiffusionTerm(k) plus
+sources.  Transient (theta method, C = rho c V the TransientTerm diagonal):
+(C/dt + theta K) T^{n+1} = (C/dt - (1 - theta) K) T^n + f; "implicit-euler" theta = 1,
+"crank-nicolson" theta = 1/2 after `rannacher_steps` implicit-Euler half steps.  FiPy rebuilds
+the matrix every time step; here FiPy assembles once and each distinct step matrix is factored
+once (splu) or gets one pyamg hierarchy, reused for all steps.
+
+Interpolation to sample points: trilinear on the cell centres padded with one layer of face
+values per side (so the grid covers the closed box): fixed faces -> the prescribed value;
+insulated faces -> the zero-gradient quadratic through the two nearest centres at distances
+d0 < d1 from the face, T_face = T0 - (T1 - T0) d0^2 / (d1^2 - d0^2) (= (16 T0 - T1)/15 for
+d0 = h/4, d1 = h; = (9 T0 - T1)/8 for n = 2, refine = 1).  Second order, exact for fields linear
+along the axes whose faces are fixed and constant across insulated ones (e.g. the steady face
+scene).  Points inside a patch sphere report the patch value; points inside a cell fixed by a
+PointTemperature report its value.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+from scipy.interpolate import RegularGridInterpolator
+
+from harness.scene import (
+    FaceTemperature,
+    Param,
+    PatchTemperature,
+    PointTemperature,
+    Scene,
+    SceneError,
+    lattice_shape,
+)
+from solvers.base import Resolution, Solution, effective_params, heat_summary
+
+_FACE_AXIS = {"x0": (0, 0), "xW": (0, 1), "y0": (1, 0), "yH": (1, 1), "z0": (2, 0), "zL": (2, 1)}
+_FIPY_FACES = {"x0": "facesLeft", "xW": "facesRight", "y0": "facesBottom", "yH": "facesTop",
+               "z0": "facesFront", "zL": "facesBack"}
+SUBSAMPLES = 8  # per axis and cell, for patch volume fractions
+
+
+def _fipy():
+    os.environ.setdefault("FIPY_SOLVERS", "scipy")
+    import fipy
+
+    return fipy
+
+
+def grid_axes(scene: Scene, resolution: Resolution) -> tuple[list[np.ndarray], list[float]]:
+    """Cell edges per axis of the dual grid and the spacing h per axis."""
+    edges, hs = [], []
+    for ext, cnt in zip(scene.box.extent, lattice_shape(resolution.n), strict=True):
+        m = (cnt - 1) * resolution.refine + 1  # refined nodes = cells on this axis
+        h = float(ext) / (m - 1)
+        e = np.concatenate([[0.0], (np.arange(m - 1) + 0.5) * h, [float(ext)]])
+        edges.append(e)
+        hs.append(h)
+    return edges, hs
+
+
+def _centres(e: np.ndarray) -> np.ndarray:
+    return 0.5 * (e[1:] + e[:-1])
+
+
+def patch_fraction(edges: list[np.ndarray], centre, radius: float, sub: int = SUBSAMPLES):
+    """Volume fraction of cells inside a sphere, by sub*sub*sub midpoint samples per cell.
+
+    Returns (index ranges per axis, fractions array over that block) for the cells whose box
+    can intersect the sphere.
+    """
+    ranges, coords = [], []
+    for e, c in zip(edges, centre, strict=True):
+        lo = max(int(np.searchsorted(e, c - radius, side="right")) - 1, 0)
+        hi = min(int(np.searchsorted(e, c + radius, side="left")), len(e) - 1)
+        ranges.append((lo, hi))
+        w = np.diff(e[lo:hi + 1])
+        s = e[lo:hi, None] + w[:, None] * (np.arange(sub) + 0.5)[None, :] / sub  # (cells, sub)
+        coords.append((s - c) ** 2)
+    dx2, dy2, dz2 = coords
+    r2 = radius * radius
+    frac = np.empty((dx2.shape[0], dy2.shape[0], dz2.shape[0]))
+    yz = dy2[:, :, None, None] + dz2[None, None, :, :]  # (ny, sub, nz, sub)
+    for i in range(dx2.shape[0]):  # slabs keep memory bounded; loops over cell columns only
+        inside = (dx2[i][:, None, None, None, None] + yz[None]) <= r2
+        frac[i] = inside.mean(axis=(0, 2, 4))
+    return ranges, frac
+
+
+def _pad_axis(vals: np.ndarray, centres: np.ndarray, edge: np.ndarray, axis: int,
+              fixed: dict[int, float]) -> tuple[np.ndarray, np.ndarray]:
+    """Pad `vals` with one face layer on each side of `axis` (see module docstring)."""
+    v = np.moveaxis(vals, axis, 0)
+    layers = []
+    for side in (0, 1):
+        if side in fixed:
+            layers.append(np.full_like(v[0], fixed[side]))
+            continue
+        if side == 0:
+            t0, t1, d0, d1 = v[0], v[1], centres[0] - edge[0], centres[1] - edge[0]
+        else:
+            t0, t1, d0, d1 = v[-1], v[-2], edge[-1] - centres[-1], edge[-1] - centres[-2]
+        layers.append(t0 - (t1 - t0) * d0 * d0 / (d1 * d1 - d0 * d0))
+    out = np.concatenate([layers[0][None], v, layers[1][None]], axis=0)
+    ax = np.concatenate([[edge[0]], centres, [edge[-1]]])
+    return np.moveaxis(out, 0, axis), ax
+
+
+def interpolate(values: np.ndarray, edges: list[np.ndarray], fixed_faces: dict[str, float],
+                points: np.ndarray) -> np.ndarray:
+    """Trilinear interpolation of cell values (shape (mx, my, mz)) padded with face values."""
+    ax_list = []
+    v = values
+    for axis in range(3):
+        fixed = {side: val for face, val in fixed_faces.items()
+                 for (a, side) in [_FACE_AXIS[face]] if a == axis}
+        v, ax = _pad_axis(v, _centres(edges[axis]), edges[axis], axis, fixed)
+        ax_list.append(ax)
+    pts = np.asarray(points, dtype=float).reshape(-1, 3)
+    for axis in range(3):  # points on the closed box; clip rounding just outside it
+        pts[:, axis] = np.clip(pts[:, axis], ax_list[axis][0], ax_list[axis][-1])
+    return RegularGridInterpolator(ax_list, v, method="linear")(pts)
+
+
+class _Linear:
+    """Solve A x = b for one fixed matrix: cached splu, or a reused pyamg hierarchy + CG."""
+
+    def __init__(self, A: sp.csr_matrix, method: str, rtol: float):
+        self.method, self.rtol, self.A = method, rtol, A
+        self.iterations = 0
+        if A.shape[0] == 0:
+            self.method = "empty"
+        elif method == "direct":
+            self.lu = spla.splu(A.tocsc())
+        else:
+            import pyamg
+
+            self.ml = pyamg.smoothed_aggregation_solver(A, symmetry="symmetric", max_coarse=500)
+
+    def __call__(self, b: np.ndarray, x0: np.ndarray | None = None) -> np.ndarray:
+        if self.method == "empty":
+            return b.copy()
+        if self.method == "direct":
+            return self.lu.solve(b)
+        bnorm = np.linalg.norm(b)
+        if bnorm == 0.0:
+            return np.zeros_like(b)
+        res: list[float] = []
+        x = self.ml.solve(b, x0=x0, tol=self.rtol, maxiter=500, accel="cg", residuals=res)
+        self.iterations += max(len(res) - 1, 0)
+        true_res = np.linalg.norm(b - self.A @ x) / bnorm
+        if not true_res <= 10 * self.rtol:  # check the field we return, not the solver's flag
+            raise RuntimeError(f"AMG-CG did not converge: true relative residual {true_res:.3g} > {10 * self.rtol:g}")
+        return x
+
+
+class FipyHeat:
+    """FiPy cell-centred finite volumes on the node-centred dual grid of the refined lattice."""
+
+    name = "fipy"
+    version = "1"
+    parameters = (
+        Param("patch", "fraction", "", "patch constraint: volume-fraction weighted penalty or fixed cells whose "
+              "centre lies within rho", choices=("fraction", "staircase"), kind=str),
+        Param("scheme", "crank-nicolson", "", "time scheme of transient scenes",
+              choices=("implicit-euler", "crank-nicolson"), kind=str),
+        Param("rannacher_steps", 4, "", "implicit-Euler half steps that start Crank-Nicolson (even)",
+              low=0, high=100, kind=int),
+        Param("linear_solver", "auto", "", "auto: direct (splu) up to amg_threshold free unknowns, else "
+              "pyamg smoothed-aggregation CG", choices=("auto", "direct", "amg"), kind=str),
+        Param("amg_threshold", 30000, "", "free unknowns above which 'auto' uses AMG", low=0, high=1e9, kind=int),
+        Param("rtol", 1e-10, "", "relative residual of AMG-CG (checked on the true residual)",
+              low=0.0, high=1e-3, low_open=True),
+        Param("penalty", 1e8, "", "penalty factor: B = penalty * k / h^2 for fixed cells", low=1e3, high=1e14),
+    )
+
+    def supports(self, scene: Scene) -> tuple[bool, str]:
+        if scene.physics != frozenset({"conduction"}):
+            return False, f"fipy heat solver does conduction only; scene needs {sorted(scene.physics)}"
+        for c in scene.constraints:
+            if not isinstance(c, (FaceTemperature, PointTemperature, PatchTemperature)):
+                return False, f"constraint {type(c).__name__} is not supported"
+        return True, ""
+
+    # ------------------------------------------------------------------ assembly
+    def _fixed_cells(self, scene, edges, hs, shape, patch_mode):
+        """Per-cell penalty weight description: fixed mask, T_fix, partial fractions."""
+        fixed = np.zeros(shape, dtype=bool)
+        tfix = np.zeros(shape)
+        frac = np.zeros(shape)  # partial fractions (fraction mode), 0 elsewhere
+        point_cells = []
+        for c in scene.constraints:
+            if isinstance(c, PointTemperature):
+                idx = tuple(int(np.clip(np.searchsorted(e, p, side="right") - 1, 0, len(e) - 2))
+                            for e, p in zip(edges, c.point, strict=True))
+                fixed[idx] = True
+                tfix[idx] = c.value
+                point_cells.append((idx, c.value))
+            elif isinstance(c, PatchTemperature):
+                if patch_mode == "staircase":
+                    cen = [_centres(e) for e in edges]
+                    d2 = ((cen[0][:, None, None] - c.centre[0]) ** 2 + (cen[1][None, :, None] - c.centre[1]) ** 2
+                          + (cen[2][None, None, :] - c.centre[2]) ** 2)
+                    inside = d2 <= c.radius ** 2
+                    fixed |= inside
+                    tfix[inside] = c.value
+                else:
+                    ((i0, i1), (j0, j1), (k0, k1)), f = patch_fraction(edges, c.centre, c.radius)
+                    sl = (slice(i0, i1), slice(j0, j1), slice(k0, k1))
+                    full = f >= 1.0
+                    part = (f > 0.0) & ~full
+                    blk_fixed, blk_t, blk_f = fixed[sl], tfix[sl], frac[sl]
+                    blk_fixed |= full
+                    blk_t[full | part] = c.value
+                    blk_f[part] = np.maximum(blk_f[part], f[part])
+        frac[fixed] = 0.0
+        return fixed, tfix, frac, point_cells
+
+    def _assemble(self, scene, edges, hs, p):
+        """FiPy mesh + DiffusionTerm(k) with face constraints -> K (SPD), f; plus penalty diagonal."""
+        fp = _fipy()
+        t0 = time.perf_counter()
+        shape = tuple(len(e) - 1 for e in edges)
+        mesh = fp.Grid3D(dx=np.diff(edges[0]), dy=np.diff(edges[1]), dz=np.diff(edges[2]))
+        k = scene.material.conductivity
+        T = fp.CellVariable(mesh=mesh, value=scene.initial_temperature)
+        fixed_faces = {}
+        for c in scene.constraints:
+            if isinstance(c, FaceTemperature):
+                T.constrain(c.value, where=getattr(mesh, _FIPY_FACES[c.face]))
+                fixed_faces[c.face] = c.value
+        eq = fp.DiffusionTerm(coeff=k)
+        solver = eq._prepareLinearSystem(T, None, (), None)
+        K = -sp.csr_matrix(solver.matrix.matrix)
+        f = -np.asarray(solver.RHSvector, dtype=float).copy()
+        vol = np.asarray(mesh.cellVolumes, dtype=float)
+        # penalty source (FiPy's ImplicitSourceTerm: S_P V_P on the diagonal, S_P V_P T_fix on the right)
+        fixed, tfix, frac, point_cells = self._fixed_cells(scene, edges, hs, shape, p["patch"])
+        to_flat = lambda a: np.asarray(a).transpose(2, 1, 0).ravel()  # noqa: E731  FiPy: x fastest
+        fixed_f, tfix_f, frac_f = to_flat(fixed), to_flat(tfix), to_flat(frac)
+        B = np.zeros(K.shape[0])
+        B[fixed_f] = p["penalty"] * k / min(hs) ** 2
+        part = frac_f > 0
+        B[part] = frac_f[part] / (1.0 - frac_f[part]) * K.diagonal()[part] / vol[part]
+        K = (K + sp.diags(B * vol)).tocsr()
+        f = f + B * vol * tfix_f
+        return dict(mesh=mesh, K=K, f=f, vol=vol, shape=shape, fixed=fixed_f, tfix=tfix_f, B=B,
+                    fixed_faces=fixed_faces, point_cells=point_cells, assembly_s=time.perf_counter() - t0)
+
+    # ------------------------------------------------------------------ solve
+    def solve(self, scene: Scene, resolution: Resolution, samples: dict[str, np.ndarray] | None = None,
+              **params: Any) -> Solution:
+        t_wall = time.perf_counter()
+        p = effective_params(self, params)
+        if p["rannacher_steps"] % 2:
+            raise SceneError(f"rannacher_steps={p['rannacher_steps']!r} is out of range; allowed: even integer "
+                             "in [0, 100] (half steps that replace whole Crank-Nicolson steps)")
+        ok, why = self.supports(scene)
+        if not ok:
+            raise SceneError(why)
+        nsteps = 0
+        if scene.mode == "transient":
+            nsteps = int(round(scene.t_end / scene.dt))
+            if nsteps < 1 or abs(nsteps * scene.dt - scene.t_end) > 1e-9 * scene.t_end:
+                raise SceneError(f"dt={scene.dt!r} does not divide t_end={scene.t_end!r}; allowed: t_end / dt an "
+                                 "integer (within 1e-9)")
+            if p["scheme"] == "crank-nicolson" and p["rannacher_steps"] > 2 * nsteps:
+                raise SceneError(f"rannacher_steps={p['rannacher_steps']!r} is out of range; allowed: even integer "
+                                 f"in [0, {2 * nsteps}] (2 x number of steps)")
+        edges, hs = grid_axes(scene, resolution)
+        sysd = self._assemble(scene, edges, hs, p)
+        K, f, fixed, tfix = sysd["K"], sysd["f"], sysd["fixed"], sysd["tfix"]
+        free = ~fixed
+        nfree = int(free.sum())
+        method = p["linear_solver"]
+        if method == "auto":
+            method = "direct" if nfree <= p["amg_threshold"] else "amg"
+        t_solve = time.perf_counter()
+        Kff = K[free][:, free].tocsr()
+        Kfc = K[free][:, fixed].tocsr()
+        T = np.full(K.shape[0], float(scene.initial_temperature))
+        T[fixed] = tfix[fixed]
+        tc = tfix[fixed]
+        solvers: list[_Linear] = []
+        steps_taken = 0
+        if scene.mode == "steady":
+            lin = _Linear(Kff, method, p["rtol"])
+            solvers.append(lin)
+            T[free] = lin(f[free] - Kfc @ tc)
+        else:
+            C = scene.material.density * scene.material.heat_capacity * sysd["vol"]
+            plan: list[tuple[float, float, int]] = []  # (dt, theta, count)
+            if p["scheme"] == "implicit-euler":
+                plan.append((scene.dt, 1.0, nsteps))
+            else:
+                r = p["rannacher_steps"]
+                if r:
+                    plan.append((scene.dt / 2, 1.0, r))
+                if nsteps - r // 2:
+                    plan.append((scene.dt, 0.5, nsteps - r // 2))
+            for dt, theta, count in plan:
+                A = (sp.diags(C[free] / dt) + theta * Kff).tocsr()
+                lin = _Linear(A, method, p["rtol"])
+                solvers.append(lin)
+                for _ in range(count):
+                    rhs = C * T / dt - (1.0 - theta) * (K @ T) + f
+                    T[free] = lin(rhs[free] - theta * (Kfc @ tc), x0=T[free])
+                    steps_taken += 1
+        solve_s = time.perf_counter() - t_solve
+
+        # ---- output
+        t_max = scene.t_max
+        Tg = T.reshape(sysd["shape"][::-1]).transpose(2, 1, 0)  # (mx, my, mz)
+        sets = scene.sample_sets(resolution.n) if samples is None else samples
+        out = {}
+        for name, pts in sets.items():
+            pts = np.asarray(pts, dtype=float).reshape(-1, 3)
+            vals = interpolate(Tg, edges, sysd["fixed_faces"], pts)
+            for c in scene.constraints:
+                if isinstance(c, PatchTemperature):
+                    vals[np.sum((pts - np.asarray(c.centre)) ** 2, axis=1) <= c.radius ** 2] = c.value
+            for idx, value in sysd["point_cells"]:
+                inside = np.ones(len(pts), dtype=bool)
+                for a in range(3):
+                    inside &= (pts[:, a] >= edges[a][idx[a]]) & (pts[:, a] <= edges[a][idx[a] + 1])
+                vals[inside] = value
+            out[name] = {"points": pts, "values": vals / t_max}
+        volume_mean = float(np.sum(T * sysd["vol"]) / scene.box.volume / t_max)
+        nodes_vals = out["nodes"]["values"] if "nodes" in out else np.array([np.nan])
+        iterations = sum(s.iterations for s in solvers)
+        return Solution(
+            scene=scene.name, solver=self.name, params=p,
+            resolution={"n": resolution.n, "refine": resolution.refine, "h": hs[0]},
+            samples=out, unknowns=int(K.shape[0]), wall_s=time.perf_counter() - t_wall, status="ok",
+            work={"unknowns": int(K.shape[0]), "time_steps": steps_taken, "iterations": iterations,
+                  "assembly_s": sysd["assembly_s"], "solve_s": solve_s},
+            summary=heat_summary(nodes_vals, volume_mean),
+            diagnostics={"linear_method": method, "free_unknowns": nfree, "fixed_cells": int(fixed.sum()),
+                         "partial_cells": int(np.count_nonzero((sysd["B"] > 0) & free)),
+                         "cells_per_axis": list(sysd["shape"]),
+                         "fixed_max_dev": float(np.max(np.abs(T[fixed] - tfix[fixed])) / t_max) if fixed.any()
+                         else 0.0},
+        )
