@@ -1,0 +1,108 @@
+"""Turn cached cell results into tables: convergence (errors, orders, Richardson/GCI) and timing.
+
+Input is the list of JSON-ready results a study produced; output is pandas DataFrames
+that the report writes as CSV, Markdown and plots.  Nothing here runs a solver.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from harness.catalogue import make_scene
+from harness.metrics import field_errors, observed_order, richardson
+from references import analytic
+
+
+def cells_table(results: list[dict[str, Any]]) -> pd.DataFrame:
+    """One row per cell: identity, cost, status and every summary scalar."""
+    rows = []
+    for r in results:
+        row = {k: r.get(k) for k in ("group", "scene", "solver", "n", "refine", "status", "reason", "unknowns",
+                                     "wall_s")}
+        row["h"] = (r.get("resolution") or {}).get("h")
+        row["params"] = ", ".join(f"{k}={v}" for k, v in sorted((r.get("solver_params") or {}).items()))
+        row["scene_params"] = ", ".join(f"{k}={v}" for k, v in sorted((r.get("scene_params") or {}).items()))
+        for k, v in (r.get("summary") or {}).items():
+            if isinstance(v, (int, float)) or v is None:
+                row[k] = v
+        for k, v in (r.get("work") or {}).items():
+            if isinstance(v, (int, float)):
+                row[f"work.{k}"] = v
+        if r.get("status") == "ok":
+            row.update({f"err.{k}": v for k, v in analytic_errors(r).items()})
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def analytic_errors(result: dict[str, Any]) -> dict[str, float]:
+    """L2 / Linf errors of T/t_max per sample set against the analytic solution (empty if none)."""
+    scene = make_scene(result["scene"], **result.get("scene_params", {}))
+    out: dict[str, float] = {}
+    for name, s in (result.get("samples") or {}).items():
+        pts = np.asarray(s["points"], dtype=float)
+        exact = analytic(scene, pts)
+        if exact is None:
+            return {}
+        for kind, value in field_errors(np.asarray(s["values"], dtype=float), exact).items():
+            out[f"{name}.{kind}"] = value
+    return out
+
+
+def convergence(results: list[dict[str, Any]], quantities: list[str]) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """(levels, fits): per sequence (solver + params) the values by h, and the fitted orders / GCI.
+
+    With an analytic reference the fit is of the error (L2 and Linf per sample set) against h;
+    without, three-grid Richardson extrapolation with the GCI on each summary quantity.
+    """
+    ok = [r for r in results if r.get("status") == "ok"]
+    rows = []
+    for r in ok:
+        row = {"solver": r["solver"], "params": ", ".join(f"{k}={v}" for k, v in sorted(r["solver_params"].items())),
+               "n": r["n"], "refine": r["refine"], "h": r["resolution"]["h"], "unknowns": r["unknowns"],
+               "wall_s": r["wall_s"]}
+        row.update({q: r["summary"].get(q) for q in quantities})
+        row.update(analytic_errors(r))
+        rows.append(row)
+    levels = pd.DataFrame(rows)
+    fits = []
+    if levels.empty:
+        return levels, pd.DataFrame()
+    for (solver, params), seq in levels.groupby(["solver", "params"], sort=False):
+        seq = seq.sort_values("h", ascending=False)
+        h = seq["h"].to_numpy(float)
+        err_cols = [c for c in seq.columns if c.endswith((".l2", ".linf"))]
+        for col in err_cols:
+            e = seq[col].to_numpy(float)
+            if len(h) >= 2 and np.all(e > 0):
+                p, _ = observed_order(h, e, finest=min(len(h), 4))
+                fits.append({"solver": solver, "params": params, "quantity": col, "reference": "analytic",
+                             "levels": len(h), "order": p, "finest": e[-1], "extrapolated": 0.0,
+                             "gci_fine": np.nan, "kind": "error"})
+        if err_cols:
+            continue
+        for q in quantities:
+            f = seq[q].to_numpy(float)
+            if len(h) < 3 or not np.all(np.isfinite(f)):
+                continue
+            try:
+                rr = richardson(h, f)
+            except ValueError as exc:
+                fits.append({"solver": solver, "params": params, "quantity": q, "reference": "richardson",
+                             "levels": len(h), "kind": f"undefined ({exc})"})
+                continue
+            fits.append({"solver": solver, "params": params, "quantity": q, "reference": "richardson",
+                         "levels": len(h), "order": rr.order, "finest": f[-1], "extrapolated": rr.extrapolated,
+                         "gci_fine": rr.gci_fine, "kind": rr.kind})
+    return levels, pd.DataFrame(fits)
+
+
+def timing(results: list[dict[str, Any]]) -> pd.DataFrame:
+    """Unknowns against wall time (and its parts) per solver."""
+    rows = [{"solver": r["solver"], "n": r["n"], "refine": r["refine"], "unknowns": r["unknowns"],
+             "wall_s": r["wall_s"], **{k: v for k, v in (r.get("work") or {}).items() if k != "unknowns"}}
+            for r in results if r.get("status") == "ok"]
+    df = pd.DataFrame(rows)
+    return df.sort_values(["solver", "unknowns"]) if not df.empty else df

@@ -1,0 +1,230 @@
+"""Command line `pcverify`: scenes, solvers, run, study, report.
+
+Every bad input ends in one line `pcverify: error: ...` naming the parameter and the
+allowed range, with exit code 2; never a traceback (unless --debug).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from typing import Any
+
+import numpy as np
+
+from harness import __version__
+from harness.catalogue import CATALOGUE, make_scene
+from harness.scene import Param, SceneError
+
+EPILOG = """\
+examples:
+  pcverify scenes                                   list the scenes and their parameters
+  pcverify solvers                                  list the solvers and their parameters
+  pcverify run bar-heat-faces --solver skfem --n 4 --json
+  pcverify run bar-heat-patch --solver fipy --n 3 --refine 4 --set rho=0.002
+  pcverify run bar-heat-faces --solver skfem --set mode=transient --set scheme=crank-nicolson
+  pcverify study default                            run the default studies, write reports/
+  pcverify study default --dry-run                  show what is cached and what would run
+  pcverify report                                   rebuild reports/index.html from the cache
+
+--set KEY=VALUE goes to the scene if the scene has KEY, else to the solver;
+write scene.KEY or solver.KEY when both have it.
+"""
+
+
+class CliError(Exception):
+    """A user error: printed as one line, exit code 2."""
+
+
+def _param_rows(params: tuple[Param, ...]) -> list[dict[str, Any]]:
+    return [
+        {"name": p.name, "default": p.default, "allowed": p.allowed(), "unit": p.unit, "description": p.description}
+        for p in params
+    ]
+
+
+def cmd_scenes(args: argparse.Namespace) -> int:
+    rows = [{"name": s.name, "description": s.description, "parameters": _param_rows(s.parameters)}
+            for s in CATALOGUE.values()]
+    if args.json:
+        print(json.dumps(rows, indent=1))
+        return 0
+    for row in rows:
+        print(f"{row['name']}\n  {row['description']}")
+        for p in row["parameters"]:
+            print(f"    {p['name']:<12} default {p['default']!s:<10} {p['allowed']:<40} {p['description']}")
+    return 0
+
+
+def cmd_solvers(args: argparse.Namespace) -> int:
+    from solvers import REGISTRY, SolverUnavailable, get_solver
+
+    rows = []
+    for name in REGISTRY:
+        try:
+            solver = get_solver(name)
+            rows.append({"name": name, "available": True, "version": solver.version,
+                         "description": (solver.__doc__ or "").strip().splitlines()[0],
+                         "parameters": _param_rows(solver.parameters)})
+        except SolverUnavailable as exc:
+            rows.append({"name": name, "available": False, "reason": str(exc), "parameters": []})
+    if args.json:
+        print(json.dumps(rows, indent=1))
+        return 0
+    for row in rows:
+        if not row["available"]:
+            print(f"{row['name']}  (unavailable: {row['reason']})")
+            continue
+        print(f"{row['name']}  {row['description']}")
+        for p in row["parameters"]:
+            print(f"    {p['name']:<16} default {p['default']!s:<14} {p['allowed']:<40} {p['description']}")
+    return 0
+
+
+def split_settings(settings: list[str], scene_params: tuple[Param, ...], solver_params: tuple[Param, ...]
+                   ) -> tuple[dict[str, Any], dict[str, Any]]:
+    """Route --set KEY=VALUE to the scene or the solver, parsing each value with its Param spec."""
+    scene_spec = {p.name: p for p in scene_params}
+    solver_spec = {p.name: p for p in solver_params}
+    scene_vals: dict[str, Any] = {}
+    solver_vals: dict[str, Any] = {}
+    for item in settings:
+        if "=" not in item:
+            raise CliError(f"--set {item!r}: expected KEY=VALUE")
+        key, text = item.split("=", 1)
+        key = key.strip()
+        target = None
+        if key.startswith("scene."):
+            key, target = key[6:], "scene"
+        elif key.startswith("solver."):
+            key, target = key[7:], "solver"
+        elif key in scene_spec and key in solver_spec:
+            raise CliError(f"--set {key}: both the scene and the solver have {key!r}; "
+                           f"write scene.{key} or solver.{key}")
+        elif key in scene_spec:
+            target = "scene"
+        elif key in solver_spec:
+            target = "solver"
+        else:
+            known = sorted(set(scene_spec) | set(solver_spec))
+            raise CliError(f"--set {key}: unknown parameter; known: {', '.join(known)}")
+        spec = scene_spec if target == "scene" else solver_spec
+        if key not in spec:
+            raise CliError(f"--set {target}.{key}: unknown {target} parameter; known: {', '.join(sorted(spec))}")
+        (scene_vals if target == "scene" else solver_vals)[key] = spec[key].parse(text)
+    return scene_vals, solver_vals
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    from solvers import get_solver
+    from solvers.base import Resolution, skipped
+
+    if args.scene not in CATALOGUE:
+        raise SceneError(f"scene={args.scene!r} is unknown; allowed: one of {', '.join(CATALOGUE)}")
+    resolution = Resolution(args.n, args.refine)
+    solver = get_solver(args.solver)
+    scene_vals, solver_vals = split_settings(args.set or [], CATALOGUE[args.scene].parameters, solver.parameters)
+    scene = make_scene(args.scene, **scene_vals)
+    ok, reason = solver.supports(scene)
+    solution = solver.solve(scene, resolution, **solver_vals) if ok else skipped(scene, solver, resolution, reason)
+    out = solution.to_dict()
+    out["scene_params"] = scene.param_dict
+    out["scene_hash"] = scene.content_hash()
+    if args.json:
+        print(json.dumps(out))
+        return 0
+    print(f"scene    {scene.name}  {scene.param_dict}")
+    print(f"solver   {solver.name}  {out['params']}")
+    print(f"grid     n={resolution.n} refine={resolution.refine} unknowns={out['unknowns']}  "
+          f"wall {out['wall_s']:.3f} s")
+    print(f"status   {out['status']}{'  (' + out['reason'] + ')' if out['reason'] else ''}")
+    for key, value in out["summary"].items():
+        print(f"  {key:<24} {value}")
+    for name, s in solution.samples.items():
+        v = np.asarray(s["values"])
+        print(f"  {name:<24} {v.size} points, {solution.quantity} in [{v.min():.6g}, {v.max():.6g}]")
+    return 0
+
+
+def cmd_study(args: argparse.Namespace) -> int:
+    from harness.study import run_study_cli
+
+    return run_study_cli(args)
+
+
+def cmd_report(args: argparse.Namespace) -> int:
+    from harness.report import report_cli
+
+    return report_cli(args)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="pcverify",
+        description="Verify particle methods (macromolecule, MCA) against continuum solvers (FiPy, scikit-fem) "
+        "and analytic solutions: run one scene, run studies, write reports.",
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument("--version", action="version", version=f"pcverify {__version__}")
+    parser.add_argument("--debug", action="store_true", help="show tracebacks instead of one-line errors")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+
+    p = sub.add_parser("scenes", help="list the scene catalogue with parameters (name, default, range, unit)")
+    p.add_argument("--json", action="store_true", help="machine-readable output")
+    p.set_defaults(func=cmd_scenes)
+
+    p = sub.add_parser("solvers", help="list the solvers with their parameters")
+    p.add_argument("--json", action="store_true", help="machine-readable output")
+    p.set_defaults(func=cmd_solvers)
+
+    p = sub.add_parser("run", help="solve one scene with one solver and print the solution",
+                       description="Solve SCENE with --solver at lattice resolution n (n x n x (3n-2) nodes).")
+    p.add_argument("scene", help="scene name (see `pcverify scenes`)")
+    p.add_argument("--solver", required=True, help="solver name (see `pcverify solvers`)")
+    p.add_argument("--n", type=int, default=4, help="lattice resolution n >= 2 (default 4: 160 nodes)")
+    p.add_argument("--refine", type=int, default=1, help="grid refinement factor of continuum solvers (default 1)")
+    p.add_argument("--set", action="append", metavar="KEY=VALUE", help="scene or solver parameter (repeatable)")
+    p.add_argument("--json", action="store_true", help="one JSON object on stdout")
+    p.set_defaults(func=cmd_run)
+
+    p = sub.add_parser("study", help="run a study (a grid of scenes x solvers x resolutions) and write reports/",
+                       description="Run the named study (or a TOML file), cache every cell, write tables and plots.")
+    p.add_argument("name", help="study name (`default` runs all default studies) or a path to a .toml file")
+    p.add_argument("--dry-run", action="store_true", help="list what is cached and what would run; run nothing")
+    p.add_argument("--out", default="reports", help="output folder (default reports/)")
+    p.add_argument("--cache", default=None, help="cache folder (default OUT/cache)")
+    p.add_argument("--jobs", type=int, default=1, help="parallel cells (default 1)")
+    p.add_argument("--json", action="store_true", help="print a JSON summary of the study")
+    p.set_defaults(func=cmd_study)
+
+    p = sub.add_parser("report", help="rebuild the tables and reports/index.html from cached results")
+    p.add_argument("--out", default="reports", help="output folder (default reports/)")
+    p.add_argument("--json", action="store_true", help="print a JSON summary")
+    p.set_defaults(func=cmd_report)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "func", None):
+        parser.print_help()
+        return 0
+    from solvers import SolverUnavailable
+
+    try:
+        return args.func(args)
+    except (SceneError, CliError, SolverUnavailable, FileNotFoundError) as exc:
+        if args.debug:
+            raise
+        print(f"pcverify: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("pcverify: interrupted (finished cells are kept in the cache)", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

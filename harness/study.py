@@ -1,0 +1,234 @@
+"""Studies: a grid of scenes x solvers x resolutions x parameters, as data (TOML).
+
+A study file has a `name`, a `title` and `[[group]]` tables; each group names a scene
+(with `scene_params`), `solvers`, lists `n` and `refine`, `solver_params`, and the
+`analysis` applied to its cells (see harness.analysis).  Every cell is cached by
+content hash; an interrupted study resumes where it stopped.
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import json
+import time
+import tomllib
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+from tqdm import tqdm
+
+from harness.cache import Cache, cell_key
+from harness.catalogue import make_scene
+from harness.scene import SceneError
+
+ANALYSES = ("convergence", "timing", "table")
+
+
+@dataclass(frozen=True)
+class Cell:
+    """One solve: scene (by name and params), solver, resolution and solver parameters."""
+
+    group: str
+    scene: str
+    scene_params: tuple[tuple[str, Any], ...]
+    solver: str
+    n: int
+    refine: int
+    solver_params: tuple[tuple[str, Any], ...]
+
+    def describe(self) -> str:
+        extra = ", ".join(f"{k}={v}" for k, v in self.scene_params + self.solver_params)
+        return f"{self.scene} / {self.solver} n={self.n} refine={self.refine}" + (f" [{extra}]" if extra else "")
+
+
+@dataclass
+class Group:
+    id: str
+    title: str
+    analysis: str
+    cells: list[Cell]
+    options: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass
+class Study:
+    name: str
+    title: str
+    groups: list[Group]
+
+
+def study_files() -> dict[str, Path]:
+    """The study files shipped with the package, by name."""
+    folder = resources.files("harness") / "studies"
+    return {Path(str(p)).stem: Path(str(p)) for p in folder.iterdir() if str(p).endswith(".toml")}
+
+
+def _list(value: Any, what: str, path: str) -> list[Any]:
+    items = value if isinstance(value, list) else [value]
+    if not items:
+        raise SceneError(f"{path}: {what} is empty; allowed: a value or a non-empty list")
+    return items
+
+
+def load_study(name_or_path: str) -> Study:
+    """Parse and validate a study file (by shipped name or by path)."""
+    shipped = study_files()
+    path = shipped.get(name_or_path, Path(name_or_path))
+    if not path.exists():
+        raise SceneError(f"study={name_or_path!r} is unknown; allowed: one of {', '.join(sorted(shipped))} "
+                         "or a path to a .toml file")
+    try:
+        doc = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as exc:
+        raise SceneError(f"study file {path}: not valid TOML ({exc})") from None
+    groups = []
+    for gi, g in enumerate(doc.get("group", [])):
+        where = f"{path.name} group {gi + 1}"
+        gid = g.get("id", f"group{gi + 1}")
+        analysis = g.get("analysis", "table")
+        if analysis not in ANALYSES:
+            raise SceneError(f"{where}: analysis={analysis!r} is unknown; allowed: one of {', '.join(ANALYSES)}")
+        if "scene" not in g:
+            raise SceneError(f"{where}: scene is missing")
+        scene_params = g.get("scene_params", {})
+        make_scene(g["scene"], **scene_params)  # validates names and values now, not mid-study
+        sweep = g.get("sweep", {})
+        keys = sorted(sweep)
+        combos = list(itertools.product(*[_list(sweep[k], f"sweep.{k}", where) for k in keys])) or [()]
+        cells = []
+        for solver, n, refine, combo in itertools.product(
+            _list(g.get("solvers", []), "solvers", where), _list(g.get("n", [4]), "n", where),
+            _list(g.get("refine", [1]), "refine", where), combos,
+        ):
+            params = dict(g.get("solver_params", {}), **dict(zip(keys, combo, strict=True)))
+            cells.append(Cell(gid, g["scene"], tuple(sorted(scene_params.items())), solver, int(n), int(refine),
+                              tuple(sorted(params.items()))))
+        options = {k: v for k, v in g.items() if k not in ("id", "title", "scene", "scene_params", "solvers", "n",
+                                                            "refine", "solver_params", "sweep", "analysis")}
+        groups.append(Group(gid, g.get("title", gid), analysis, cells, options))
+    if not groups:
+        raise SceneError(f"study file {path}: no [[group]] tables")
+    return Study(doc.get("name", path.stem), doc.get("title", path.stem), groups)
+
+
+def cell_identity(cell: Cell) -> tuple[dict[str, Any], Any, Any, str | None]:
+    """(key payload, scene, solver, skip reason) for a cell; the payload includes the solver's code version."""
+    from solvers import SolverUnavailable, get_solver
+    from solvers.base import Resolution, effective_params
+
+    scene = make_scene(cell.scene, **dict(cell.scene_params))
+    resolution = Resolution(cell.n, cell.refine)
+    try:
+        solver = get_solver(cell.solver)
+    except SolverUnavailable as exc:
+        payload = {"scene": scene.content_hash(), "solver": cell.solver, "unavailable": True, "n": cell.n,
+                   "refine": cell.refine, "params": dict(cell.solver_params)}
+        return payload, scene, None, str(exc)
+    params = effective_params(solver, dict(cell.solver_params))
+    payload = {"scene": scene.content_hash(), "solver": solver.name, "version": solver.version, "n": resolution.n,
+               "refine": resolution.refine, "params": params}
+    ok, reason = solver.supports(scene)
+    return payload, scene, solver, None if ok else reason
+
+
+def run_cell(cell: Cell) -> dict[str, Any]:
+    """Solve one cell and return its JSON-ready result (skips and failures are results too)."""
+    from solvers.base import Resolution
+
+    payload, scene, solver, skip = cell_identity(cell)
+    base = {"group": cell.group, "scene": cell.scene, "solver": cell.solver, "n": cell.n, "refine": cell.refine,
+            "scene_params": dict(cell.scene_params), "solver_params": dict(cell.solver_params)}
+    if skip is not None:
+        return base | {"status": "skipped", "reason": skip}
+    try:
+        solution = solver.solve(scene, Resolution(cell.n, cell.refine), **dict(cell.solver_params))
+    except (SceneError, ValueError, ArithmeticError, MemoryError) as exc:
+        return base | {"status": "failed", "reason": f"{type(exc).__name__}: {exc}"}
+    return base | solution.to_dict()
+
+
+def execute(study: Study, cache: Cache, dry_run: bool = False, jobs: int = 1,
+            progress: bool = True) -> tuple[list[dict[str, Any]], dict[str, int]]:
+    """Run every cell not yet cached; return all results in cell order and the counts."""
+    cells = [c for g in study.groups for c in g.cells]
+    keys = [cell_key(cell_identity(c)[0]) for c in cells]
+    results: list[dict[str, Any] | None] = []
+    counts = {"cells": len(cells), "cached": 0, "done": 0, "failed": 0, "corrupt": 0}
+    todo = []
+    for i, key in enumerate(keys):
+        entry, state = cache.load(key)
+        if state.startswith("corrupt"):
+            counts["corrupt"] += 1
+            tqdm.write(f"cache entry {key} ({cells[i].describe()}) is {state}; recomputing")
+        if entry is not None:
+            counts["cached"] += 1
+        else:
+            todo.append(i)
+        results.append(entry)
+    if dry_run:
+        for i, c in enumerate(cells):
+            print(f"{'cached' if results[i] is not None else 'to run':<8} {keys[i]}  {c.describe()}")
+        return [r for r in results if r is not None], counts
+    bar = tqdm(total=len(cells), initial=counts["cached"], desc=study.name, unit="cell", disable=not progress,
+               dynamic_ncols=True)
+
+    def finish(i: int, res: dict[str, Any]) -> None:
+        res["cache_key"] = keys[i]
+        cache.store(keys[i], res)
+        results[i] = res
+        counts["failed" if res.get("status") == "failed" else "done"] += 1
+        bar.set_postfix(done=counts["done"], cached=counts["cached"], failed=counts["failed"])
+        bar.update(1)
+
+    if jobs > 1 and len(todo) > 1:
+        from joblib import Parallel, delayed
+
+        outs = Parallel(n_jobs=jobs, return_as="generator")(delayed(run_cell)(cells[i]) for i in todo)
+        for i, res in zip(todo, outs, strict=True):
+            finish(i, res)
+    else:
+        for i in todo:
+            bar.set_description(f"{study.name}: {cells[i].describe()}"[:70])
+            finish(i, run_cell(cells[i]))
+    bar.close()
+    return [r for r in results if r is not None], counts
+
+
+def cached_results(study: Study, cache: Cache) -> list[dict[str, Any]]:
+    """The results of a study's cells that are in the cache (corrupt or missing ones left out)."""
+    cells = [c for g in study.groups for c in g.cells]
+    entries = (cache.load(cell_key(cell_identity(c)[0]))[0] for c in cells)
+    return [e for e in entries if e is not None]
+
+
+def run_study_cli(args: argparse.Namespace) -> int:
+    """`pcverify study NAME`: run (or dry-run) one study, or all shipped ones for `default`."""
+    from harness.report import write_index, write_study_report
+
+    names = sorted(study_files()) if args.name == "default" else [args.name]
+    studies = [load_study(n) for n in names]  # validate all before running any
+    out = Path(args.out)
+    cache = Cache(args.cache or out / "cache")
+    summary = []
+    for study in studies:
+        t0 = time.perf_counter()
+        results, counts = execute(study, cache, dry_run=args.dry_run, jobs=args.jobs, progress=not args.json)
+        if args.dry_run:
+            summary.append({"study": study.name, **counts})
+            continue
+        write_study_report(study, results, out)
+        summary.append({"study": study.name, **counts, "wall_s": round(time.perf_counter() - t0, 3)})
+        if not args.json:
+            print(f"{study.name}: {counts['cells']} cells, {counts['cached']} cached, {counts['done']} run, "
+                  f"{counts['failed']} failed, {counts['corrupt']} corrupt entries recomputed "
+                  f"-> {out / study.name}/")
+    if not args.dry_run:
+        index = write_index(out)
+        if not args.json:
+            print(f"report: {index}")
+    if args.json:
+        print(json.dumps(summary))
+    return 0
