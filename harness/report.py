@@ -147,8 +147,12 @@ def write_index(out: Path) -> Path:
                 data = base64.b64encode((folder / fig).read_bytes()).decode()
                 parts.append(f"<img alt='{html.escape(fig)}' src='data:image/png;base64,{data}'>")
             for tab in sec["tables"]:
-                df = pd.read_csv(folder / tab)
                 parts.append(f"<p><b>{html.escape(tab)}</b></p>")
+                try:
+                    df = pd.read_csv(folder / tab)
+                except pd.errors.EmptyDataError:
+                    parts.append("<p>(no rows)</p>")
+                    continue
                 parts.append(df.to_html(index=False, float_format=lambda v: f"{v:.6g}", na_rep=""))
     prov = provenance()
     parts.append("<h2>Provenance</h2><table>")

@@ -1,0 +1,92 @@
+"""Studies: cells are cached by content hash, corrupt entries are recomputed, reports are written."""
+
+import json
+
+import pandas as pd
+import pytest
+
+from harness.cache import Cache
+from harness.cli import main
+from harness.study import execute, load_study
+
+STUDY = """
+name = "tiny"
+title = "tiny study"
+[[group]]
+id = "faces"
+title = "steady faces"
+analysis = "table"
+scene = "bar-heat-faces"
+solvers = ["fipy"]
+n = [2, 3]
+[[group]]
+id = "patch"
+title = "patch refinement"
+analysis = "convergence"
+scene = "bar-heat-patch"
+scene_params = { rho = 0.003 }
+solvers = ["fipy"]
+n = [2]
+refine = [2, 3, 4]
+"""
+
+
+@pytest.fixture
+def study_file(tmp_path):
+    path = tmp_path / "tiny.toml"
+    path.write_text(STUDY)
+    return path
+
+
+def test_cache_resume_and_corruption(study_file, tmp_path):
+    study = load_study(str(study_file))
+    cache = Cache(tmp_path / "cache")
+    first, counts = execute(study, cache, progress=False)
+    assert counts == {"cells": 5, "cached": 0, "done": 5, "failed": 0, "corrupt": 0}
+    again, counts = execute(study, cache, progress=False)
+    assert counts["cached"] == 5 and counts["done"] == 0
+    assert [r["summary"] for r in again] == [r["summary"] for r in first]
+    # corrupt one entry (truncated write) and tamper with another (checksum): both detected and recomputed
+    entries = sorted(cache.root.glob("*.json"))
+    entries[0].write_text(entries[0].read_text()[:50])
+    doc = json.loads(entries[1].read_text())
+    doc["result"]["summary"]["bulk_median"] = 0.123
+    entries[1].write_text(json.dumps(doc))
+    fixed, counts = execute(study, cache, progress=False)
+    assert counts["corrupt"] == 2 and counts["done"] == 2 and counts["cached"] == 3
+    assert [r["summary"] for r in fixed] == [r["summary"] for r in first]
+
+
+def test_study_cli_writes_tables_and_index(study_file, tmp_path, capsys):
+    out = tmp_path / "reports"
+    assert main(["study", str(study_file), "--out", str(out)]) == 0
+    assert (out / "index.html").exists()
+    fits = pd.read_csv(out / "tiny" / "patch-fits.csv")
+    assert set(fits["quantity"]) == {"volume_mean", "bulk_median"}
+    cells = pd.read_csv(out / "tiny" / "faces-cells.csv")
+    # steady faces: the analytic error columns are present and at round-off
+    assert cells["err.nodes.linf"].max() < 1e-9
+    html = (out / "index.html").read_text()
+    assert "data:image/png;base64," in html and "Provenance" in html
+    capsys.readouterr()
+    assert main(["study", str(study_file), "--out", str(out), "--dry-run"]) == 0
+    assert capsys.readouterr().out.count("cached") == 5
+    assert main(["report", "--out", str(out), "--json"]) == 0
+
+
+@pytest.mark.parametrize(
+    "text, word",
+    [
+        ("name='x'\n[[group]]\nscene='bar-heat-nope'\nsolvers=['fipy']\n", "scene="),
+        ("name='x'\n[[group]]\nscene='bar-heat-paper'\nanalysis='magic'\nsolvers=['fipy']\n", "analysis="),
+        ("name='x'\n[[group]]\nscene='bar-heat-patch'\nscene_params={rho=-1}\nsolvers=['fipy']\n", "rho="),
+        ("name='x'\n[[group\n", "not valid TOML"),
+        ("name='x'\n", "no [[group]]"),
+    ],
+)
+def test_bad_study_files_fail_with_one_line(tmp_path, text, word, capsys):
+    path = tmp_path / "bad.toml"
+    path.write_text(text)
+    assert main(["study", str(path), "--out", str(tmp_path / "r")]) == 2
+    err = capsys.readouterr().err
+    assert word in err and "Traceback" not in err
