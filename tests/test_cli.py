@@ -42,3 +42,28 @@ def test_bad_input_is_one_line_error(argv, word, capsys):
     err = capsys.readouterr().err.strip()
     assert err.startswith("pcverify: error:") and word in err
     assert "\n" not in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize("solver", ["skfem", "fipy"])
+def test_run_json_contract_end_to_end(solver):
+    """The console script as a user calls it: one JSON object with the public keys, exact linear profile."""
+    import shutil
+    import subprocess
+    import sys
+
+    import numpy as np
+
+    exe = shutil.which("pcverify") or str(__import__("pathlib").Path(sys.executable).with_name("pcverify"))
+    proc = subprocess.run([exe, "run", "bar-heat-faces", "--solver", solver, "--n", "3", "--json"],
+                          capture_output=True, text=True, timeout=120, check=False)
+    assert proc.returncode == 0, proc.stderr
+    out = json.loads(proc.stdout)
+    for key in ("scene", "solver", "params", "resolution", "unknowns", "wall_s", "status", "samples", "summary"):
+        assert key in out
+    assert out["status"] == "ok" and out["resolution"]["n"] == 3 and out["resolution"]["h"] == pytest.approx(0.005)
+    assert set(out["samples"]) == {"nodes", "front_top_edge", "bottom_back_edge"}
+    edge = out["samples"]["front_top_edge"]
+    z = np.asarray(edge["points"])[:, 2]
+    # the steady profile is linear: both discretisations are exact for it, up to round-off
+    assert np.max(np.abs(np.asarray(edge["values"]) - (1 - z / 0.03))) < 1e-9
+    assert out["summary"]["volume_mean"] == pytest.approx(0.5, abs=1e-9)
