@@ -154,7 +154,8 @@ def execute(study: Study, cache: Cache, dry_run: bool = False, jobs: int = 1,
             progress: bool = True) -> tuple[list[dict[str, Any]], dict[str, int]]:
     """Run every cell not yet cached; return all results in cell order and the counts."""
     cells = [c for g in study.groups for c in g.cells]
-    keys = [cell_key(cell_identity(c)[0]) for c in cells]
+    identities = [cell_identity(c) for c in cells]
+    keys = [cell_key(ident[0]) for ident in identities]
     results: list[dict[str, Any] | None] = []
     counts = {"cells": len(cells), "cached": 0, "done": 0, "failed": 0, "corrupt": 0}
     todo = []
@@ -170,7 +171,9 @@ def execute(study: Study, cache: Cache, dry_run: bool = False, jobs: int = 1,
         results.append(entry)
     if dry_run:
         for i, c in enumerate(cells):
-            print(f"{'cached' if results[i] is not None else 'to run':<8} {keys[i]}  {c.describe()}")
+            skip = identities[i][3]
+            state = "cached" if results[i] is not None else ("skip" if skip else "to run")
+            print(f"{state:<8} {keys[i]}  {c.describe()}" + (f"  ({skip})" if skip and state == "skip" else ""))
         return [r for r in results if r is not None], counts
     bar = tqdm(total=len(cells), initial=counts["cached"], desc=study.name, unit="cell", disable=not progress,
                dynamic_ncols=True)
