@@ -196,8 +196,8 @@ class FipyHeat:
     name = "fipy"
     version = "1"
     parameters = (
-        Param("patch", "fraction", "", "patch constraint: volume-fraction weighted penalty or fixed cells whose "
-              "centre lies within rho", choices=("fraction", "staircase"), kind=str),
+        Param("patch", "cut", "", "patch constraint: cut (fixed cells + Shortley-Weller faces), volume-fraction "
+              "weighted penalty, or staircase", choices=("cut", "fraction", "staircase"), kind=str),
         Param("scheme", "crank-nicolson", "", "time scheme of transient scenes",
               choices=("implicit-euler", "crank-nicolson"), kind=str),
         Param("rannacher_steps", 4, "", "implicit-Euler half steps that start Crank-Nicolson (even)",
@@ -219,13 +219,15 @@ class FipyHeat:
         return True, ""
 
     # ------------------------------------------------------------------ assembly
-    def _fixed_cells(self, scene, edges, hs, shape, patch_mode):
-        """Per-cell penalty weight description: fixed mask, T_fix, partial fractions."""
+    def _fixed_cells(self, scene, edges, shape, patch_mode):
+        """Fixed mask, T_fix, partial fractions (fraction mode) and patch id (cut mode) per cell."""
         fixed = np.zeros(shape, dtype=bool)
         tfix = np.zeros(shape)
         frac = np.zeros(shape)  # partial fractions (fraction mode), 0 elsewhere
+        pid = np.full(shape, -1)  # which patch fixed the cell (cut mode)
         point_cells = []
-        for c in scene.constraints:
+        cen = [_centres(e) for e in edges]
+        for ic, c in enumerate(scene.constraints):
             if isinstance(c, PointTemperature):
                 idx = tuple(int(np.clip(np.searchsorted(e, p, side="right") - 1, 0, len(e) - 2))
                             for e, p in zip(edges, c.point, strict=True))
@@ -233,13 +235,16 @@ class FipyHeat:
                 tfix[idx] = c.value
                 point_cells.append((idx, c.value))
             elif isinstance(c, PatchTemperature):
-                if patch_mode == "staircase":
-                    cen = [_centres(e) for e in edges]
+                if patch_mode in ("staircase", "cut"):
                     d2 = ((cen[0][:, None, None] - c.centre[0]) ** 2 + (cen[1][None, :, None] - c.centre[1]) ** 2
                           + (cen[2][None, None, :] - c.centre[2]) ** 2)
                     inside = d2 <= c.radius ** 2
+                    if not inside.any():
+                        raise SceneError(f"patch={patch_mode!r}: no cell centre lies within rho={c.radius:g} m of "
+                                         f"{c.centre} at this resolution; allowed: a finer grid or patch='fraction'")
                     fixed |= inside
                     tfix[inside] = c.value
+                    pid[inside] = ic
                 else:
                     ((i0, i1), (j0, j1), (k0, k1)), f = patch_fraction(edges, c.centre, c.radius)
                     sl = (slice(i0, i1), slice(j0, j1), slice(k0, k1))
@@ -250,7 +255,35 @@ class FipyHeat:
                     blk_t[full | part] = c.value
                     blk_f[part] = np.maximum(blk_f[part], f[part])
         frac[fixed] = 0.0
-        return fixed, tfix, frac, point_cells
+        return fixed, tfix, frac, pid, point_cells
+
+    @staticmethod
+    def _cut_coefficients(scene, mesh, fixed_f, pid_f, k):
+        """Face diffusion coefficients k / theta on faces between a free and a patch-fixed cell.
+
+        theta in (0, 1] is where the sphere cuts the segment from the free to the fixed cell centre
+        (Shortley-Weller): the flux through the face is k (T_fix - T_c) / (theta d).
+        """
+        ids = np.ma.getdata(mesh.faceCellIDs)
+        interior = ~np.ma.getmaskarray(mesh.faceCellIDs)[1]
+        kf = np.full(mesh.numberOfFaces, float(k))
+        a, b = ids[0], ids[1]
+        cut = interior & (fixed_f[a] != fixed_f[b]) & ((pid_f[a] >= 0) | (pid_f[b] >= 0))
+        if not cut.any():
+            return kf, 0
+        free_c = np.where(fixed_f[a[cut]], b[cut], a[cut])
+        fix_c = np.where(fixed_f[a[cut]], a[cut], b[cut])
+        xc = np.asarray(mesh.cellCenters, dtype=float).T
+        p0, p1 = xc[free_c], xc[fix_c]
+        centre = np.array([scene.constraints[i].centre for i in pid_f[fix_c]])
+        radius = np.array([scene.constraints[i].radius for i in pid_f[fix_c]])
+        d = p1 - p0
+        qa = np.sum(d * d, axis=1)
+        qb = np.sum(d * (p0 - centre), axis=1)
+        qc = np.sum((p0 - centre) ** 2, axis=1) - radius ** 2
+        theta = (-qb - np.sqrt(np.maximum(qb * qb - qa * qc, 0.0))) / qa
+        kf[np.flatnonzero(cut)] = k / np.clip(theta, 1e-3, 1.0)
+        return kf, int(cut.sum())
 
     def _assemble(self, scene, edges, hs, p):
         """FiPy mesh + DiffusionTerm(k) with face constraints -> K (SPD), f; plus penalty diagonal."""
@@ -259,28 +292,33 @@ class FipyHeat:
         shape = tuple(len(e) - 1 for e in edges)
         mesh = fp.Grid3D(dx=np.diff(edges[0]), dy=np.diff(edges[1]), dz=np.diff(edges[2]))
         k = scene.material.conductivity
+        fixed, tfix, frac, pid, point_cells = self._fixed_cells(scene, edges, shape, p["patch"])
+        to_flat = lambda a: np.asarray(a).transpose(2, 1, 0).ravel()  # noqa: E731  FiPy: x fastest
+        fixed_f, tfix_f, frac_f, pid_f = to_flat(fixed), to_flat(tfix), to_flat(frac), to_flat(pid)
         T = fp.CellVariable(mesh=mesh, value=scene.initial_temperature)
         fixed_faces = {}
         for c in scene.constraints:
             if isinstance(c, FaceTemperature):
                 T.constrain(c.value, where=getattr(mesh, _FIPY_FACES[c.face]))
                 fixed_faces[c.face] = c.value
-        eq = fp.DiffusionTerm(coeff=k)
+        ncut = 0
+        coeff: Any = k
+        if p["patch"] == "cut" and (pid_f >= 0).any():
+            kf, ncut = self._cut_coefficients(scene, mesh, fixed_f, pid_f, k)
+            coeff = fp.FaceVariable(mesh=mesh, value=kf)
+        eq = fp.DiffusionTerm(coeff=coeff)
         solver = eq._prepareLinearSystem(T, None, (), None)
         K = -sp.csr_matrix(solver.matrix.matrix)
         f = -np.asarray(solver.RHSvector, dtype=float).copy()
         vol = np.asarray(mesh.cellVolumes, dtype=float)
         # penalty source (FiPy's ImplicitSourceTerm: S_P V_P on the diagonal, S_P V_P T_fix on the right)
-        fixed, tfix, frac, point_cells = self._fixed_cells(scene, edges, hs, shape, p["patch"])
-        to_flat = lambda a: np.asarray(a).transpose(2, 1, 0).ravel()  # noqa: E731  FiPy: x fastest
-        fixed_f, tfix_f, frac_f = to_flat(fixed), to_flat(tfix), to_flat(frac)
         B = np.zeros(K.shape[0])
         B[fixed_f] = p["penalty"] * k / min(hs) ** 2
         part = frac_f > 0
         B[part] = frac_f[part] / (1.0 - frac_f[part]) * K.diagonal()[part] / vol[part]
         K = (K + sp.diags(B * vol)).tocsr()
         f = f + B * vol * tfix_f
-        return dict(mesh=mesh, K=K, f=f, vol=vol, shape=shape, fixed=fixed_f, tfix=tfix_f, B=B,
+        return dict(mesh=mesh, K=K, f=f, vol=vol, shape=shape, fixed=fixed_f, tfix=tfix_f, B=B, ncut=ncut,
                     fixed_faces=fixed_faces, point_cells=point_cells, assembly_s=time.perf_counter() - t0)
 
     # ------------------------------------------------------------------ solve
@@ -372,7 +410,7 @@ class FipyHeat:
                   "assembly_s": sysd["assembly_s"], "solve_s": solve_s},
             summary=heat_summary(nodes_vals, volume_mean),
             diagnostics={"linear_method": method, "free_unknowns": nfree, "fixed_cells": int(fixed.sum()),
-                         "partial_cells": int(np.count_nonzero((sysd["B"] > 0) & free)),
+                         "partial_cells": int(np.count_nonzero((sysd["B"] > 0) & free)), "cut_faces": sysd["ncut"],
                          "cells_per_axis": list(sysd["shape"]),
                          "fixed_max_dev": float(np.max(np.abs(T[fixed] - tfix[fixed])) / t_max) if fixed.any()
                          else 0.0},
