@@ -1,0 +1,405 @@
+"""Velocity-Verlet kernel of the macromolecule model with its fixes and computes in one loop.
+
+Fixes (what a particle's motion is):
+  FREE        Newton, optionally with a Langevin bath (gamma, kT): exact OU factor, then kick;
+              kT = 0 makes it an absorbing (viscous) face.
+  FROZEN      x = x_rest, v = 0.
+  PRESCRIBED  x = x_rest + amp * sin(omega t + phase) (kinematic drive, each particle on its own).
+  GROUP       x = x_rest + c(t) + amp * sin(omega t): two rigid sides of the red pair whose relative
+              motion is prescribed; with `free_centre` the common displacement c obeys
+              M_group c'' = sum of forces on the group (the relative motion shares itself in
+              inverse proportion to the masses), else c = 0 (each side fully prescribed).
+
+Time stepping (kick-drift form of velocity Verlet, v_n = (v_{n-1/2} + v_{n+1/2}) / 2):
+  v_{n+1/2} = v_{n-1/2} + dt (Fc(x_n) + Fd(x_n, v_{n-1/2}) + lambda_n) / m
+  x_{n+1}   = x_n + dt v_{n+1/2}
+The radial pair damping Fd = delta * rdot e uses the half-step velocity v_{n-1/2}: the
+"half-step predictor" of DPD-VV (lambda = 1/2).  It is explicit, one force pass per step,
+second order for the conservative part and first order in the dissipative part; for a mode of
+frequency omega and damping ratio zeta it is stable for omega dt < 2 (sqrt(1 + zeta^2) - zeta)
+(the central-difference limit with lagged damping).  lambda_n is whatever a fix adds (drive or
+bath force), defined by m (v_{n+1/2} - v_{n-1/2}) / dt - F_n, so every particle obeys the same
+two lines and the discrete energy identity below holds for all of them.
+
+Energy accounting (exact algebra, per step n -> n+1):
+  E_n = sum 1/2 m v_{n-1/2} . v_{n+1/2} + U(x_n)    (the leapfrog energy; conserved exactly by
+                                                    a harmonic lattice, so it shows only
+                                                    the anharmonic trapezoid error)
+  E_{n+1} - E_n = 1/2 dt v_{n+1/2} . (Fd_n + Fd_{n+1}) + 1/2 dt v_{n+1/2} . (lambda_n + lambda_{n+1})
+                  + [1/2 dt v_{n+1/2} . (Fc_n + Fc_{n+1}) + U_{n+1} - U_n]
+The first sum is minus the dissipated energy, the second the drive (or bath) work, the bracket
+the quadrature error of the conservative work, O(|dx|^3 F'') per pair-step: the balance error.
+
+Computes: hotness sums (whole window and its two halves), hop events (pairs leaving their root
+interval), neighbourhood checks, blow-up checks and a coarse energy history.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from .seven_root import energy_x, force_x
+
+FREE, FROZEN, PRESCRIBED, GROUP = 0, 1, 2, 3
+
+# status codes of run()
+RUNNING, DONE, NAN, GROWTH, LEFT_BAR, ISOLATED, CONTACT = -1, 0, 1, 2, 3, 4, 5
+STATUS_TEXT = {
+    DONE: "completed",
+    NAN: "NaN/Inf in the state",
+    GROWTH: "energy grew beyond blowup_factor times the energy supplied",
+    LEFT_BAR: "a particle left the bar's neighbourhood (more than a outside the box)",
+    ISOLATED: "broken neighbourhood: a particle is beyond 2a of all its listed neighbours",
+    CONTACT: "broken neighbourhood: two unlisted particles came closer than contact_fraction * a",
+}
+
+# energy output slots
+E_START, E_END, E_DISS, E_DRIVE, E_BATH, E_KIN_END, E_POT_END = range(7)
+# counter output slots
+K_STEPS, K_HOP_EVENTS, K_HOP_PAIRS, K_FIRST_HOP, K_STATUS, K_STOP_STEP, K_HOT_STEPS, K_HALF1, K_HALF2 = range(9)
+# history columns
+H_T, H_KIN, H_POT, H_DISS, H_DRIVE, H_BATH = range(6)
+
+
+@njit(cache=True)
+def pair_forces(x, vel, pi, pj, lo, hi, c, a, delta, fc, fd, out, ever, step, counters):
+    """Conservative and damping forces of all listed pairs; updates hop flags and counters."""
+    fc[:] = 0.0
+    fd[:] = 0.0
+    inv_a = 1.0 / a
+    for k in range(pi.shape[0]):
+        i = pi[k]
+        j = pj[k]
+        dx = x[j, 0] - x[i, 0]
+        dy = x[j, 1] - x[i, 1]
+        dz = x[j, 2] - x[i, 2]
+        r = math.sqrt(dx * dx + dy * dy + dz * dz)
+        ir = 1.0 / r
+        ex = dx * ir
+        ey = dy * ir
+        ez = dz * ir
+        xr = r * inv_a
+        f = force_x(xr, c)
+        fc[i, 0] += f * ex
+        fc[i, 1] += f * ey
+        fc[i, 2] += f * ez
+        fc[j, 0] -= f * ex
+        fc[j, 1] -= f * ey
+        fc[j, 2] -= f * ez
+        if delta != 0.0:
+            rdot = (vel[j, 0] - vel[i, 0]) * ex + (vel[j, 1] - vel[i, 1]) * ey + (vel[j, 2] - vel[i, 2]) * ez
+            g = delta * rdot
+            fd[i, 0] += g * ex
+            fd[i, 1] += g * ey
+            fd[i, 2] += g * ez
+            fd[j, 0] -= g * ex
+            fd[j, 1] -= g * ey
+            fd[j, 2] -= g * ez
+        if xr < lo[k] or xr >= hi[k]:
+            if out[k] == 0:
+                out[k] = 1
+                counters[K_HOP_EVENTS] += 1
+                if ever[k] == 0:
+                    ever[k] = 1
+                    counters[K_HOP_PAIRS] += 1
+                    if counters[K_FIRST_HOP] < 0:
+                        counters[K_FIRST_HOP] = step
+        elif out[k] != 0:
+            out[k] = 0
+
+
+@njit(cache=True)
+def potential_energy(x, pi, pj, r0, c, a):
+    """U(x) - U(x_rest), summed over listed pairs (J)."""
+    u = 0.0
+    inv_a = 1.0 / a
+    for k in range(pi.shape[0]):
+        i = pi[k]
+        j = pj[k]
+        dx = x[j, 0] - x[i, 0]
+        dy = x[j, 1] - x[i, 1]
+        dz = x[j, 2] - x[i, 2]
+        r = math.sqrt(dx * dx + dy * dy + dz * dz)
+        u += energy_x(r0[k] * inv_a, r * inv_a, c)
+    return u * a
+
+
+@njit(cache=True)
+def _neighbourhood(x, x_rest, kind, pi, pj, a, cutoff_rest, contact_fraction, skin):
+    """ISOLATED / CONTACT / LEFT_BAR-free check of the fixed pair list; returns a status or RUNNING."""
+    n = x.shape[0]
+    near = np.full(n, np.inf)
+    for k in range(pi.shape[0]):
+        i = pi[k]
+        j = pj[k]
+        r = math.sqrt((x[j, 0] - x[i, 0]) ** 2 + (x[j, 1] - x[i, 1]) ** 2 + (x[j, 2] - x[i, 2]) ** 2)
+        near[i] = min(near[i], r)
+        near[j] = min(near[j], r)
+    for i in range(n):
+        if kind[i] != FROZEN and near[i] > 2.0 * a:
+            return ISOLATED
+    # unlisted pairs: only possible when some particle moved more than the skin
+    dmax = 0.0
+    for i in range(n):
+        d = math.sqrt((x[i, 0] - x_rest[i, 0]) ** 2 + (x[i, 1] - x_rest[i, 1]) ** 2 + (x[i, 2] - x_rest[i, 2]) ** 2)
+        dmax = max(dmax, d)
+    if 2.0 * dmax < skin:
+        return RUNNING
+    lim2 = (contact_fraction * a) ** 2
+    for i in range(n):
+        for j in range(i + 1, n):
+            r2rest = (x_rest[j, 0] - x_rest[i, 0]) ** 2 + (x_rest[j, 1] - x_rest[i, 1]) ** 2 + (
+                x_rest[j, 2] - x_rest[i, 2]) ** 2
+            if r2rest <= cutoff_rest * cutoff_rest:
+                continue
+            r2 = (x[j, 0] - x[i, 0]) ** 2 + (x[j, 1] - x[i, 1]) ** 2 + (x[j, 2] - x[i, 2]) ** 2
+            if r2 < lim2:
+                return CONTACT
+    return RUNNING
+
+
+@njit(cache=True)
+def _kick(t_next, t_now, dt, x_rest, kind, amp, phase, omega, mass, f, vm, vp, lam, vc, group_mass,
+          free_centre, gamma, kt, has_bath):
+    """v_{n+1/2} from v_{n-1/2} and F_n for every fix; lambda_n = m (vp - vm)/dt - F_n."""
+    n = vm.shape[0]
+    gsum0 = 0.0
+    gsum1 = 0.0
+    gsum2 = 0.0
+    if free_centre:
+        for i in range(n):
+            if kind[i] == GROUP:
+                gsum0 += f[i, 0]
+                gsum1 += f[i, 1]
+                gsum2 += f[i, 2]
+        vc[0] += dt * gsum0 / group_mass
+        vc[1] += dt * gsum1 / group_mass
+        vc[2] += dt * gsum2 / group_mass
+    inv_dt = 1.0 / dt
+    for i in range(n):
+        kd = kind[i]
+        if kd == FREE:
+            if has_bath and gamma[i] > 0.0:
+                damp = math.exp(-gamma[i] * dt)
+                sig = math.sqrt(kt[i] / mass * (1.0 - damp * damp))
+                for d in range(3):
+                    noise = np.random.standard_normal()  # noqa: NPY002 (numba: per-thread RNG seeded in run)
+                    vp[i, d] = vm[i, d] * damp + sig * noise + dt * f[i, d] / mass
+            else:
+                for d in range(3):
+                    vp[i, d] = vm[i, d] + dt * f[i, d] / mass
+        elif kd == FROZEN:
+            for d in range(3):
+                vp[i, d] = 0.0
+        else:
+            s1 = math.sin(omega * t_next + phase[i])
+            s0 = math.sin(omega * t_now + phase[i])
+            for d in range(3):
+                vp[i, d] = amp[i, d] * (s1 - s0) * inv_dt
+                if kd == GROUP:
+                    vp[i, d] += vc[d]
+        for d in range(3):
+            lam[i, d] = mass * (vp[i, d] - vm[i, d]) * inv_dt - f[i, d]
+
+
+@njit(cache=True)
+def run(x, v0, x_rest, kind, amp, phase, omega, free_centre, mass, gamma, kt, seed,
+        pi, pj, r0, lo, hi, c, a, delta, dt, n_steps, n_start, n_end,
+        check_every, blowup_factor, e_scale, box_lo, box_hi, contact_fraction, cutoff_rest, skin,
+        hot, energy, counters, history, ever):
+    """Integrate n_steps from t = 0 (x: positions at t = 0, overwritten with the final state).
+
+    hot (3, N): sums of KE_j * dt over the window [n_start, n_end) and over its two halves.
+    energy: E_START, E_END (leapfrog energies), E_DISS (>= 0), E_DRIVE, E_BATH (work done on the
+    lattice), E_KIN_END, E_POT_END.  counters: see K_*; history: one row per check.
+    ever (P,): 1 for pairs that ever left their root interval.
+    Stops early (keeping all sums) on NaN, energy growth (kinetic energy above blowup_factor times
+    E_start + net work in + e_scale, the energy scale of the drives and baths: the discrete energy
+    identity bounds it by the first two), particles leaving the bar or a broken neighbourhood;
+    counters[K_STATUS] says which.
+    """
+    np.random.seed(seed)  # noqa: NPY002 (numba supports only the legacy seeded RNG in kernels)
+    n = x.shape[0]
+    npair = pi.shape[0]
+    has_bath = False
+    for i in range(n):
+        if gamma[i] > 0.0:
+            has_bath = True
+    group_mass = 0.0
+    for i in range(n):
+        if kind[i] == GROUP:
+            group_mass += mass
+    if group_mass == 0.0:
+        free_centre = False
+    fc = np.zeros((n, 3))
+    fd = np.zeros((n, 3))
+    fc1 = np.zeros((n, 3))
+    fd1 = np.zeros((n, 3))
+    f = np.zeros((n, 3))
+    lam = np.zeros((n, 3))
+    lam1 = np.zeros((n, 3))
+    vm = np.zeros((n, 3))
+    vp = np.zeros((n, 3))
+    vc = np.zeros(3)
+    cpos = np.zeros(3)
+    out = np.zeros(npair, dtype=np.int8)
+    for k in range(counters.shape[0]):
+        counters[k] = 0
+    counters[K_FIRST_HOP] = -1
+    counters[K_STATUS] = RUNNING
+    energy[:] = 0.0
+    n_mid = (n_start + n_end) // 2
+
+    # start: forces at t = 0 with damping from v0, then v_{-1/2} so that v_{+1/2} = v0 + dt/2 a0
+    pair_forces(x, v0, pi, pj, lo, hi, c, a, delta, fc, fd, out, ever, 0, counters)
+    for i in range(n):
+        for d in range(3):
+            f[i, d] = fc[i, d] + fd[i, d]
+    for i in range(n):
+        kd = kind[i]
+        if kd == FREE:
+            for d in range(3):
+                vm[i, d] = v0[i, d] - 0.5 * dt * f[i, d] / mass
+        elif kd == FROZEN:
+            for d in range(3):
+                vm[i, d] = 0.0
+        else:
+            s1 = math.sin(phase[i])
+            s0 = math.sin(-omega * dt + phase[i])
+            for d in range(3):
+                vm[i, d] = amp[i, d] * (s1 - s0) / dt
+    if free_centre:
+        gs = np.zeros(3)
+        for i in range(n):
+            if kind[i] == GROUP:
+                for d in range(3):
+                    gs[d] += f[i, d]
+        for d in range(3):
+            vc[d] = -0.5 * dt * gs[d] / group_mass
+        for i in range(n):
+            if kind[i] == GROUP:
+                for d in range(3):
+                    vm[i, d] += vc[d]
+    _kick(dt, 0.0, dt, x_rest, kind, amp, phase, omega, mass, f, vm, vp, lam, vc, group_mass,
+          free_centre, gamma, kt, has_bath)
+    e0 = 0.0
+    for i in range(n):
+        for d in range(3):
+            e0 += 0.5 * mass * vm[i, d] * vp[i, d]
+    energy[E_START] = e0 + potential_energy(x, pi, pj, r0, c, a)
+
+    diss = 0.0
+    w_drive = 0.0
+    w_bath = 0.0
+    hrow = 0
+    status = RUNNING
+    step = 0
+    while step < n_steps:
+        t = step * dt
+        # --- computes at time t_n: hotness from v_n = (v_{n-1/2} + v_{n+1/2}) / 2
+        if n_start <= step < n_end:
+            counters[K_HOT_STEPS] += 1
+            half = 1 if step < n_mid else 2
+            counters[K_HALF1 if half == 1 else K_HALF2] += 1
+            for i in range(n):
+                v2 = 0.0
+                for d in range(3):
+                    vv = 0.5 * (vm[i, d] + vp[i, d])
+                    v2 += vv * vv
+                e = 0.5 * mass * v2 * dt
+                hot[0, i] += e
+                hot[half, i] += e
+        if step % check_every == 0:
+            kin = 0.0
+            bad = False
+            left = False
+            for i in range(n):
+                for d in range(3):
+                    vv = 0.5 * (vm[i, d] + vp[i, d])
+                    kin += 0.5 * mass * vv * vv
+                    if not (math.isfinite(x[i, d]) and math.isfinite(vv)):
+                        bad = True
+                    if x[i, d] < box_lo[d] or x[i, d] > box_hi[d]:
+                        left = True
+            if bad:
+                status = NAN
+            elif left:
+                status = LEFT_BAR
+            elif kin > blowup_factor * (max(energy[E_START] + w_drive + w_bath, 0.0) + e_scale):
+                status = GROWTH
+            else:
+                status = _neighbourhood(x, x_rest, kind, pi, pj, a, cutoff_rest, contact_fraction, skin)
+            if hrow < history.shape[0]:
+                history[hrow, H_T] = t
+                history[hrow, H_KIN] = kin
+                history[hrow, H_POT] = potential_energy(x, pi, pj, r0, c, a) if not bad else np.nan
+                history[hrow, H_DISS] = diss
+                history[hrow, H_DRIVE] = w_drive
+                history[hrow, H_BATH] = w_bath
+                hrow += 1
+            if status != RUNNING:
+                break
+        # --- drift to t_{n+1}
+        t1 = t + dt
+        if free_centre:
+            for d in range(3):
+                cpos[d] += dt * vc[d]
+        for i in range(n):
+            kd = kind[i]
+            if kd == FREE:
+                for d in range(3):
+                    x[i, d] += dt * vp[i, d]
+            elif kd != FROZEN:
+                s1 = math.sin(omega * t1 + phase[i])
+                for d in range(3):
+                    x[i, d] = x_rest[i, d] + amp[i, d] * s1
+                    if kd == GROUP:
+                        x[i, d] += cpos[d]
+        # --- forces at t_{n+1}, damping with v_{n+1/2}
+        pair_forces(x, vp, pi, pj, lo, hi, c, a, delta, fc1, fd1, out, ever, step + 1, counters)
+        for i in range(n):
+            for d in range(3):
+                f[i, d] = fc1[i, d] + fd1[i, d]
+        # --- kick: v_{n+3/2}; vm <- v_{n+1/2}
+        vm, vp = vp, vm
+        _kick(t1 + dt, t1, dt, x_rest, kind, amp, phase, omega, mass, f, vm, vp, lam1, vc, group_mass,
+              free_centre, gamma, kt, has_bath)
+        # --- energy bookkeeping over n -> n+1 with v_{n+1/2} (now vm)
+        for i in range(n):
+            pd = 0.0
+            pl = 0.0
+            for d in range(3):
+                pd += vm[i, d] * (fd[i, d] + fd1[i, d])
+                pl += vm[i, d] * (lam[i, d] + lam1[i, d])
+            diss -= 0.5 * dt * pd
+            kd = kind[i]
+            if kd == PRESCRIBED or kd == GROUP:
+                w_drive += 0.5 * dt * pl
+            elif kd == FREE:
+                w_bath += 0.5 * dt * pl
+        fd, fd1 = fd1, fd
+        fc, fc1 = fc1, fc
+        lam, lam1 = lam1, lam
+        step += 1
+
+    counters[K_STEPS] = step
+    counters[K_STOP_STEP] = step
+    counters[K_STATUS] = DONE if status == RUNNING else status
+    e1 = 0.0
+    kin = 0.0
+    for i in range(n):
+        for d in range(3):
+            e1 += 0.5 * mass * vm[i, d] * vp[i, d]
+            vv = 0.5 * (vm[i, d] + vp[i, d])
+            kin += 0.5 * mass * vv * vv
+    pot = potential_energy(x, pi, pj, r0, c, a)
+    energy[E_END] = e1 + pot
+    energy[E_DISS] = diss
+    energy[E_DRIVE] = w_drive
+    energy[E_BATH] = w_bath
+    energy[E_KIN_END] = kin
+    energy[E_POT_END] = pot
+    return hrow

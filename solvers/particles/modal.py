@@ -1,0 +1,141 @@
+"""Modal analysis of the macromolecule lattice: analytic Hessian, frequencies, damping ratio.
+
+For a pair (i, j) with separation d = x_j - x_i, r = |d|, e = d/r, the force on i is F(r) e
+(F > 0 attraction).  Its derivative with respect to x_j is B = F'(r) e e^T + F(r)/r (I - e e^T),
+so the Hessian of the potential gets +B on the (i,i) and (j,j) blocks and -B on (i,j), (j,i).
+At rest every pair sits on a root (F = 0), leaving only the F' term; the geometric term is kept
+so the Hessian is right at any configuration (tested against finite differences).
+Radial pair damping delta * rdot gives the damping matrix with B = delta e e^T.
+
+Held particles (frozen, driven) are removed from the eigenproblem.  The stiffness A scales the
+Hessian linearly, so A = A0 (f_top / f0)^2 hits a target top frequency exactly.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.linalg as sla
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from .seven_root import SevenRoot, force_slope_array
+
+DENSE_MAX = 1500  # free DOFs up to which dense eigensolvers are used
+
+
+def _assemble(positions: np.ndarray, pairs: np.ndarray, blocks: np.ndarray) -> sp.csr_matrix:
+    n3 = 3 * positions.shape[0]
+    i, j = pairs[:, 0], pairs[:, 1]
+    a, b = np.meshgrid(np.arange(3), np.arange(3), indexing="ij")
+    rows, cols, vals = [], [], []
+    for (pi, pj, sign) in ((i, i, 1.0), (j, j, 1.0), (i, j, -1.0), (j, i, -1.0)):
+        rows.append((3 * pi[:, None, None] + a[None]).ravel())
+        cols.append((3 * pj[:, None, None] + b[None]).ravel())
+        vals.append(sign * blocks.ravel())
+    return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n3, n3))
+
+
+def hessian(positions: np.ndarray, pairs: np.ndarray, model: SevenRoot, a: float) -> sp.csr_matrix:
+    """Analytic Hessian (N/m) of the conservative potential at `positions`, all 3N DOFs."""
+    d = positions[pairs[:, 1]] - positions[pairs[:, 0]]
+    r = np.linalg.norm(d, axis=1)
+    e = d / r[:, None]
+    f, dfdx = force_slope_array(r / a, model.coeffs())
+    ee = e[:, :, None] * e[:, None, :]
+    blocks = (dfdx / a)[:, None, None] * ee + (f / r)[:, None, None] * (np.eye(3)[None] - ee)
+    return _assemble(positions, pairs, blocks)
+
+
+def damping_matrix(positions: np.ndarray, pairs: np.ndarray, delta: float) -> sp.csr_matrix:
+    """Damping matrix (N s/m) of radial pair damping delta * rdot, all 3N DOFs."""
+    d = positions[pairs[:, 1]] - positions[pairs[:, 0]]
+    e = d / np.linalg.norm(d, axis=1)[:, None]
+    return _assemble(positions, pairs, delta * e[:, :, None] * e[:, None, :])
+
+
+def free_dofs(free: np.ndarray) -> np.ndarray:
+    """DOF indices (3i + c) of the free particles (boolean mask over particles)."""
+    idx = np.flatnonzero(free)
+    return (3 * idx[:, None] + np.arange(3)[None]).ravel()
+
+
+def top_modes(K: sp.csr_matrix, mass: float, dofs: np.ndarray, k: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Highest angular frequencies (rad/s, ascending) and mass-normalised shapes of the held lattice.
+
+    k=None: all modes (dense).  Dense eigh up to DENSE_MAX DOFs, else sparse eigsh (largest k).
+    """
+    Kf = K[dofs][:, dofs]
+    nd = len(dofs)
+    if nd <= DENSE_MAX or (k is not None and k >= nd - 1):
+        lam, vec = sla.eigh(Kf.toarray())
+        if k is not None:
+            lam, vec = lam[-k:], vec[:, -k:]
+    else:
+        lam, vec = spla.eigsh(Kf.tocsc(), k=k or 24, which="LA", tol=1e-12)
+        order = np.argsort(lam)
+        lam, vec = lam[order], vec[:, order]
+    omega = np.sqrt(np.clip(lam, 0.0, None) / mass)
+    return omega, vec / np.sqrt(mass)
+
+
+def top_frequency(K: sp.csr_matrix, mass: float, dofs: np.ndarray) -> float:
+    """Highest natural angular frequency (rad/s)."""
+    return float(top_modes(K, mass, dofs, k=1)[0][-1])
+
+
+def modal_basis(
+    K: sp.csr_matrix, mass: float, dofs: np.ndarray, subspace: int = 48
+) -> tuple[np.ndarray, np.ndarray, str]:
+    """Undamped basis for the damped top-mode problem: all modes if few DOFs, else the top `subspace`."""
+    k = None if len(dofs) <= subspace else subspace
+    omega, phi = top_modes(K, mass, dofs, k=k)
+    return omega, phi, "exact" if k is None else f"top-{len(omega)}-mode subspace"
+
+
+def damped_top_mode(
+    basis: tuple[np.ndarray, np.ndarray, str], C: sp.csr_matrix, dofs: np.ndarray
+) -> tuple[float, float, str]:
+    """Damping ratio and natural frequency |lambda| of the top mode of M x'' + C x' + K x = 0.
+
+    Solved in state space on the modal basis of `modal_basis`: exact when it holds all modes,
+    else in the subspace of the highest undamped modes (the ones C couples the top mode to
+    most).  The top mode is the underdamped eigenvalue of largest |lambda|;
+    zeta = -Re(lambda)/|lambda|.  Returns (zeta, |lambda|, method).
+    """
+    omega, phi, method = basis
+    Cr = phi.T @ (C[dofs][:, dofs] @ phi)
+    return _damped_top(omega, Cr) + (method,)
+
+
+def _damped_top(omega: np.ndarray, Cr: np.ndarray) -> tuple[float, float]:
+    m = len(omega)
+    ss = np.zeros((2 * m, 2 * m))
+    ss[:m, m:] = np.eye(m)
+    ss[m:, :m] = -np.diag(omega**2)
+    ss[m:, m:] = -Cr
+    lam = sla.eigvals(ss)
+    under = lam[lam.imag > 1e-12 * np.abs(lam).max()]
+    top = under[np.argmax(np.abs(under))]
+    return float(-top.real / abs(top)), float(abs(top))
+
+
+def delta_for_damping_ratio(
+    basis: tuple[np.ndarray, np.ndarray, str], C1: sp.csr_matrix, dofs: np.ndarray, zeta: float
+) -> float:
+    """Pair damping delta (N s/m) giving the top mode the damping ratio `zeta`; C1 is C at delta=1.
+
+    First-order start phi^T C1 phi / (2 omega) for the top mode, then secant on delta.
+    """
+    if zeta == 0.0:
+        return 0.0
+    omega, phi, _ = basis
+    Cr1 = phi.T @ (C1[dofs][:, dofs] @ phi)
+    d0 = zeta / (Cr1[-1, -1] / (2 * omega[-1]))
+    f0 = _damped_top(omega, d0 * Cr1)[0] - zeta
+    d1 = d0 * zeta / (f0 + zeta)
+    for _ in range(50):
+        f1 = _damped_top(omega, d1 * Cr1)[0] - zeta
+        if abs(f1) <= 1e-12 * zeta or f1 == f0:
+            break
+        d0, d1, f0 = d1, d1 - f1 * (d1 - d0) / (f1 - f0), f1
+    return float(d1)
