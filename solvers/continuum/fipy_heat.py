@@ -20,7 +20,15 @@ How constraints reach the equations (all of it FiPy's discretisation):
   spoils the conditioning or the stopping test of CG; with FiPy's own solvers the penalty rows
   would hold the cell to ~6/penalty relative.
 - PatchTemperature (the sphere of radius rho about a corner), param `patch`:
-  * "staircase": cells whose centre lies within rho are fixed (as above);
+  * "cut" (default): cells whose centre lies within rho are fixed (as above), and every face between
+    a free and a fixed cell gets the diffusion coefficient k / theta (a FaceVariable coefficient of
+    FiPy's DiffusionTerm), theta = where the sphere cuts the segment between the two centres
+    (Shortley-Weller): the flux is k (T_fix - T_c) / (theta d), the sphere's position enters to
+    O(h^2) instead of O(h).  Measured: ~20x closer to the converged volume mean than "fraction" or
+    "staircase" at the same grid and monotone under refinement (tests).  When no cell centre lies
+    within rho (coarse grids, e.g. the paper's n = 2..4 at refine 1) that patch falls back to
+    "fraction" (diagnostics["patch_fallback_to_fraction"]);
+  * "staircase": cells whose centre lies within rho are fixed (as above); an error if none is;
   * "fraction" (default): f = volume fraction of the cell inside the sphere (8^3 sub-samples per
     cell, vectorised).  f = 1 cells are fixed; partially covered cells get the penalty
     B_c = f / (1 - f) * D_c / V_c, D_c the cell's conduction diagonal, so their row reads
@@ -226,6 +234,7 @@ class FipyHeat:
         frac = np.zeros(shape)  # partial fractions (fraction mode), 0 elsewhere
         pid = np.full(shape, -1)  # which patch fixed the cell (cut mode)
         point_cells = []
+        fallback: list[int] = []  # patches that "cut" handled with "fraction" (no centre inside rho)
         cen = [_centres(e) for e in edges]
         for ic, c in enumerate(scene.constraints):
             if isinstance(c, PointTemperature):
@@ -235,13 +244,19 @@ class FipyHeat:
                 tfix[idx] = c.value
                 point_cells.append((idx, c.value))
             elif isinstance(c, PatchTemperature):
+                inside = None
                 if patch_mode in ("staircase", "cut"):
                     d2 = ((cen[0][:, None, None] - c.centre[0]) ** 2 + (cen[1][None, :, None] - c.centre[1]) ** 2
                           + (cen[2][None, None, :] - c.centre[2]) ** 2)
                     inside = d2 <= c.radius ** 2
                     if not inside.any():
-                        raise SceneError(f"patch={patch_mode!r}: no cell centre lies within rho={c.radius:g} m of "
-                                         f"{c.centre} at this resolution; allowed: a finer grid or patch='fraction'")
+                        if patch_mode == "staircase":
+                            raise SceneError(f"patch='staircase': no cell centre lies within rho={c.radius:g} m of "
+                                             f"{c.centre} at this resolution; allowed: a finer grid or patch='cut' "
+                                             "or 'fraction'")
+                        inside = None  # cut: too coarse for a fixed cell; this patch falls back to fraction
+                        fallback.append(ic)
+                if inside is not None:
                     fixed |= inside
                     tfix[inside] = c.value
                     pid[inside] = ic
@@ -255,7 +270,7 @@ class FipyHeat:
                     blk_t[full | part] = c.value
                     blk_f[part] = np.maximum(blk_f[part], f[part])
         frac[fixed] = 0.0
-        return fixed, tfix, frac, pid, point_cells
+        return fixed, tfix, frac, pid, point_cells, fallback
 
     @staticmethod
     def _cut_coefficients(scene, mesh, fixed_f, pid_f, k):
@@ -292,7 +307,7 @@ class FipyHeat:
         shape = tuple(len(e) - 1 for e in edges)
         mesh = fp.Grid3D(dx=np.diff(edges[0]), dy=np.diff(edges[1]), dz=np.diff(edges[2]))
         k = scene.material.conductivity
-        fixed, tfix, frac, pid, point_cells = self._fixed_cells(scene, edges, shape, p["patch"])
+        fixed, tfix, frac, pid, point_cells, fallback = self._fixed_cells(scene, edges, shape, p["patch"])
         to_flat = lambda a: np.asarray(a).transpose(2, 1, 0).ravel()  # noqa: E731  FiPy: x fastest
         fixed_f, tfix_f, frac_f, pid_f = to_flat(fixed), to_flat(tfix), to_flat(frac), to_flat(pid)
         T = fp.CellVariable(mesh=mesh, value=scene.initial_temperature)
@@ -319,7 +334,8 @@ class FipyHeat:
         K = (K + sp.diags(B * vol)).tocsr()
         f = f + B * vol * tfix_f
         return dict(mesh=mesh, K=K, f=f, vol=vol, shape=shape, fixed=fixed_f, tfix=tfix_f, B=B, ncut=ncut,
-                    fixed_faces=fixed_faces, point_cells=point_cells, assembly_s=time.perf_counter() - t0)
+                    fixed_faces=fixed_faces, point_cells=point_cells, fallback=fallback,
+                    assembly_s=time.perf_counter() - t0)
 
     # ------------------------------------------------------------------ solve
     def solve(self, scene: Scene, resolution: Resolution, samples: dict[str, np.ndarray] | None = None,
@@ -411,6 +427,7 @@ class FipyHeat:
             summary=heat_summary(nodes_vals, volume_mean),
             diagnostics={"linear_method": method, "free_unknowns": nfree, "fixed_cells": int(fixed.sum()),
                          "partial_cells": int(np.count_nonzero((sysd["B"] > 0) & free)), "cut_faces": sysd["ncut"],
+                         "patch_fallback_to_fraction": len(sysd["fallback"]),
                          "cells_per_axis": list(sysd["shape"]),
                          "fixed_max_dev": float(np.max(np.abs(T[fixed] - tfix[fixed])) / t_max) if fixed.any()
                          else 0.0},
