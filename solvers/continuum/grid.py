@@ -395,6 +395,8 @@ class StructuredGrid:
     def interpolation_matrix(self, x: np.ndarray) -> sp.csr_matrix:
         """Sparse (k, N) matrix P with P @ nodal_values = Q1 field at the points x."""
         ijk, xi = self.locate(x)
+        # snap round-off so that a point on a node takes exactly that node's value
+        xi = np.where(np.abs(xi) < 1e-12, 0.0, np.where(np.abs(xi - 1.0) < 1e-12, 1.0, xi))
         nodes = self.node_index(ijk[:, None, :] + HEX_CORNERS[None, :, :])  # (k, 8)
         w = _trilinear_weights(xi)
         rows = np.repeat(np.arange(len(xi)), 8)
