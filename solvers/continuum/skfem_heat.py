@@ -100,7 +100,7 @@ class SkfemHeat:
     """Heat conduction with scikit-fem Q1 hexahedra (steady and theta-method transient)."""
 
     name = "skfem"
-    version = "1.0"
+    version = "1.1"
     parameters = PARAMETERS
 
     def supports(self, scene: Scene) -> tuple[bool, str]:
