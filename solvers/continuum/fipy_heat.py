@@ -202,7 +202,7 @@ class FipyHeat:
     """FiPy cell-centred finite volumes on the node-centred dual grid of the refined lattice."""
 
     name = "fipy"
-    version = "1"
+    version = "1.1"
     parameters = (
         Param("patch", "cut", "", "patch constraint: cut (fixed cells + Shortley-Weller faces), volume-fraction "
               "weighted penalty, or staircase", choices=("cut", "fraction", "staircase"), kind=str),
@@ -212,7 +212,7 @@ class FipyHeat:
               low=0, high=100, kind=int),
         Param("linear_solver", "auto", "", "auto: direct (splu) up to amg_threshold free unknowns, else "
               "pyamg smoothed-aggregation CG", choices=("auto", "direct", "amg"), kind=str),
-        Param("amg_threshold", 30000, "", "free unknowns above which 'auto' uses AMG", low=0, high=1e9, kind=int),
+        Param("amg_threshold", 10000, "", "free unknowns above which 'auto' uses AMG", low=0, high=1e9, kind=int),
         Param("rtol", 1e-10, "", "relative residual of AMG-CG (checked on the true residual)",
               low=0.0, high=1e-3, low_open=True),
         Param("penalty", 1e8, "", "penalty factor: B = penalty * k / h^2 for fixed cells", low=1e3, high=1e14),
