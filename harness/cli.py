@@ -27,6 +27,7 @@ examples:
   pcverify study default                            run the default studies, write reports/
   pcverify study default --dry-run                  show what is cached and what would run
   pcverify report                                   rebuild reports/index.html from the cache
+  pcverify bench                                    benchmarks, saved and compared with the previous run
 
 --set KEY=VALUE goes to the scene if the scene has KEY, else to the solver;
 write scene.KEY or solver.KEY when both have it.
@@ -159,6 +160,24 @@ def cmd_report(args: argparse.Namespace) -> int:
     return report_cli(args)
 
 
+def cmd_bench(args: argparse.Namespace) -> int:
+    """Run tests/bench with pytest-benchmark, save under --storage, compare with the previous saved run."""
+    from pathlib import Path
+
+    import pytest
+
+    storage = Path(args.storage).resolve()
+    previous = sorted(storage.glob("*/*.json"))
+    argv = [args.tests, "--benchmark-enable", "--benchmark-only", f"--benchmark-storage=file://{storage}",
+            "--benchmark-autosave", "-p", "no:cacheprovider"]
+    if previous:
+        argv += ["--benchmark-compare", f"--benchmark-compare-fail=mean:{args.fail_percent:g}%"]
+        print(f"comparing with {previous[-1].name}; failing on a mean regression beyond {args.fail_percent:g}%")
+    else:
+        print(f"no previous benchmark run under {storage}: this run becomes the baseline")
+    return int(pytest.main(argv))
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="pcverify",
@@ -198,6 +217,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--jobs", type=int, default=1, help="parallel cells (default 1)")
     p.add_argument("--json", action="store_true", help="print a JSON summary of the study")
     p.set_defaults(func=cmd_study)
+
+    p = sub.add_parser("bench", help="run the benchmarks, save them, compare with the previous saved run")
+    p.add_argument("--tests", default="tests/bench", help="benchmark folder (default tests/bench)")
+    p.add_argument("--storage", default="reports/benchmarks", help="where runs are saved (default reports/benchmarks)")
+    p.add_argument("--fail-percent", type=float, default=25.0, help="regression of the mean that fails (default 25)")
+    p.set_defaults(func=cmd_bench)
 
     p = sub.add_parser("report", help="rebuild the tables and reports/index.html from cached results")
     p.add_argument("--out", default="reports", help="output folder (default reports/)")
