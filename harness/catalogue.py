@@ -12,11 +12,16 @@ from typing import Any
 
 from harness.scene import (
     ALUMINIUM,
+    DURALUMIN,
+    RESPONSES,
     Box,
+    FaceClamp,
+    FaceSupport,
     FaceTemperature,
     Param,
     PatchTemperature,
     PointTemperature,
+    Response,
     Scene,
     SceneError,
     resolve_params,
@@ -75,6 +80,28 @@ def _faces(p: dict[str, Any]) -> Scene:
                  initial_temperature=0.0, params=tuple(sorted(p.items())))
 
 
+def _compression(p: dict[str, Any]) -> Scene:
+    cons = (FaceSupport("z0"), FaceSupport("zL", p["strain"] * BOX.length))
+    return Scene("bar-compression", CATALOGUE["bar-compression"].description, BOX, DURALUMIN,
+                 frozenset({"elasticity"}), cons, params=tuple(sorted(p.items())))
+
+
+def _modes(p: dict[str, Any]) -> Scene:
+    return Scene("bar-modes", CATALOGUE["bar-modes"].description, BOX, DURALUMIN,
+                 frozenset({"elasticity", "modes"}), (FaceClamp("z0"),), modes=p["modes"],
+                 params=tuple(sorted(p.items())))
+
+
+def _fracture(p: dict[str, Any]) -> Scene:
+    if p["sigma_d"] >= p["sigma_c"] or p["sigma_y"] >= p["sigma_c"]:
+        raise SceneError(f"sigma_d={p['sigma_d']:g}, sigma_y={p['sigma_y']:g} are out of range; "
+                         f"allowed: below sigma_c={p['sigma_c']:g} Pa")
+    response = Response(p["response"], p["sigma_c"], p["sigma_d"], p["sigma_y"], p["hardening"], p["k"])
+    return Scene("bar-tension-fracture", CATALOGUE["bar-tension-fracture"].description, BOX, DURALUMIN,
+                 frozenset({"elasticity", "fracture"}), (FaceSupport("z0"), FaceSupport("zL")),
+                 response=response, strain_rate=p["strain_rate"], params=tuple(sorted(p.items())))
+
+
 CATALOGUE: dict[str, SceneSpec] = {
     spec.name: spec
     for spec in (
@@ -103,6 +130,37 @@ CATALOGUE: dict[str, SceneSpec] = {
                 Param("dt", 0.01, "s", "continuum time step of the transient", low=0.0, high=1e4, low_open=True),
             ),
             _faces,
+        ),
+        SceneSpec(
+            "bar-compression",
+            "Uniaxial stress of the duralumin bar (E = 70 GPa, nu = 0.33): face z=0 on frictionless supports, "
+            "face z=L displaced by strain * L along z, lateral faces free (analytic: sigma = E eps, "
+            "lateral strain -nu eps)",
+            (Param("strain", -1e-3, "", "nominal axial strain (negative = compression)", low=-0.01, high=0.0,
+                   high_open=True),),
+            _compression,
+        ),
+        SceneSpec(
+            "bar-modes",
+            "Free vibration of the duralumin bar clamped at z=0: lowest bending, torsion and axial "
+            "eigenfrequencies (reference: scikit-fem Q2, converged)",
+            (Param("modes", 8, "", "number of lowest eigenfrequencies reported", low=1, high=50, kind=int),),
+            _modes,
+        ),
+        SceneSpec(
+            "bar-tension-fracture",
+            "Tension of the duralumin bar to failure: face z=0 on frictionless supports, face z=L pulled "
+            "along z at strain_rate; material response function and strengths as given",
+            (
+                Param("response", "elastic", "", "response function", choices=RESPONSES, kind=str),
+                Param("sigma_c", 400e6, "Pa", "strength (fracture stress)", low=0.0, high=1e10, low_open=True),
+                Param("sigma_d", 320e6, "Pa", "start of degradation", low=0.0, high=1e10, low_open=True),
+                Param("sigma_y", 300e6, "Pa", "yield stress", low=0.0, high=1e10, low_open=True),
+                Param("hardening", 7e9, "Pa", "plastic hardening modulus", low=0.0, high=7e10),
+                Param("k", 1.0, "", "sigma_c / sigma_t (Drucker-Prager)", low=0.1, high=20.0),
+                Param("strain_rate", 10.0, "1/s", "nominal axial strain rate", low=0.0, high=1e4, low_open=True),
+            ),
+            _fracture,
         ),
     )
 }

@@ -37,6 +37,7 @@ class Param:
     low: float | None = None
     high: float | None = None
     low_open: bool = False
+    high_open: bool = False
     choices: tuple[Any, ...] | None = None
     kind: type = float
     optional: bool = False  # None is an allowed value
@@ -48,7 +49,7 @@ class Param:
         lo = "-inf" if self.low is None else f"{self.low:g}"
         hi = "inf" if self.high is None else f"{self.high:g}"
         left = "(" if (self.low is None or self.low_open) else "["
-        right = ")" if self.high is None else "]"
+        right = ")" if (self.high is None or self.high_open) else "]"
         what = {int: "integer", float: "number", bool: "true/false", str: "text"}[self.kind]
         suffix = " or none" if self.optional else ""
         return f"{what} in {left}{lo}, {hi}{right}{' ' + self.unit if self.unit else ''}{suffix}"
@@ -102,7 +103,7 @@ class Param:
             raise bad
         if self.low is not None and (value < self.low or (self.low_open and value == self.low)):
             raise bad
-        if self.high is not None and value > self.high:
+        if self.high is not None and (value > self.high or (self.high_open and value == self.high)):
             raise bad
         return value
 
@@ -181,7 +182,44 @@ class FaceTemperature:
     value: float
 
 
-Constraint = PointTemperature | PatchTemperature | FaceTemperature
+@dataclass(frozen=True)
+class FaceSupport:
+    """Frictionless support: the face's normal displacement is held at `displacement` (m, along the
+    outward axis direction of +x/+y/+z), its tangential motion is free."""
+
+    face: str
+    displacement: float = 0.0
+
+
+@dataclass(frozen=True)
+class FaceClamp:
+    """Clamped face: every displacement component (and automaton rotation) is zero."""
+
+    face: str
+
+
+RESPONSES = ("elastic", "degradation", "plastic", "plastic-degradation")
+
+
+@dataclass(frozen=True)
+class Response:
+    """Uniaxial response function sigma = f(eps) of the material (PHYSICS.md §4, Fig. 3 of seed 001).
+
+    elastic: linear to the strength sigma_c, then fracture.  degradation: linear to sigma_d, then a
+    softening branch to sigma_c at eps_c; unloading with the reduced (secant) modulus.  plastic:
+    linear to sigma_y, then hardening with modulus `hardening` (Pa) to sigma_c.  plastic-degradation:
+    both.  k = sigma_c / sigma_t enters the Drucker-Prager equivalent stress of the fracture criterion.
+    """
+
+    kind: str = "elastic"
+    sigma_c: float = 400e6
+    sigma_d: float = 320e6
+    sigma_y: float = 300e6
+    hardening: float = 7e9
+    k: float = 1.0
+
+
+Constraint = PointTemperature | PatchTemperature | FaceTemperature | FaceSupport | FaceClamp
 
 
 def lattice_shape(n: int) -> tuple[int, int, int]:
@@ -216,6 +254,9 @@ class Scene:
     `initial_temperature` and is reported at `t_end` (continuum solvers step with `dt`).
     `t_max` scales reported temperatures: solutions report T / t_max.
     `params` holds the effective catalogue parameters that built the scene.
+    Elasticity scenes (physics contains "elasticity") hold FaceSupport / FaceClamp constraints;
+    "modes" asks for eigenfrequencies (`modes` of them); "fracture" loads at `strain_rate` (1/s, the
+    nominal axial strain rate of a FaceSupport's displacement) until failure with `response`.
     """
 
     name: str
@@ -229,6 +270,9 @@ class Scene:
     t_end: float = 0.0
     dt: float = 0.0
     initial_temperature: float = 0.0
+    response: Response | None = None
+    modes: int = 0
+    strain_rate: float = 0.0
     params: tuple[tuple[str, Any], ...] = field(default=())
 
     def __post_init__(self) -> None:
@@ -246,10 +290,13 @@ class Scene:
             if not (math.isfinite(self.dt) and 0 < self.dt <= self.t_end):
                 raise SceneError(f"dt={self.dt!r} is out of range; allowed: number in (0, t_end={self.t_end:g}] s")
         for c in self.constraints:
-            if isinstance(c, FaceTemperature) and c.face not in FACES:
+            if isinstance(c, (FaceTemperature, FaceSupport, FaceClamp)) and c.face not in FACES:
                 raise SceneError(f"face={c.face!r} is not allowed; allowed: {', '.join(FACES)}")
             if isinstance(c, PatchTemperature) and not (math.isfinite(c.radius) and c.radius > 0):
                 raise SceneError(f"rho={c.radius!r} is out of range; allowed: number in (0, inf) m")
+
+        if self.response is not None and self.response.kind not in RESPONSES:
+            raise SceneError(f"response={self.response.kind!r} is not allowed; allowed: {', '.join(RESPONSES)}")
 
     @property
     def param_dict(self) -> dict[str, Any]:
