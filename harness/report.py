@@ -98,6 +98,11 @@ def write_study_report(study: Any, results: list[dict[str, Any]], out: Path) -> 
             if not df.empty:
                 _plot_timing(df, folder / g.id, g.title)
                 section["figures"].append(f"{g.id}.png")
+        elif g.analysis == "stability":
+            from harness.stability import report_tables
+
+            tables, figures = report_tables(res, folder, g.id, g.title)
+            section["figures"] += figures
         else:
             tables = {f"{g.id}-cells": analysis.cells_table(res)}
         if skipped:

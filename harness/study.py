@@ -24,7 +24,7 @@ from harness.cache import Cache, cell_key
 from harness.catalogue import make_scene
 from harness.scene import SceneError
 
-ANALYSES = ("convergence", "timing", "table")
+ANALYSES = ("convergence", "timing", "table", "stability")
 
 
 @dataclass(frozen=True)
@@ -38,6 +38,7 @@ class Cell:
     n: int
     refine: int
     solver_params: tuple[tuple[str, Any], ...]
+    probe: str = ""  # stability cells: "limit" or "map", run by a harness.stability probe, not by solve()
 
     def describe(self) -> str:
         extra = ", ".join(f"{k}={v}" for k, v in self.scene_params + self.solver_params)
@@ -94,6 +95,9 @@ def load_study(name_or_path: str) -> Study:
         if "scene" not in g:
             raise SceneError(f"{where}: scene is missing")
         scene_params = g.get("scene_params", {})
+        probe = g.get("probe", "limit") if analysis == "stability" else ""
+        if probe and probe not in ("limit", "map"):
+            raise SceneError(f"{where}: probe={probe!r} is unknown; allowed: one of limit, map")
         make_scene(g["scene"], **scene_params)  # validates names and values now, not mid-study
         sweep = g.get("sweep", {})
         keys = sorted(sweep)
@@ -105,7 +109,7 @@ def load_study(name_or_path: str) -> Study:
         ):
             params = dict(g.get("solver_params", {}), **dict(zip(keys, combo, strict=True)))
             cells.append(Cell(gid, g["scene"], tuple(sorted(scene_params.items())), solver, int(n), int(refine),
-                              tuple(sorted(params.items()))))
+                              tuple(sorted(params.items())), probe=probe))
         options = {k: v for k, v in g.items() if k not in ("id", "title", "scene", "scene_params", "solvers", "n",
                                                             "refine", "solver_params", "sweep", "analysis")}
         groups.append(Group(gid, g.get("title", gid), analysis, cells, options))
@@ -121,6 +125,8 @@ def cell_identity(cell: Cell) -> tuple[dict[str, Any], Any, Any, str | None]:
 
     scene = make_scene(cell.scene, **dict(cell.scene_params))
     resolution = Resolution(cell.n, cell.refine)
+    if cell.probe:
+        return _probe_identity(cell, scene)
     try:
         solver = get_solver(cell.solver)
     except SolverUnavailable as exc:
@@ -134,6 +140,21 @@ def cell_identity(cell: Cell) -> tuple[dict[str, Any], Any, Any, str | None]:
     return payload, scene, solver, None if ok else reason
 
 
+def _probe_identity(cell: Cell, scene: Any) -> tuple[dict[str, Any], Any, Any, str | None]:
+    """cell_identity of a stability cell: the probe stands in for the solver (skipped if it has none)."""
+    from harness.stability import ProbeUnavailable, get_probe, split_params
+
+    payload = {"scene": scene.content_hash(), "solver": cell.solver, "probe": cell.probe, "n": cell.n,
+               "refine": cell.refine, "params": dict(cell.solver_params)}
+    try:
+        probe = get_probe(cell.solver)
+    except ProbeUnavailable as exc:
+        return payload | {"unavailable": True}, scene, None, str(exc)
+    split_params(dict(cell.solver_params))  # validates the probe's own keys now, not mid-study
+    ok, reason = probe.supports(scene)
+    return payload | {"version": probe.version}, scene, probe, None if ok else reason
+
+
 def run_cell(cell: Cell) -> dict[str, Any]:
     """Solve one cell and return its JSON-ready result (skips and failures are results too)."""
     from solvers.base import Resolution
@@ -143,6 +164,13 @@ def run_cell(cell: Cell) -> dict[str, Any]:
             "scene_params": dict(cell.scene_params), "solver_params": dict(cell.solver_params)}
     if skip is not None:
         return base | {"status": "skipped", "reason": skip}
+    if cell.probe:
+        from harness.stability import run_probe_cell
+
+        try:
+            return base | run_probe_cell(cell.probe, solver, scene, cell.n, dict(cell.solver_params))
+        except (SceneError, ValueError, ArithmeticError) as exc:
+            return base | {"status": "failed", "reason": f"{type(exc).__name__}: {exc}"}
     try:
         solution = solver.solve(scene, Resolution(cell.n, cell.refine), **dict(cell.solver_params))
     except (SceneError, ValueError, ArithmeticError, MemoryError) as exc:
