@@ -214,7 +214,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--dry-run", action="store_true", help="list what is cached and what would run; run nothing")
     p.add_argument("--out", default="reports", help="output folder (default reports/)")
     p.add_argument("--cache", default=None, help="cache folder (default OUT/cache)")
-    p.add_argument("--jobs", type=int, default=1, help="parallel cells (default 1)")
+    p.add_argument("--jobs", type=int, default=1, help="parallel cells on local cores (default 1)")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="hand the cells to a Dask cluster (e.g. tcp://host:8786; needs pcverify[dask])")
     p.add_argument("--json", action="store_true", help="print a JSON summary of the study")
     p.set_defaults(func=cmd_study)
 

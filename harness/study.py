@@ -9,6 +9,7 @@ content hash; an interrupted study resumes where it stopped.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import itertools
 import json
 import time
@@ -24,7 +25,8 @@ from harness.cache import Cache, cell_key
 from harness.catalogue import make_scene
 from harness.scene import SceneError
 
-ANALYSES = ("convergence", "timing", "table", "stability")
+ANALYSES = ("convergence", "timing", "table", "work-precision", "stability")
+SERIAL_ANALYSES = ("timing", "work-precision")  # their wall times are compared: serial pass after a warm-up
 
 
 @dataclass(frozen=True)
@@ -38,6 +40,7 @@ class Cell:
     n: int
     refine: int
     solver_params: tuple[tuple[str, Any], ...]
+    serial: bool = False  # timed in the serial pass after a warm-up (part of the cache key)
     probe: str = ""  # stability cells: "limit" or "map", run by a harness.stability probe, not by solve()
 
     def describe(self) -> str:
@@ -110,8 +113,11 @@ def load_study(name_or_path: str) -> Study:
             params = dict(g.get("solver_params", {}), **dict(zip(keys, combo, strict=True)))
             cells.append(Cell(gid, g["scene"], tuple(sorted(scene_params.items())), solver, int(n), int(refine),
                               tuple(sorted(params.items())), probe=probe))
+        serial = bool(g.get("serial", analysis in SERIAL_ANALYSES))
+        if serial:
+            cells = [dataclasses.replace(c, serial=True) for c in cells]
         options = {k: v for k, v in g.items() if k not in ("id", "title", "scene", "scene_params", "solvers", "n",
-                                                            "refine", "solver_params", "sweep", "analysis")}
+                                                            "refine", "solver_params", "sweep", "analysis", "serial")}
         groups.append(Group(gid, g.get("title", gid), analysis, cells, options))
     if not groups:
         raise SceneError(f"study file {path}: no [[group]] tables")
@@ -136,6 +142,8 @@ def cell_identity(cell: Cell) -> tuple[dict[str, Any], Any, Any, str | None]:
     params = effective_params(solver, dict(cell.solver_params))
     payload = {"scene": scene.content_hash(), "solver": solver.name, "version": solver.version, "n": resolution.n,
                "refine": resolution.refine, "params": params}
+    if cell.serial:
+        payload["timing"] = "serial-after-warm-up"
     ok, reason = solver.supports(scene)
     return payload, scene, solver, None if ok else reason
 
@@ -178,9 +186,51 @@ def run_cell(cell: Cell) -> dict[str, Any]:
     return base | solution.to_dict()
 
 
-def execute(study: Study, cache: Cache, dry_run: bool = False, jobs: int = 1,
-            progress: bool = True) -> tuple[list[dict[str, Any]], dict[str, int]]:
-    """Run every cell not yet cached; return all results in cell order and the counts."""
+def _indexed(i: int, cell: Cell) -> tuple[int, dict[str, Any]]:
+    return i, run_cell(cell)
+
+
+def _parallel(cells: list[Cell], todo: list[int], jobs: int, scheduler: str | None):
+    """(index, result) pairs in completion order: joblib on local cores, or a Dask cluster at `scheduler`."""
+    if scheduler:
+        try:
+            from distributed import Client, as_completed
+        except ImportError:
+            raise SceneError("--scheduler needs the optional dependency dask[distributed]; allowed: install it with "
+                             "pip install 'pcverify[dask]', or run without --scheduler") from None
+        try:
+            client = Client(scheduler, timeout=10)
+        except OSError as exc:
+            raise SceneError(f"scheduler={scheduler!r} is not reachable ({exc}); allowed: the address of a running "
+                             "Dask scheduler, e.g. tcp://host:8786") from None
+        with client:
+            futures = [client.submit(_indexed, i, cells[i], pure=False) for i in todo]
+            for fut in as_completed(futures):
+                yield fut.result()
+        return
+    from joblib import Parallel, delayed
+
+    yield from Parallel(n_jobs=jobs, return_as="generator_unordered")(delayed(_indexed)(i, cells[i]) for i in todo)
+
+
+def _warm_up(cells: list[Cell]) -> None:
+    """Solve the cheapest cell of each solver once, uncached, so compilation stays out of the timings."""
+    cheapest: dict[str, Cell] = {}
+    for c in cells:
+        if c.solver not in cheapest or (c.n, c.refine) < (cheapest[c.solver].n, cheapest[c.solver].refine):
+            cheapest[c.solver] = c
+    for c in cheapest.values():
+        run_cell(c)
+
+
+def execute(study: Study, cache: Cache, dry_run: bool = False, jobs: int = 1, progress: bool = True,
+            scheduler: str | None = None) -> tuple[list[dict[str, Any]], dict[str, int]]:
+    """Run every cell not yet cached; return all results in cell order and the counts.
+
+    Cells of timing groups run last, serially in this process, after a warm-up solve per solver;
+    the others run in parallel (joblib with `jobs` > 1, or a Dask cluster at `scheduler`).
+    Each finished cell is written to the cache at once, so an interrupted study loses nothing.
+    """
     cells = [c for g in study.groups for c in g.cells]
     identities = [cell_identity(c) for c in cells]
     keys = [cell_key(ident[0]) for ident in identities]
@@ -214,16 +264,23 @@ def execute(study: Study, cache: Cache, dry_run: bool = False, jobs: int = 1,
         bar.set_postfix(done=counts["done"], cached=counts["cached"], failed=counts["failed"])
         bar.update(1)
 
-    if jobs > 1 and len(todo) > 1:
-        from joblib import Parallel, delayed
-
-        outs = Parallel(n_jobs=jobs, return_as="generator")(delayed(run_cell)(cells[i]) for i in todo)
-        for i, res in zip(todo, outs, strict=True):
+    free = [i for i in todo if not cells[i].serial]
+    timed = [i for i in todo if cells[i].serial and identities[i][3] is None]
+    timed_skips = [i for i in todo if cells[i].serial and identities[i][3] is not None]
+    if (jobs > 1 or scheduler) and len(free) > 1:
+        for i, res in _parallel(cells, free, jobs, scheduler):
             finish(i, res)
     else:
-        for i in todo:
-            bar.set_description(f"{study.name}: {cells[i].describe()}"[:70])
-            finish(i, run_cell(cells[i]))
+        timed_skips = free + timed_skips
+    for i in timed_skips:
+        bar.set_description(f"{study.name}: {cells[i].describe()}"[:70])
+        finish(i, run_cell(cells[i]))
+    if timed:
+        bar.set_description(f"{study.name}: warm-up before the timed serial pass")
+        _warm_up([cells[i] for i in timed])
+    for i in timed:
+        bar.set_description(f"{study.name}: timed {cells[i].describe()}"[:70])
+        finish(i, run_cell(cells[i]) | {"timing": "serial after warm-up"})
     bar.close()
     return [r for r in results if r is not None], counts
 
@@ -246,7 +303,8 @@ def run_study_cli(args: argparse.Namespace) -> int:
     summary = []
     for study in studies:
         t0 = time.perf_counter()
-        results, counts = execute(study, cache, dry_run=args.dry_run, jobs=args.jobs, progress=not args.json)
+        results, counts = execute(study, cache, dry_run=args.dry_run, jobs=args.jobs, progress=not args.json,
+                                  scheduler=getattr(args, "scheduler", None))
         if args.dry_run:
             summary.append({"study": study.name, **counts})
             continue

@@ -90,3 +90,46 @@ def test_bad_study_files_fail_with_one_line(tmp_path, text, word, capsys):
     assert main(["study", str(path), "--out", str(tmp_path / "r")]) == 2
     err = capsys.readouterr().err
     assert word in err and "Traceback" not in err
+
+
+def _summaries(results):
+    return [(r["group"], r["solver"], r["n"], r["refine"], json.dumps(r["summary"], sort_keys=True)) for r in results]
+
+
+def test_parallel_and_dask_equal_serial(study_file, tmp_path):
+    """Cells computed by joblib workers or a Dask cluster equal the serial ones bit for bit, in cell order."""
+    distributed = pytest.importorskip("distributed")
+    study = load_study(str(study_file))
+    serial, _ = execute(study, Cache(tmp_path / "serial"), progress=False)
+    parallel, counts = execute(study, Cache(tmp_path / "joblib"), jobs=2, progress=False)
+    assert counts["done"] == 5 and _summaries(parallel) == _summaries(serial)
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None) as lc:
+        dask, counts = execute(study, Cache(tmp_path / "dask"), progress=False, scheduler=lc.scheduler_address)
+    assert counts["done"] == 5 and _summaries(dask) == _summaries(serial)
+
+
+def test_unreachable_scheduler_is_a_clear_error(study_file, tmp_path, capsys):
+    pytest.importorskip("distributed")
+    args = ["study", str(study_file), "--out", str(tmp_path / "r"), "--scheduler", "tcp://127.0.0.1:9"]
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert "scheduler=" in err and "not reachable" in err and "Traceback" not in err
+
+
+def test_timing_groups_run_serially_after_warm_up(tmp_path, monkeypatch):
+    """A timing group's cells are keyed apart from the same cells elsewhere and run after a warm-up solve."""
+    import harness.study as st
+
+    path = tmp_path / "timed.toml"
+    path.write_text(STUDY + '[[group]]\nid = "cost"\nanalysis = "timing"\nscene = "bar-heat-faces"\n'
+                    'solvers = ["fipy"]\nn = [2, 3]\n')
+    study = load_study(str(path))
+    calls = []
+    real = st.run_cell
+    monkeypatch.setattr(st, "run_cell", lambda cell: calls.append((cell.group, cell.n, cell.serial)) or real(cell))
+    results, counts = execute(study, Cache(tmp_path / "c"), jobs=2, progress=False)
+    assert counts["done"] == 7  # the timed cells do not reuse the untimed faces cells
+    # in-process calls: the warm-up (cheapest fipy cell) and then the two timed cells, last
+    assert calls[-3:] == [("cost", 2, True), ("cost", 2, True), ("cost", 3, True)]
+    timed = [r for r in results if r["group"] == "cost"]
+    assert all(r["timing"] == "serial after warm-up" for r in timed)
