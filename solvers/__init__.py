@@ -15,6 +15,7 @@ REGISTRY: dict[str, str] = {
     "skfem": "solvers.continuum.skfem_heat:SkfemHeat",
     "fipy": "solvers.continuum.fipy_heat:FipyHeat",
     "macromolecule": "solvers.particles.macromolecule:Macromolecule",
+    "skfem-elastic": "solvers.continuum.skfem_elastic:SkfemElastic",
 }
 
 

@@ -1,0 +1,440 @@
+"""scikit-fem linear elasticity of the bar: static (supports, clamps) and modal analysis, Q1 or Q2 hexahedra.
+
+Discretisation (PHYSICS.md §5):
+- Mesh: `grid.StructuredGrid.lattice(box, n, refine)`, the hexahedral grid whose nodes include the particle
+  lattice of resolution n, h = a / refine.  Vector Lagrange elements ElementHex1 (Q1, trilinear) or
+  ElementHex2 (Q2, triquadratic, 27 nodes), parameter `element`.  Quadrature: Gauss with 2 points per axis
+  for Q1 (`intorder=2`) and 3 for Q2 (`intorder=4`): on the undistorted boxes of this grid the integrands of
+  K (degree 2k per axis) and M (degree 2k) are then integrated exactly.  scikit-fem's default for Q2 is
+  intorder 12 (7^3 = 343 points per cell instead of 27).
+- Material: isotropic Hooke's law with the Lame constants of (E, nu); mass density rho.
+- Constraints, all nodal (Lagrange dofs are point values):
+  FaceSupport(face, d): the face-normal component of every dof on the face is d (frictionless support);
+  FaceClamp(face): every component on the face is 0.
+  A scene held only by supports normal to z keeps three rigid-body modes (x and y translation, rotation
+  about z).  They are removed by the statically determinate "3-2-1" set at the two corners of face z0 on
+  y = 0: u_x = u_y = 0 at (0, 0, 0) and u_y = 0 at (W, 0, 0).  The homogeneous uniaxial field
+  u = eps (-nu x, -nu y, z) satisfies these three conditions, so they carry no force and do not stress
+  the bar (the diagnostic `rigid_constraint_reactions_N` reports the three reactions); the lateral
+  expansion is centred on the corner (0, 0) rather than the section centre.
+- Static solve: Dirichlet values are lifted and the constrained rows/columns replaced by their diagonal,
+  so the matrix keeps its 3x3 nodal blocks.  "direct" = SuperLU; "amg" = CG preconditioned by a pyamg
+  smoothed-aggregation V-cycle on the 3x3-block matrix with the six rigid-body modes as near-nullspace
+  (without them SA-AMG for elasticity converges slowly); the true relative residual is checked after CG.
+  "auto" switches at `direct_max_unknowns`.
+- Modal: K phi = omega^2 M phi on the free dofs, ARPACK (scipy eigsh) in shift-invert mode about
+  sigma = 0 with the inverse of K applied by the same linear solver (direct or AMG-CG to cg_rtol), a
+  seeded start vector (deterministic).  The modes are classified by their parities under the two mirror
+  planes of the bar, x = W/2 and y = H/2 (the clamp at z = 0 keeps both symmetries; `_reflection`):
+  (-, +) bending-x (u_x dominant), (+, -) bending-y, (-, -) torsion, (+, +) axial.  Degenerate clusters
+  (the two bending families of the square section) are rotated to definite parities first.  A (+, +) mode
+  whose mass is mostly lateral is called "symmetric-lateral" instead of axial.
+- Output: displacement (m) at the sample points by exact interpolation of the FE field (`basis.probes`),
+  values shape (k, 3); summary E_eff, nu_eff, reaction_force (static), frequencies_hz, mode_kinds and the
+  lowest frequency of each kind (f_bending_x_hz, ...) for modal scenes.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.linalg import LinearOperator, cg, eigsh, splu
+
+from harness.scene import FaceClamp, FaceSupport, Param, Scene, SceneError
+from solvers.base import Resolution, Solution, effective_params
+from solvers.continuum.grid import StructuredGrid
+
+PARAMETERS: tuple[Param, ...] = (
+    Param("element", "q2", "", "Q1 (trilinear) or Q2 (triquadratic) hexahedra", choices=("q1", "q2"), kind=str),
+    Param("linear_solver", "auto", "", "direct (SuperLU), amg (pyamg SA-preconditioned CG) or auto",
+          choices=("auto", "direct", "amg"), kind=str),
+    Param("cg_rtol", 1e-11, "", "relative residual tolerance of CG", low=0.0, high=1e-3, low_open=True),
+    Param("direct_max_unknowns", 30000, "", "auto: direct solver up to this many unknowns, AMG-CG above",
+          low=1, high=1e9, kind=int),
+)
+
+ELEMENTS = {"q1": ("ElementHex1", 2, 1), "q2": ("ElementHex2", 4, 2)}  # class, intorder, degree
+KIND_BY_PARITY = {(-1, 1): "bending-x", (1, -1): "bending-y", (-1, -1): "torsion", (1, 1): "axial"}
+KINDS = ("bending-x", "bending-y", "torsion", "axial")
+CLUSTER_RTOL = 1e-5  # eigenvalues closer than this (relative) are treated as one degenerate cluster
+
+
+class _LinearSolver:
+    """Solves A x = b for one SPD matrix A: SuperLU, or CG with a smoothed-aggregation AMG preconditioner."""
+
+    def __init__(self, a: sp.spmatrix, method: str, rtol: float, near_null: np.ndarray | None = None):
+        self.a = a.tocsr()
+        self.method = method
+        self.rtol = rtol
+        self.iterations = 0
+        self.solves = 0
+        self.worst_residual = 0.0
+        if method == "direct":
+            self.lu = splu(self.a.tocsc(), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                           options={"SymmetricMode": True})
+        else:
+            import pyamg
+
+            blocked = self.a.shape[0] % 3 == 0
+            mat = self.a.tobsr(blocksize=(3, 3)) if blocked else self.a
+            self.ml = pyamg.smoothed_aggregation_solver(mat, B=near_null, symmetry="symmetric", max_coarse=500)
+            self.prec = self.ml.aspreconditioner(cycle="V")
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        bnorm = float(np.linalg.norm(b))
+        if bnorm == 0.0:
+            return np.zeros_like(b)
+        self.solves += 1
+        if self.method == "direct":
+            x = self.lu.solve(b)
+        else:
+            count = [0]
+
+            def tick(_xk):
+                count[0] += 1
+
+            x, info = cg(self.a, b, rtol=self.rtol, atol=0.0, maxiter=5000, M=self.prec, callback=tick)
+            self.iterations += count[0]
+            if info != 0:
+                raise ArithmeticError(f"CG did not converge (info={info}, {count[0]} iterations)")
+        res = float(np.linalg.norm(b - self.a @ x)) / bnorm
+        self.worst_residual = max(self.worst_residual, res)
+        if self.method != "direct" and res > 10.0 * self.rtol:
+            raise ArithmeticError(f"CG stopped with true relative residual {res:.2e} > 10 * cg_rtol")
+        return x
+
+
+def rigid_body_modes(locs: np.ndarray, centre: np.ndarray) -> np.ndarray:
+    """The six rigid-body displacement fields at interleaved vector dofs: (3 N, 6), columns unit-scaled."""
+    n = locs.shape[1]
+    d = (locs - centre[:, None]) / np.abs(locs - centre[:, None]).max()
+    b = np.zeros((3 * n, 6))
+    for c in range(3):
+        b[c::3, c] = 1.0
+    x, y, z = d
+    b[0::3, 3], b[1::3, 3] = -y, x  # rotation about z
+    b[1::3, 4], b[2::3, 4] = -z, y  # about x
+    b[0::3, 5], b[2::3, 5] = z, -x  # about y
+    return b
+
+
+def _reflection(locs: np.ndarray, extent: np.ndarray, axis: int, unit: float) -> tuple[np.ndarray, np.ndarray]:
+    """Mirror x_axis -> extent - x_axis as a signed permutation of interleaved vector dofs.
+
+    Returns (perm, sign) with (R u)[j] = sign[j] * u[perm[j]]: the dof j at point p, component c takes the
+    value of component c at the mirror point, negated for c = axis.  `unit` is the dof spacing (exact keys).
+    """
+    keys = np.rint(locs / unit).astype(np.int64)
+    mirror = keys.copy()
+    mirror[axis] = int(round(extent[axis] / unit)) - keys[axis]
+    span = keys.max(axis=1) + 1
+
+    def code(k: np.ndarray) -> np.ndarray:
+        return (k[0] * span[1] + k[1]) * span[2] + k[2]
+
+    own, other = code(keys), code(mirror)
+    order = np.argsort(own)
+    pos = np.searchsorted(own, other, sorter=order)
+    if np.any(pos >= own.size) or np.any(own[order[np.minimum(pos, own.size - 1)]] != other):
+        raise ValueError("the grid is not mirror symmetric")
+    node_perm = order[pos]
+    n = locs.shape[1]
+    perm = (3 * node_perm[:, None] + np.arange(3)[None, :]).ravel()
+    sign = np.ones(3 * n)
+    sign[axis::3] = -1.0
+    return perm, sign
+
+
+def classify_modes(phi: np.ndarray, omega2: np.ndarray, mass: sp.spmatrix, reflections) -> dict[str, Any]:
+    """Rotate degenerate clusters to definite mirror parities and name each mode by its parity class.
+
+    phi: (ndof, k) full-length mode shapes, omega2 ascending.  reflections: [(perm, sign)] for the x and y
+    mirrors.  Returns the rotated shapes, parities (k, 2), kinds and the lateral mass fraction.
+    """
+    phi = phi.copy()
+    k = phi.shape[1]
+    start = 0
+    while start < k:  # clusters of (nearly) equal eigenvalues
+        stop = start + 1
+        while stop < k and omega2[stop] - omega2[start] <= CLUSTER_RTOL * abs(omega2[start]):
+            stop += 1
+        if stop - start > 1:
+            block = phi[:, start:stop]
+            mb = mass @ block
+            comb = sum(w * (block[perm] * sign[:, None]).T @ mb
+                       for w, (perm, sign) in zip((1.0, 2.0), reflections, strict=True))
+            comb = 0.5 * (comb + comb.T)
+            gram = block.T @ mb
+            from scipy.linalg import eigh
+
+            _, vecs = eigh(comb, gram)
+            phi[:, start:stop] = block @ vecs
+        start = stop
+    mphi = mass @ phi
+    norms = np.einsum("ij,ij->j", phi, mphi)
+    parities = np.array([[np.einsum("ij,ij->j", phi[perm] * sign[:, None], mphi)[j] / norms[j]
+                          for perm, sign in reflections] for j in range(k)])
+    axial_fraction = np.einsum("ij,ij->j", phi[2::3], (mass @ _only(phi, 2))[2::3]) / norms
+    kinds = []
+    for j in range(k):
+        key = tuple(int(np.sign(p)) if abs(p) > 0.5 else 0 for p in parities[j])
+        kind = KIND_BY_PARITY.get(key, "mixed")
+        if kind == "axial" and axial_fraction[j] < 0.5:
+            kind = "symmetric-lateral"
+        kinds.append(kind)
+    return {"phi": phi, "parities": parities, "kinds": kinds, "axial_fraction": axial_fraction}
+
+
+def _only(phi: np.ndarray, comp: int) -> np.ndarray:
+    out = np.zeros_like(phi)
+    out[comp::3] = phi[comp::3]
+    return out
+
+
+class SkfemElastic:
+    """Linear elasticity of the bar with scikit-fem Q1/Q2 hexahedra: static supports and modal analysis."""
+
+    name = "skfem-elastic"
+    version = "1.0"
+    parameters = PARAMETERS
+
+    def supports(self, scene: Scene) -> tuple[bool, str]:
+        if "elasticity" not in scene.physics:
+            return False, f"skfem-elastic does linear elasticity only; scene needs {sorted(scene.physics)}"
+        extra = set(scene.physics) - {"elasticity", "modes"}
+        if extra:
+            return False, (f"skfem-elastic is linear elastic (static or modal); it does not model {sorted(extra)} "
+                           "(the fracture scene is left to the particle solvers)")
+        if not any(isinstance(c, (FaceSupport, FaceClamp)) for c in scene.constraints):
+            return False, "an unsupported elastic bar is singular: no FaceSupport or FaceClamp"
+        other = [type(c).__name__ for c in scene.constraints if not isinstance(c, (FaceSupport, FaceClamp))]
+        if other:
+            return False, f"skfem-elastic handles FaceSupport and FaceClamp only, not {other}"
+        if "modes" in scene.physics and any(c.displacement != 0.0 for c in scene.constraints
+                                            if isinstance(c, FaceSupport)):
+            return False, "modal analysis needs homogeneous constraints (a FaceSupport displacement is set)"
+        return True, ""
+
+    # -- set-up ------------------------------------------------------------------------------------
+
+    @staticmethod
+    def _dirichlet(scene: Scene, locs: np.ndarray, extent: np.ndarray, h: float) -> tuple[np.ndarray, dict]:
+        """Prescribed value per vector dof (NaN = free), rigid-body constraints added where needed."""
+        ndof = 3 * locs.shape[1]
+        fixed = np.full(ndof, np.nan)
+        tol = 1e-9 * h
+        on_face = {}
+        for face in ("x0", "xW", "y0", "yH", "z0", "zL"):
+            axis = "xyz".index(face[0])
+            at = 0.0 if face[1] == "0" else extent[axis]
+            on_face[face] = np.flatnonzero(np.abs(locs[axis] - at) <= tol)
+        diag: dict[str, Any] = {}
+        normals = set()
+        for c in scene.constraints:
+            nodes = on_face[c.face]
+            axis = "xyz".index(c.face[0])
+            if isinstance(c, FaceClamp):
+                for comp in range(3):
+                    fixed[3 * nodes + comp] = 0.0
+                normals.update(range(3))
+            else:
+                fixed[3 * nodes + axis] = c.displacement
+                normals.add(axis)
+        if not any(isinstance(c, FaceClamp) for c in scene.constraints):
+            if normals != {2} or not any(c.face in ("z0", "zL") for c in scene.constraints):
+                raise SceneError("skfem-elastic: supports on faces other than z0/zL are not implemented; "
+                                 "allowed: FaceSupport on z0 and zL, or a FaceClamp")
+            z0 = on_face["z0"]
+            corner_a = z0[np.flatnonzero((np.abs(locs[0, z0]) <= tol) & (np.abs(locs[1, z0]) <= tol))]
+            corner_b = z0[np.flatnonzero((np.abs(locs[0, z0] - extent[0]) <= tol) & (np.abs(locs[1, z0]) <= tol))]
+            fixed[3 * corner_a + 0] = 0.0
+            fixed[3 * corner_a + 1] = 0.0
+            fixed[3 * corner_b + 1] = 0.0
+            diag["rigid_constraints"] = "u_x = u_y = 0 at (0, 0, 0); u_y = 0 at (W, 0, 0)"
+            diag["_rigid_dofs"] = np.array([3 * corner_a[0], 3 * corner_a[0] + 1, 3 * corner_b[0] + 1])
+        return fixed, diag
+
+    # -- solve --------------------------------------------------------------------------------------
+
+    def solve(self, scene: Scene, resolution: Resolution, samples: dict[str, np.ndarray] | None = None,
+              **params: Any) -> Solution:
+        import skfem
+        from skfem import Basis, BilinearForm, ElementVector, MeshHex
+        from skfem.helpers import dot
+        from skfem.models.elasticity import lame_parameters, linear_elasticity
+
+        wall0 = time.perf_counter()
+        p = effective_params(self, params)
+        ok, why = self.supports(scene)
+        if not ok:
+            raise SceneError(why)
+        n, refine = int(resolution.n), int(resolution.refine)
+        extent = scene.box.extent
+        grid = StructuredGrid.lattice(extent, n, refine)
+        cls_name, intorder, degree = ELEMENTS[p["element"]]
+
+        t0 = time.perf_counter()
+        mesh = MeshHex(np.ascontiguousarray(grid.points.T), grid.cells.astype(np.int32))
+        element = getattr(skfem, cls_name)()
+        basis = Basis(mesh, ElementVector(element), intorder=intorder)
+        sbasis = Basis(mesh, element, intorder=intorder)
+        locs = sbasis.doflocs
+        mat = scene.material
+        lam, mu = lame_parameters(mat.youngs_modulus, mat.poisson_ratio)
+        stiff = linear_elasticity(lam, mu).assemble(basis).tocsr()
+        rho = mat.density
+
+        @BilinearForm
+        def vmass(u, v, _w):
+            return rho * dot(u, v)
+
+        mass = vmass.assemble(basis).tocsr() if "modes" in scene.physics else None
+        assembly_s = time.perf_counter() - t0
+
+        fixed, diag = self._dirichlet(scene, locs, extent, grid.h)
+        rigid_dofs = diag.pop("_rigid_dofs", None)
+        is_fixed = ~np.isnan(fixed)
+        ndof = basis.N
+        method = p["linear_solver"]
+        if method == "auto":
+            method = "direct" if ndof <= p["direct_max_unknowns"] else "amg"
+        near_null = rigid_body_modes(locs, 0.5 * extent)
+
+        t1 = time.perf_counter()
+        summary: dict[str, Any] = {}
+        if "modes" in scene.physics:
+            u, extra, solver = self._modes(scene, stiff, mass, is_fixed, method, p, near_null, locs, extent,
+                                           grid.h / degree)
+            summary.update(extra.pop("summary"))
+            diag.update(extra)
+        else:
+            u, solver = self._static(stiff, fixed, is_fixed, method, p, near_null)
+            summary.update(self._static_summary(scene, mesh, basis, element, intorder, stiff, u, locs, extent,
+                                                grid.h))
+            if rigid_dofs is not None:
+                diag["rigid_constraint_reactions_N"] = (stiff @ u)[rigid_dofs]
+        solve_s = time.perf_counter() - t1
+
+        if samples is None:
+            samples = scene.sample_sets(n)
+        out: dict[str, dict[str, np.ndarray]] = {}
+        for key, pts in samples.items():
+            pts = np.asarray(pts, dtype=float).reshape(-1, 3)
+            if np.any(pts < -1e-9 * grid.h) or np.any(pts > extent + 1e-9 * grid.h):
+                raise SceneError(f"samples[{key!r}]: a sample point lies outside the box; allowed: inside the bar")
+            probe = sbasis.probes(np.clip(pts, 0.0, extent).T)
+            out[key] = {"points": pts, "values": np.stack([probe @ u[c::3] for c in range(3)], axis=1)}
+        diag.update({"linear_solver": method, "max_relative_residual": solver.worst_residual,
+                     "fixed_dofs": int(is_fixed.sum()), "element": p["element"], "intorder": intorder})
+        wall = time.perf_counter() - wall0
+        return Solution(
+            scene=scene.name, solver=self.name, params=p,
+            resolution={"n": n, "refine": refine, "h": grid.h},
+            samples=out, unknowns=ndof, wall_s=wall, status="ok", quantity="u (m)",
+            work={"unknowns": ndof, "iterations": int(solver.iterations), "solves": int(solver.solves),
+                  "assembly_s": assembly_s, "solve_s": solve_s},
+            summary=summary, diagnostics=diag,
+        )
+
+    @staticmethod
+    def _static(stiff, fixed, is_fixed, method, p, near_null):
+        """Lifted Dirichlet problem with the constrained rows/columns replaced by their diagonal."""
+        g = np.where(is_fixed, fixed, 0.0)
+        d = stiff.diagonal()
+        rhs = -(stiff @ g)
+        rhs[is_fixed] = d[is_fixed] * g[is_fixed]
+        keep = sp.diags((~is_fixed).astype(float))
+        a = (keep @ stiff @ keep + sp.diags(np.where(is_fixed, d, 0.0))).tocsr()
+        a.eliminate_zeros()
+        solver = _LinearSolver(a, method, p["cg_rtol"], near_null)
+        u = solver.solve(rhs)
+        u[is_fixed] = g[is_fixed]
+        return u, solver
+
+    @staticmethod
+    def _static_summary(scene, mesh, basis, element, intorder, stiff, u, locs, extent, h) -> dict[str, Any]:
+        """E_eff from the reaction on face zL, nu_eff from the face-averaged lateral displacements."""
+        from skfem import ElementVector, FacetBasis, Functional
+
+        supports = {c.face: c.displacement for c in scene.constraints if isinstance(c, FaceSupport)}
+        out: dict[str, Any] = {}
+        if "zL" not in supports or "z0" not in supports:
+            return out
+        length = extent[2]
+        strain = (supports["zL"] - supports["z0"]) / length
+        react = stiff @ u
+        top = np.flatnonzero(np.abs(locs[2] - extent[2]) <= 1e-9 * h)
+        force = float(react[3 * top + 2].sum())
+        area = extent[0] * extent[1]
+        out["reaction_force"] = force
+        out["axial_strain"] = strain
+        out["E_eff"] = force / area / strain
+
+        @Functional
+        def comp_x(w):
+            return w["u"][0]
+
+        @Functional
+        def comp_y(w):
+            return w["u"][1]
+
+        @Functional
+        def one(w):
+            return 1.0 + 0.0 * w.x[0]
+
+        means = {}
+        for face, axis, form in (("x0", 0, comp_x), ("xW", 0, comp_x), ("y0", 1, comp_y), ("yH", 1, comp_y)):
+            at = 0.0 if face[1] == "0" else extent[axis]
+            facets = mesh.facets_satisfying(lambda x, a=axis, v=at: np.abs(x[a] - v) <= 1e-9 * h)
+            fb = FacetBasis(mesh, ElementVector(element), facets=facets, intorder=intorder)
+            means[face] = form.assemble(fb, u=fb.interpolate(u)) / one.assemble(fb)
+        lateral = 0.5 * ((means["xW"] - means["x0"]) / extent[0] + (means["yH"] - means["y0"]) / extent[1])
+        out["lateral_strain"] = float(lateral)
+        out["nu_eff"] = float(-lateral / strain)
+        return out
+
+    @staticmethod
+    def _modes(scene, stiff, mass, is_fixed, method, p, near_null, locs, extent, unit):
+        """Lowest `scene.modes` eigenpairs of K phi = omega^2 M phi on the free dofs, classified."""
+        free = np.flatnonzero(~is_fixed)
+        kff = stiff[free][:, free].tocsr()
+        mff = mass[free][:, free].tocsr()
+        k = int(scene.modes)
+        k_solve = k + 2  # two spare pairs so that a degenerate cluster at the top of the list is complete
+        if k_solve >= free.size - 1:
+            raise SceneError(f"modes={k} is out of range; allowed: integer in [1, {free.size - 4}] at this "
+                             "resolution")
+        solver = _LinearSolver(kff, method, min(p["cg_rtol"], 1e-12) if method != "direct" else p["cg_rtol"],
+                               near_null[free] if free.size % 3 == 0 else None)
+        op = LinearOperator(kff.shape, matvec=solver.solve, dtype=float)
+        v0 = np.random.default_rng(20261121).standard_normal(free.size)
+        vals, vecs = eigsh(kff, k=k_solve, M=mff, sigma=0.0, which="LM", OPinv=op, v0=v0,
+                           ncv=min(free.size - 1, max(2 * k_solve + 1, 20)))
+        order = np.argsort(vals)
+        vals, vecs = vals[order], vecs[:, order]
+        if np.any(vals <= 0):
+            raise ArithmeticError(f"non-positive eigenvalue {vals.min():.3g}: the clamped bar is not stable")
+        phi = np.zeros((stiff.shape[0], k_solve))
+        phi[free] = vecs
+        refl = [_reflection(locs, extent, axis, unit) for axis in (0, 1)]
+        cls = classify_modes(phi, vals, mass, refl)
+        vals = vals[:k]
+        cls = {key: v[:k] if key != "phi" else v[:, :k] for key, v in cls.items()}
+        freqs = np.sqrt(vals) / (2.0 * np.pi)
+        # relative eigen-residual ||K phi - w2 M phi|| / ||K phi|| of every returned pair
+        kphi = stiff[free] @ cls["phi"]
+        mphi = mass[free] @ cls["phi"]
+        resid = np.linalg.norm(kphi - mphi * vals[None, :], axis=0) / np.linalg.norm(kphi, axis=0)
+        summary: dict[str, Any] = {"frequencies_hz": freqs, "mode_kinds": cls["kinds"]}
+        for kind in KINDS:
+            hits = [j for j, kd in enumerate(cls["kinds"]) if kd == kind]
+            if hits:
+                summary[f"f_{kind.replace('-', '_')}_hz"] = float(freqs[hits[0]])
+        extra = {"summary": summary, "mode_parities": cls["parities"], "axial_mass_fraction": cls["axial_fraction"],
+                 "eigen_residuals": resid}
+        # the reported displacement is the lowest mode, scaled to max |u| = 1 (shape, in m per unit)
+        u = cls["phi"][:, 0] / np.abs(cls["phi"][:, 0]).max()
+        return u, extra, solver
