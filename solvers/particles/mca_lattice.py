@@ -1,0 +1,113 @@
+"""Automata of the movable cellular automaton (MCA) method on a rectangular simple-cubic lattice.
+
+Each automaton is the Voronoi cell of its lattice node clipped by the body: a box of extent h along an
+axis inside, h/2 at a face (nodes lie on the faces, edges and corners, as in the bar's lattice family
+where d = a).  Pairs are the face neighbours (rest distance r0 = h along one axis); the contact area S
+of a pair is the area of the shared cell face and the distance from either centre to the contact point
+is q = r0/2.  With this geometry two sums hold exactly for every automaton, also on faces, edges and
+corners (the free faces pass through the centre, at distance 0):
+    sum_j q_ij S_ij = 3 Omega_i,      sum_j q_ij S_ij n_ij (x) n_ij = Omega_i I,
+so a homogeneous strain of the lattice gives every automaton the same average stress and volume
+strain as the continuum; this is what lets the uniaxial tests return E and nu exactly.
+Mass m = rho Omega, moment of inertia J = m (ex^2 + ey^2 + ez^2) / 18 (the mean of the box's three
+principal moments; a scalar, the automaton being treated as a spherical top).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from harness.scene import Box, SceneError, lattice_shape
+
+
+@dataclass(frozen=True, eq=False)
+class Automata:
+    """Rest positions (N, 3), cell extents (N, 3), volumes, masses, inertia; pairs (P, 2), r0, S."""
+
+    shape: tuple[int, int, int]
+    spacing: np.ndarray  # (3,) lattice spacing per axis
+    positions: np.ndarray
+    extent: np.ndarray
+    volume: np.ndarray
+    mass: np.ndarray
+    inertia: np.ndarray
+    pairs: np.ndarray
+    r0: np.ndarray
+    area: np.ndarray
+    axis: np.ndarray  # lattice axis (0, 1, 2) of each pair
+
+    @property
+    def size(self) -> int:
+        return int(self.positions.shape[0])
+
+    def node_at(self, points: np.ndarray) -> np.ndarray:
+        """Indices of the automata centred at `points` (k, 3); SceneError if a point is not a centre."""
+        pts = np.atleast_2d(np.asarray(points, dtype=float))
+        dist, idx = cKDTree(self.positions).query(pts)
+        bad = np.flatnonzero(dist > 1e-6 * float(self.spacing.min()))
+        if bad.size:
+            raise SceneError(f"sample point {pts[bad[0]].tolist()} is not an automaton centre; the mca solver "
+                             "reports at its automata only")
+        return idx.astype(np.int64)
+
+    def on_face(self, face: str, box_extent: np.ndarray) -> np.ndarray:
+        """Indices of the automata whose centre lies on `face` (x0, xW, y0, yH, z0, zL)."""
+        ax = "xyz".index(face[0])
+        target = 0.0 if face[1] == "0" else float(box_extent[ax])
+        return np.flatnonzero(np.abs(self.positions[:, ax] - target) <= 1e-9 * float(box_extent[ax]))
+
+
+def build_automata(extent: np.ndarray, shape: tuple[int, int, int], density: float) -> Automata:
+    """Automata of a rectangular body `extent` (3,) with `shape` nodes per axis (each >= 2)."""
+    ext = np.asarray(extent, dtype=float)
+    if len(shape) != 3 or min(shape) < 2:
+        raise SceneError(f"shape={shape!r} is out of range; allowed: three integers >= 2")
+    if not (np.all(np.isfinite(ext)) and np.all(ext > 0)):
+        raise SceneError(f"extent={ext.tolist()!r} is out of range; allowed: three numbers in (0, inf) m")
+    if not (math_finite(density) and density > 0):
+        raise SceneError(f"density={density!r} is out of range; allowed: number in (0, inf) kg/m^3")
+    h = ext / (np.asarray(shape) - 1)
+    axes = [np.linspace(0.0, e, c) for e, c in zip(ext, shape, strict=True)]
+    cell = []
+    for hh, c in zip(h, shape, strict=True):
+        w = np.full(c, hh)
+        w[0] = w[-1] = hh / 2
+        cell.append(w)
+    grid = np.meshgrid(*axes, indexing="ij")
+    pos = np.stack([g.ravel() for g in grid], axis=1)
+    cg = np.meshgrid(*cell, indexing="ij")
+    extent_i = np.stack([g.ravel() for g in cg], axis=1)
+    vol = extent_i.prod(axis=1)
+    mass = density * vol
+    inertia = mass * (extent_i**2).sum(axis=1) / 18.0
+    idx = np.arange(pos.shape[0]).reshape(shape)
+    pairs, axis = [], []
+    for ax in range(3):
+        lo = [slice(None)] * 3
+        hi = [slice(None)] * 3
+        lo[ax] = slice(0, -1)
+        hi[ax] = slice(1, None)
+        pairs.append(np.stack([idx[tuple(lo)].ravel(), idx[tuple(hi)].ravel()], axis=1))
+        axis.append(np.full(pairs[-1].shape[0], ax))
+    pr = np.concatenate(pairs).astype(np.int64)
+    ax_arr = np.concatenate(axis).astype(np.int64)
+    r0 = h[ax_arr]
+    other = np.array([(1, 2), (0, 2), (0, 1)])[ax_arr]
+    ei = extent_i[pr[:, 0]]
+    area = np.take_along_axis(ei, other, axis=1).prod(axis=1)
+    return Automata(shape=tuple(int(s) for s in shape), spacing=h, positions=pos, extent=extent_i, volume=vol,
+                    mass=mass, inertia=inertia, pairs=pr, r0=r0, area=area, axis=ax_arr)
+
+
+def bar_automata(box: Box, n: int, density: float) -> Automata:
+    """Automata of the bar's lattice family: n x n x (3n - 2) nodes, d = a = W/(n - 1)."""
+    if int(n) != n or n < 2:
+        raise SceneError(f"n={n!r} is out of range; allowed: integer >= 2")
+    return build_automata(box.extent, lattice_shape(int(n)), density)
+
+
+def math_finite(x: float) -> bool:
+    return bool(np.isfinite(x))
