@@ -16,6 +16,7 @@ REGISTRY: dict[str, str] = {
     "fipy": "solvers.continuum.fipy_heat:FipyHeat",
     "macromolecule": "solvers.particles.macromolecule:Macromolecule",
     "skfem-elastic": "solvers.continuum.skfem_elastic:SkfemElastic",
+    "mca": "solvers.particles.mca:Mca",
 }
 
 
