@@ -284,7 +284,8 @@ def advance(x, v, phi, w, f, mom, dx, dphi, x0, xref, mass, inertia, vol, fixm, 
     """Advance `nsteps` velocity-Verlet steps (f, mom hold the forces of the current state on entry).
 
     Constrained degrees of freedom (fixm[i, c] = 1; c = 0..2 translation, 3..5 rotation) move with the
-    prescribed velocity fixv[i, c] until time fp[F_TSTOP], then stay.  Viscous damping gamma (1/s) acts
+    prescribed velocity fixv[i, c] until time fp[F_TSTOP], then stay (the step across t_stop moves by the
+    remaining fraction, so the prescribed displacement is reached exactly).  Viscous damping gamma (1/s) acts
     on the free ones (exact exponential decay per half step; the energy removed is accumulated).
     Work of the constraints: trapezoid of sum (-f) . v over each step.  A history row every ip[I_REC]
     steps.  Returns when done or when the state is non-finite, blows up, or moved beyond the skin."""
@@ -302,9 +303,9 @@ def advance(x, v, phi, w, f, mom, dx, dphi, x0, xref, mass, inertia, vol, fixm, 
     inv_j = 1.0 / inertia
     skin2 = fp[F_SKIN] * fp[F_SKIN]
     power_old = _power(f, mom, v, w, fixm, rot)
-    for step in range(nsteps):
+    for _ in range(nsteps):
         t = fp[F_T]
-        drive = 1.0 if t + 0.5 * dt < fp[F_TSTOP] else 0.0
+        drive = min(1.0, max(0.0, (fp[F_TSTOP] - t) / dt))  # the last partial step lands on t_stop exactly
         diss = 0.0
         for i in range(n_aut):
             for c in range(3):

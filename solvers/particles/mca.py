@@ -1,0 +1,391 @@
+"""The movable cellular automaton (MCA) solver: elasticity, fracture, eigenfrequencies and heat of the bar.
+
+Pieces: `mca_lattice` (automata: Voronoi cells of the bar's simple-cubic lattice, d = a), `mca_kernel`
+(numba: incremental pair and many-body stresses, rotations, response functions, unlinking, velocity
+Verlet), `mca_model` (constants, state, dynamic relaxation; the derivation of the many-body coefficient
+is in its docstring), `mca_stiffness` (the linearised model: modes, stable step), `mca_heat` (conduction
+between linked automata), `response` (sigma = f(eps) and its exact uniaxial curve).  This module maps a
+scene onto them and turns the results into a Solution.
+
+Scenes:
+- conduction (bar-heat-*): steady by a direct solve of the automata's heat balance, transient by explicit
+  steps at the stable step; samples T / t_max at the automata.
+- elasticity, static (bar-compression): the supports' displacements are ramped in over `ramp_periods`
+  periods 2 pi / gamma with viscous damping gamma (`Model.relaxation_rate`; dynamic relaxation), until the largest
+  residual force on a free degree of freedom is below relax_tol * E |strain| a^2.  Supports on z faces only
+  leave rigid x/y translation and rotation about z free: held by the same "3-2-1" set as skfem-elastic
+  (u_x = u_y = 0 at (0, 0, 0), u_y = 0 at (W, 0, 0)), which carries no force in the uniaxial state.
+  Samples: displacement (m), shape (k, 3).
+- fracture (bar-tension-fracture): face zL pulled along +z at strain_rate * L from t = 0 (undamped unless
+  `damping` is given), until the reaction has fallen below 5 % of its peak after unlinking, or the strain
+  reaches 1.5 times the response function's failure strain.  failure_stress = peak reaction / (W H);
+  energy_error = max |KE + U - KE0 - W_supports| / max U over the elastic phase (before the first unlink).
+- modes (bar-modes): eigenfrequencies of the linearised automata (translations and rotations, the clamped
+  face's automata held), K phi = omega^2 M phi by shift-invert Lanczos about 0.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.linalg import eigsh
+
+from harness.scene import (
+    FaceClamp,
+    FaceSupport,
+    FaceTemperature,
+    Param,
+    PatchTemperature,
+    PointTemperature,
+    Scene,
+    SceneError,
+)
+from solvers.base import Resolution, Solution, effective_params, heat_summary
+
+from . import mca_heat
+from . import mca_kernel as mk
+from . import response as rf
+from .mca_lattice import Automata, bar_automata
+from .mca_model import COEFFICIENTS, Elastic, Model, relax
+from .mca_stiffness import mass_diagonal, stiffness
+
+PARAMETERS: tuple[Param, ...] = (
+    Param("many_body", True, "", "many-body (volume) term on; off = pair-only (sig = E eps)", kind=bool),
+    Param("coefficient", "hooke", "", "many-body coefficient: hooke = 1 - 2G/(3K), psakhie-2G/K = 1 - 2G/K",
+          choices=COEFFICIENTS, kind=str),
+    Param("rotations", True, "", "automata rotate (moments of the tangential forces)", kind=bool),
+    Param("krot", 0.0, "", "rotational pair spring, in units of G S r0 (0 = none)", low=0.0, high=10.0),
+    Param("friction", 0.3, "", "Coulomb friction coefficient of unlinked pairs", low=0.0, high=5.0),
+    Param("relink_stress", None, "Pa", "unlinked pairs re-link (micro-welding) at this compressive stress",
+          low=0.0, high=1e12, low_open=True, optional=True),
+    Param("cfl", 0.5, "", "time step as a fraction of the stability limit 2/omega_max (Gershgorin bound)",
+          low=0.0, high=1.0, low_open=True),
+    Param("damping", None, "1/s", "viscous damping rate (default: relaxation_rate for static scenes, 0 for fracture)",
+          low=0.0, high=1e9, optional=True),
+    Param("relax_tol", 1e-9, "", "static scenes: residual force tolerance in units of E |strain| a^2", low=0.0,
+          high=1e-2, low_open=True),
+    Param("ramp_periods", 4.0, "", "static scenes: load ramp length in periods of 2 pi / damping", low=0.0,
+          high=1e3, low_open=True),
+    Param("max_steps", 5_000_000, "", "largest number of time steps of a run", low=1, high=1e9, kind=int),
+    Param("heat_cfl", 0.9, "", "heat: explicit step as a fraction of the Gershgorin-stable step", low=0.0,
+          high=1.0, low_open=True),
+    Param("records", 2000, "", "fracture: history rows kept", low=10, high=1e6, kind=int),
+)
+
+
+class Mca:
+    """Movable cellular automata on the bar lattice (elasticity, fracture, modes, heat)."""
+
+    name = "mca"
+    version = "1.0"
+    parameters = PARAMETERS
+
+    def supports(self, scene: Scene) -> tuple[bool, str]:
+        phys = set(scene.physics)
+        if phys == {"conduction"}:
+            if scene.mode == "steady" and not scene.constraints:
+                return False, "steady conduction without any prescribed temperature is singular"
+            return True, ""
+        if "elasticity" in phys:
+            extra = phys - {"elasticity", "modes", "fracture"}
+            if extra:
+                return False, f"mca does not model {sorted(extra)}"
+            if not any(isinstance(c, (FaceSupport, FaceClamp)) for c in scene.constraints):
+                return False, "an unsupported elastic bar is singular: no FaceSupport or FaceClamp"
+            return True, ""
+        return False, f"mca does conduction and elasticity; scene needs {sorted(phys)}"
+
+    def solve(self, scene: Scene, resolution: Resolution, samples: dict[str, np.ndarray] | None = None,
+              **params: Any) -> Solution:
+        p = effective_params(self, params)
+        ok, why = self.supports(scene)
+        if not ok:
+            raise SceneError(why)
+        t_wall = time.perf_counter()
+        n = resolution.n
+        pts = scene.sample_sets(n) if samples is None else samples
+        if "conduction" in scene.physics:
+            aut = bar_automata(scene.box, n, scene.material.density)
+            out = self._heat(scene, aut, p)
+        else:
+            aut = bar_automata(scene.box, n, scene.material.density)
+            if "modes" in scene.physics:
+                out = self._modes(scene, aut, p)
+            elif "fracture" in scene.physics:
+                out = self._fracture(scene, aut, p)
+            else:
+                out = self._static(scene, aut, p)
+        field = out.pop("field")
+        values = {} if field is None else {k: {"points": np.asarray(v, float), "values": field[aut.node_at(v)]}
+                                           for k, v in pts.items()}
+        return Solution(scene=scene.name, solver=self.name, params=p, resolution={"n": n, "refine": 1},
+                        samples=values, unknowns=out.pop("unknowns"),
+                        wall_s=time.perf_counter() - t_wall, status=out.pop("status", "ok"),
+                        reason=out.pop("reason", ""), quantity=out.pop("quantity"), work=out.pop("work"),
+                        summary=out.pop("summary"), diagnostics=out.pop("diagnostics", {}))
+
+    # -- heat ----------------------------------------------------------------------------------------
+
+    @staticmethod
+    def _held(scene: Scene, aut: Automata) -> tuple[np.ndarray, np.ndarray]:
+        """Held mask and values of the temperature constraints."""
+        held = np.zeros(aut.size, dtype=np.int64)
+        values = np.full(aut.size, scene.initial_temperature, dtype=float)
+        for c in scene.constraints:
+            if isinstance(c, FaceTemperature):
+                idx = aut.on_face(c.face, scene.box.extent)
+            elif isinstance(c, PointTemperature):
+                idx = aut.node_at(np.asarray(c.point))
+            elif isinstance(c, PatchTemperature):
+                d = np.linalg.norm(aut.positions - np.asarray(c.centre), axis=1)
+                idx = np.flatnonzero(d <= c.radius * (1 + 1e-9))
+                if idx.size == 0:
+                    idx = np.array([int(np.argmin(d))])
+            else:
+                raise SceneError(f"mca heat: constraint {type(c).__name__} is not a temperature constraint")
+            held[idx] = 1
+            values[idx] = c.value
+        return held, values
+
+    def _heat(self, scene: Scene, aut: Automata, p: dict[str, Any]) -> dict[str, Any]:
+        mat = scene.material
+        held, values = self._held(scene, aut)
+        t0 = time.perf_counter()
+        summary: dict[str, Any] = {}
+        work: dict[str, Any] = {"unknowns": aut.size}
+        if scene.mode == "steady":
+            temp = mca_heat.steady(aut, mat.conductivity, values, held)
+            work["time_steps"] = 0
+        else:
+            temp, dt, steps = mca_heat.transient(aut, mat.conductivity, mat.density * mat.heat_capacity, values,
+                                                 held, scene.t_end, p["heat_cfl"])
+            summary.update(dt=dt, steps=steps)
+            work.update(time_steps=steps, pair_steps=steps * len(aut.pairs))
+        work["kernel_s"] = time.perf_counter() - t0
+        rel = temp / scene.t_max
+        status, reason = ("ok", "") if np.all(np.isfinite(rel)) else ("unstable", "non-finite temperature")
+        summary.update(heat_summary(rel, float((rel * aut.volume).sum() / aut.volume.sum())))
+        return {"field": rel, "unknowns": aut.size, "quantity": "T/t_max", "work": work, "summary": summary,
+                "status": status, "reason": reason}
+
+    # -- elasticity ----------------------------------------------------------------------------------
+
+    @staticmethod
+    def _fixes(scene: Scene, aut: Automata, rate_of: dict[str, float]) -> tuple[np.ndarray, np.ndarray, np.ndarray,
+                                                                                 list[str]]:
+        """(fixm, fixv, group, notes): constrained dofs, their velocities, face groups (1 = zL, 2 = z0)."""
+        n = aut.size
+        ext = scene.box.extent
+        fixm = np.zeros((n, 6), dtype=np.uint8)
+        fixv = np.zeros((n, 6))
+        group = np.zeros(n, dtype=np.int64)
+        notes: list[str] = []
+        clamped = False
+        for c in scene.constraints:
+            if not isinstance(c, (FaceSupport, FaceClamp)):
+                raise SceneError(f"mca elasticity: constraint {type(c).__name__} is not supported")
+            idx = aut.on_face(c.face, ext)
+            if isinstance(c, FaceClamp):
+                fixm[idx] = 1
+                fixv[idx] = 0.0
+                clamped = True
+            else:
+                ax = "xyz".index(c.face[0])
+                fixm[idx, ax] = 1
+                fixv[idx, ax] = rate_of.get(c.face, 0.0)
+        group[aut.on_face("zL", ext)] = 1
+        group[aut.on_face("z0", ext)] = 2
+        supported = {"xyz".index(c.face[0]) for c in scene.constraints if isinstance(c, FaceSupport)}
+        if not clamped and supported == {2}:
+            z0 = aut.on_face("z0", ext)
+            xy = aut.positions[z0, :2]
+            a = z0[np.flatnonzero(np.all(np.abs(xy) <= 1e-9 * ext[0], axis=1))]
+            b = z0[np.flatnonzero((np.abs(xy[:, 0] - ext[0]) <= 1e-9 * ext[0]) & (np.abs(xy[:, 1]) <= 1e-9 * ext[1]))]
+            fixm[a, 0] = fixm[a, 1] = fixm[b, 1] = 1
+            notes.append("rigid-body set: u_x = u_y = 0 at (0, 0, 0), u_y = 0 at (W, 0, 0)")
+        elif not clamped and supported != {0, 1, 2}:
+            raise SceneError("mca elasticity: supports that leave rigid motion free are implemented for z faces "
+                             "only; allowed: FaceSupport on z0/zL, or a FaceClamp")
+        return fixm, fixv, group, notes
+
+    @staticmethod
+    def _elastic(scene: Scene, p: dict[str, Any]) -> Elastic:
+        mat = scene.material
+        return Elastic(mat.youngs_modulus, mat.poisson_ratio, many_body=p["many_body"], coefficient=p["coefficient"])
+
+    @staticmethod
+    def _strains(scene: Scene, aut: Automata, u: np.ndarray) -> tuple[float, float]:
+        """Axial strain from the zL face, lateral strain from the face-averaged x and y displacements."""
+        ext = scene.box.extent
+        on = {f: aut.on_face(f, ext) for f in ("x0", "xW", "y0", "yH", "z0", "zL")}
+
+        def mean(face: str, ax: int) -> float:
+            idx = on[face]
+            wgt = aut.volume[idx]
+            return float((u[idx, ax] * wgt).sum() / wgt.sum())
+
+        axial = (mean("zL", 2) - mean("z0", 2)) / ext[2]
+        lateral = 0.5 * ((mean("xW", 0) - mean("x0", 0)) / ext[0] + (mean("yH", 1) - mean("y0", 1)) / ext[1])
+        return axial, lateral
+
+    def _static(self, scene: Scene, aut: Automata, p: dict[str, Any]) -> dict[str, Any]:
+        el = self._elastic(scene, p)
+        probe = Model(aut, el)
+        rate = probe.relaxation_rate()
+        t_ramp = p["ramp_periods"] * 2 * math.pi / rate
+        disp = {c.face: c.displacement for c in scene.constraints if isinstance(c, FaceSupport)}
+        fixm, fixv, group, notes = self._fixes(scene, aut, {f: d / t_ramp for f, d in disp.items()})
+        gamma = rate if p["damping"] is None else p["damping"]
+        model = Model(aut, el, rotations=p["rotations"], krot=p["krot"], cfl=p["cfl"], gamma=gamma, fixm=fixm,
+                      fixv=fixv, group=group, t_stop=t_ramp)
+        st = model.new_state()
+        strain = max(abs(d) for d in disp.values()) / scene.box.length if disp else 1e-3
+        scale = el.youngs * max(strain, 1e-12) * float(aut.spacing.min()) ** 2
+        status, res, _ = relax(model, st, scale, tol=p["relax_tol"], max_steps=p["max_steps"])
+        u = st.x - aut.positions
+        steps = int(st.counters[mk.C_STEPS])
+        summary: dict[str, Any] = {"residual": res, "steps": steps, "dt": model.dt, "damping": gamma,
+                                   "ramp_s": t_ramp}
+        react = float(-st.f[group == 1, 2].sum())
+        summary["reaction_force"] = react
+        if "zL" in disp and "z0" in disp:
+            axial, lateral = self._strains(scene, aut, u)
+            area = scene.box.width * scene.box.height
+            summary.update(axial_strain=axial, lateral_strain=lateral, E_eff=react / area / axial,
+                           nu_eff=-lateral / axial)
+        kstat, reason = self._status(status, res, p["relax_tol"], steps, p["max_steps"])
+        return {"field": u, "unknowns": 6 * aut.size, "quantity": "u (m)", "summary": summary, "status": kstat,
+                "reason": reason, "work": self._work(st, aut), "diagnostics": {"notes": notes}}
+
+    @staticmethod
+    def _work(st, aut: Automata) -> dict[str, Any]:
+        return {"pair_steps": int(st.counters[mk.C_PAIRSTEPS]), "time_steps": int(st.counters[mk.C_STEPS]),
+                "kernel_s": st.kernel_s, "unknowns": 6 * aut.size}
+
+    @staticmethod
+    def _status(code: int, res: float, tol: float, steps: int, max_steps: int) -> tuple[str, str]:
+        if code in (mk.NAN, mk.GROWTH):
+            return "unstable", f"{mk.STATUS_TEXT[code]} after {steps} steps; state at that step kept"
+        if code == mk.MOVED:
+            return "failed", mk.STATUS_TEXT[code]
+        if not res <= tol:
+            return "failed", f"residual {res:.3g} above relax_tol {tol:g} after {steps} steps (max_steps {max_steps})"
+        return "ok", ""
+
+    # -- fracture ------------------------------------------------------------------------------------
+
+    def _fracture(self, scene: Scene, aut: Automata, p: dict[str, Any]) -> dict[str, Any]:
+        el = self._elastic(scene, p)
+        resp = scene.response
+        length = scene.box.length
+        speed = scene.strain_rate * length
+        fixm, fixv, group, notes = self._fixes(scene, aut, {"zL": speed})
+        gamma = 0.0 if p["damping"] is None else p["damping"]
+        model = Model(aut, el, response=resp, fracture=True, rotations=p["rotations"], friction=p["friction"],
+                      krot=p["krot"], relink_stress=p["relink_stress"], cfl=p["cfl"], gamma=gamma, fixm=fixm,
+                      fixv=fixv, group=group)
+        eps_fail = failure_strain(resp, el.youngs)
+        t_end = 1.5 * eps_fail / scene.strain_rate
+        steps_total = min(p["max_steps"], math.ceil(t_end / model.dt))
+        every = max(1, steps_total // p["records"])
+        hist = np.zeros((steps_total // every + 2, mk.N_H))
+        st = model.new_state()
+        area = scene.box.width * scene.box.height
+        ke0 = 0.5 * float((aut.mass[:, None] * st.v**2).sum())
+        rows = []
+        done = 0
+        code = mk.OK
+        chunk = max(every, 2000 // every * every)
+        while done < steps_total:
+            code = model.advance(st, min(chunk, steps_total - done), hist, every)
+            rows.append(hist[: st.counters[mk.C_ROWS]].copy())
+            done = int(st.counters[mk.C_STEPS])
+            if code != mk.OK:
+                break
+            h = np.concatenate(rows)
+            peak = h[:, mk.H_R1].max()
+            if st.counters[mk.C_UNLINK] > 0 and h[-1, mk.H_R1] < 0.05 * peak:
+                break
+        h = np.concatenate(rows) if rows else np.zeros((0, mk.N_H))
+        n_pairs = len(aut.pairs)
+        summary: dict[str, Any] = {"dt": model.dt, "steps": done, "damping": gamma}
+        if len(h):
+            stress = h[:, mk.H_R1] / area
+            k = int(np.argmax(stress))
+            summary.update(failure_stress=float(stress[k]), failure_strain=float(h[k, mk.H_U1] / length),
+                           strength_expected=rf.tensile_strength(resp) if resp else math.inf,
+                           linked_fraction=float(h[-1, mk.H_LINKED] / n_pairs),
+                           reaction_force=float(h[k, mk.H_R1]))
+            elastic = h[h[:, mk.H_LINKED] == n_pairs]
+            if len(elastic) and resp is not None and resp.kind == "elastic" and gamma == 0.0:
+                bal = elastic[:, mk.H_KE] + elastic[:, mk.H_U] - ke0 - elastic[:, mk.H_WORK]
+                summary["energy_error"] = float(np.max(np.abs(bal)) / np.max(elastic[:, mk.H_U]))
+            rise = h[(stress > 0.1 * stress[k]) & (stress < 0.6 * stress[k]) & (np.arange(len(h)) < k)]
+            if len(rise) > 3:
+                summary["E_eff"] = float(np.polyfit(rise[:, mk.H_U1] / length, rise[:, mk.H_R1] / area, 1)[0])
+        summary["unlink_events"] = int(st.counters[mk.C_UNLINK])
+        summary["relink_events"] = int(st.counters[mk.C_RELINK])
+        status, reason = "ok", ""
+        if code in (mk.NAN, mk.GROWTH):
+            status, reason = "unstable", f"{mk.STATUS_TEXT[code]} at step {done}; history up to there kept"
+        elif code == mk.MOVED:
+            status, reason = "ok", f"stopped at step {done}: {mk.STATUS_TEXT[code]} (fragments separated)"
+        elif st.counters[mk.C_UNLINK] == 0:
+            status, reason = "failed", f"no pair unlinked up to strain {h[-1, mk.H_U1] / length:.3g}"
+        diag = {"notes": notes, "history": {"columns": ["t", "kinetic", "potential", "work", "dissipated",
+                                                        "reaction_zL", "reaction_z0", "u_zL", "linked",
+                                                        "kinetic_rot"], "rows": h}}
+        return {"field": st.x - aut.positions, "unknowns": 6 * aut.size, "quantity": "u (m)", "summary": summary,
+                "status": status, "reason": reason, "work": self._work(st, aut), "diagnostics": diag}
+
+    # -- modes ---------------------------------------------------------------------------------------
+
+    def _modes(self, scene: Scene, aut: Automata, p: dict[str, Any]) -> dict[str, Any]:
+        el = self._elastic(scene, p)
+        rot = p["rotations"]
+        t0 = time.perf_counter()
+        k = stiffness(aut, el.shear, el.lam, el.kn, p["krot"], rotations=rot)
+        m = mass_diagonal(aut, rotations=rot)
+        nd = 6 if rot else 3
+        fixm, _, _, _ = self._fixes(scene, aut, {})
+        held = fixm[:, :nd].ravel() == 1
+        free = np.flatnonzero(~held)
+        kff = k[free][:, free].tocsc()
+        count = int(scene.modes)
+        if count >= free.size - 1:
+            raise SceneError(f"modes={count} is out of range; allowed: integer in [1, {free.size - 2}] at this "
+                             "resolution")
+        if free.size <= 1500:
+            import scipy.linalg as sla
+
+            vals, vecs = sla.eigh(kff.toarray(), np.diag(m[free]))
+        else:
+            v0 = np.random.default_rng(4).standard_normal(free.size)
+            vals, vecs = eigsh(kff, k=count, M=sp.diags(m[free]).tocsc(), sigma=0.0, which="LM", v0=v0)
+        order = np.argsort(vals)[:count]
+        vals, vecs = vals[order], vecs[:, order]
+        freqs = np.sqrt(np.clip(vals, 0.0, None)) / (2 * np.pi)
+        full = np.zeros((k.shape[0], count))
+        full[free] = vecs
+        frac_rot = np.zeros(count)
+        if rot:
+            mm = m[:, None] * full**2
+            frac_rot = mm.reshape(aut.size, 6, count)[:, 3:].sum(axis=(0, 1)) / mm.sum(axis=0)
+        summary = {"frequencies_hz": freqs, "rotational_mass_fraction": frac_rot}
+        work = {"unknowns": int(free.size), "kernel_s": time.perf_counter() - t0}
+        return {"field": None, "unknowns": int(free.size), "quantity": "frequencies (Hz)", "summary": summary,
+                "work": work}
+
+
+def failure_strain(resp, youngs: float) -> float:
+    """Strain at which the exact uniaxial curve of `resp` fractures (0.2 if not before)."""
+    if resp is None:
+        return 0.2
+    eps = np.linspace(0.0, 0.2, 20001)
+    sig = rf.uniaxial_curve(resp, youngs, eps)
+    broken = np.flatnonzero(np.isnan(sig))
+    return float(eps[broken[0]]) if broken.size else 0.2
