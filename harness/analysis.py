@@ -106,3 +106,30 @@ def timing(results: list[dict[str, Any]]) -> pd.DataFrame:
             for r in results if r.get("status") == "ok"]
     df = pd.DataFrame(rows)
     return df.sort_values(["solver", "unknowns"]) if not df.empty else df
+
+
+def work_counter(result: dict[str, Any]) -> tuple[str, float]:
+    """(name, value) of the work a cell did: pair-steps for particles, unknowns x time steps for grids."""
+    work = result.get("work") or {}
+    if work.get("pair_steps"):
+        return "pair-steps", float(work["pair_steps"])
+    steps = max(int(work.get("time_steps") or 1), 1)
+    return "unknown-steps", float(result.get("unknowns") or 0) * steps
+
+
+def work_precision(results: list[dict[str, Any]], error: str = "nodes.l2") -> pd.DataFrame:
+    """Error against the analytic reference with the wall time and work counter of every ok cell."""
+    rows = []
+    for r in results:
+        if r.get("status") != "ok":
+            continue
+        errors = analytic_errors(r)
+        if error not in errors:
+            continue
+        name, work = work_counter(r)
+        rows.append({"solver": r["solver"], "n": r["n"], "refine": r["refine"], "unknowns": r["unknowns"],
+                     "wall_s": r["wall_s"], "kernel_s": (r.get("summary") or {}).get("kernel_s"),
+                     "work": work, "work_kind": name, f"err.{error}": errors[error],
+                     "timing": r.get("timing", "parallel pass")})
+    df = pd.DataFrame(rows)
+    return df.sort_values(["solver", "wall_s"]) if not df.empty else df

@@ -12,17 +12,17 @@ import html
 import json
 import platform
 import subprocess
+import sys
 from importlib import metadata
 from pathlib import Path
 from typing import Any
 
-import matplotlib
+import numpy as np
+import pandas as pd
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import pandas as pd  # noqa: E402
-
-from harness import analysis  # noqa: E402
+from harness import analysis, figures, verdict
+from harness.scene import SceneError
+from harness.vtu import write_vtu
 
 PACKAGES = ("numpy", "scipy", "numba", "fipy", "scikit-fem", "pyamg", "pandas", "matplotlib")
 
@@ -37,85 +37,99 @@ def _markdown(df: pd.DataFrame) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _plot_convergence(levels: pd.DataFrame, fits: pd.DataFrame, columns: list[str], path: Path, title: str) -> None:
-    fig, ax = plt.subplots(figsize=(6, 4))
-    for (solver, params), seq in levels.groupby(["solver", "params"], sort=False):
-        seq = seq.sort_values("h")
-        for col in columns:
-            y = seq[col].abs()
-            if (y > 0).all():
-                ax.loglog(seq["h"], y, "o-", label=f"{solver} {params} {col}".strip())
-    ax.set_xlabel("h [m]")
-    ax.set_ylabel("error" if any(c.endswith(("l2", "linf")) for c in columns) else "|value|")
-    ax.set_title(title, fontsize=9)
-    ax.grid(True, which="both", alpha=0.3)
-    if ax.lines:
-        ax.legend(fontsize=6)
-    fig.tight_layout()
-    fig.savefig(path.with_suffix(".png"), dpi=110)
-    fig.savefig(path.with_suffix(".svg"))
-    plt.close(fig)
+def _vtu_name(r: dict[str, Any]) -> str:
+    tag = r.get("cache_key") or "cell"
+    return f"{r['group']}-{r['solver']}-n{r['n']}-r{r['refine']}-{tag}.vtu"
 
 
-def _plot_timing(df: pd.DataFrame, path: Path, title: str) -> None:
-    fig, ax = plt.subplots(figsize=(6, 4))
-    for solver, seq in df.groupby("solver"):
-        ax.loglog(seq["unknowns"], seq["wall_s"], "o-", label=solver)
-    ax.set_xlabel("unknowns")
-    ax.set_ylabel("wall time [s]")
-    ax.set_title(title, fontsize=9)
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend()
-    fig.tight_layout()
-    fig.savefig(path.with_suffix(".png"), dpi=110)
-    fig.savefig(path.with_suffix(".svg"))
-    plt.close(fig)
+def _write_vtus(results: list[dict[str, Any]], folder: Path) -> list[str]:
+    """One VTU point cloud per ok cell that sampled the lattice nodes (ParaView)."""
+    names = []
+    for r in results:
+        nodes = (r.get("samples") or {}).get("nodes") if r.get("status") in figures.SHOWN else None
+        if nodes is None:
+            continue
+        values = np.asarray(nodes["values"], dtype=float)
+        name = (r.get("quantity") or "value").replace("/", "_over_")
+        write_vtu(folder / "vtu" / _vtu_name(r), np.asarray(nodes["points"], dtype=float), {name: values})
+        names.append(f"vtu/{_vtu_name(r)}")
+    return names
+
+
+def _group_tables(g: Any, res: list[dict[str, Any]], folder: Path) -> tuple[dict[str, pd.DataFrame], list[str]]:
+    """Tables and figures of one group, by its analysis and its `figures` option."""
+    figs: list[str] = []
+    stem = folder / g.id
+    if g.analysis == "convergence":
+        quantities = list(g.options.get("quantities", ["volume_mean", "bulk_median"]))
+        levels, fits = analysis.convergence(res, quantities)
+        tables = {f"{g.id}-levels": levels, f"{g.id}-fits": fits}
+        err_cols = [c for c in levels.columns if c.endswith(".linf")]
+        if not levels.empty and figures.convergence(levels, err_cols or quantities, stem, g.title):
+            figs.append(f"{g.id}.png")
+    elif g.analysis == "timing":
+        df = analysis.timing(res)
+        tables = {f"{g.id}-timing": df}
+        if not df.empty and figures.cost(df, stem, g.title):
+            figs.append(f"{g.id}.png")
+    elif g.analysis == "work-precision":
+        error = g.options.get("error", "nodes.l2")
+        df = analysis.work_precision(res, error)
+        tables = {f"{g.id}-work-precision": df}
+        if figures.work_precision(df, f"err.{error}", stem, g.title):
+            figs.append(f"{g.id}.png")
+    elif g.analysis == "stability":
+        from harness.stability import report_tables
+
+        tables, more = report_tables(res, folder, g.id, g.title)
+        figs += more
+    else:
+        tables = {f"{g.id}-cells": analysis.cells_table(res)}
+    for kind in g.options.get("figures", []):
+        draw = {"edge-profiles": figures.edge_profiles, "render-3d": figures.render_3d}.get(kind)
+        if draw is None:
+            raise SceneError(f"group {g.id}: figures entry {kind!r} is unknown; allowed: edge-profiles, render-3d")
+        if draw(res, folder / f"{g.id}-{kind}", g.title):
+            figs.append(f"{g.id}-{kind}.png")
+    return tables, figs
 
 
 def write_study_report(study: Any, results: list[dict[str, Any]], out: Path) -> Path:
-    """Write tables and plots of one study into out/<study>/ and a manifest the index reads."""
+    """Write tables, plots, VTU files and verdicts of one study into out/<study>/ and its manifest."""
     folder = out / study.name
     folder.mkdir(parents=True, exist_ok=True)
-    manifest: dict[str, Any] = {"name": study.name, "title": study.title, "sections": []}
-    by_group = {g.id: [r for r in results if r.get("group") == g.id] for g in study.groups}
+    manifest: dict[str, Any] = {"name": study.name, "title": study.title, "sections": [], "verdicts": None}
     cells = analysis.cells_table(results)
     cells.to_csv(folder / "cells.csv", index=False)
+    all_tables: dict[str, pd.DataFrame] = {}
     for g in study.groups:
-        res = by_group[g.id]
-        section: dict[str, Any] = {"id": g.id, "title": g.title, "tables": [], "figures": []}
+        res = [r for r in results if r.get("group") == g.id]
+        tables, figs = _group_tables(g, res, folder)
+        tables.setdefault(f"{g.id}-cells", analysis.cells_table(res))
         skipped = [r for r in res if r.get("status") in ("skipped", "failed")]
-        if g.analysis == "convergence":
-            quantities = list(g.options.get("quantities", ["volume_mean", "bulk_median"]))
-            levels, fits = analysis.convergence(res, quantities)
-            tables = {f"{g.id}-levels": levels, f"{g.id}-fits": fits}
-            if not levels.empty:
-                err_cols = [c for c in levels.columns if c.endswith(".linf")]
-                _plot_convergence(levels, fits, err_cols or quantities, folder / g.id, g.title)
-                section["figures"].append(f"{g.id}.png")
-        elif g.analysis == "timing":
-            df = analysis.timing(res)
-            tables = {f"{g.id}-timing": df}
-            if not df.empty:
-                _plot_timing(df, folder / g.id, g.title)
-                section["figures"].append(f"{g.id}.png")
-        elif g.analysis == "stability":
-            from harness.stability import report_tables
-
-            tables, figures = report_tables(res, folder, g.id, g.title)
-            section["figures"] += figures
-        else:
-            tables = {f"{g.id}-cells": analysis.cells_table(res)}
         if skipped:
             tables[f"{g.id}-skipped"] = pd.DataFrame(
                 [{"solver": r["solver"], "n": r["n"], "refine": r["refine"], "status": r["status"],
                   "reason": r.get("reason", "")} for r in skipped])
+        section: dict[str, Any] = {"id": g.id, "title": g.title, "tables": [], "figures": figs, "vtu": []}
         for name, df in tables.items():
-            df.to_csv(folder / f"{name}.csv", index=False)
-            (folder / f"{name}.md").write_text(_markdown(df))
-            section["tables"].append(f"{name}.csv")
+            _write_table(df, folder / name)
+            if name != f"{g.id}-cells" or g.analysis == "table":
+                section["tables"].append(f"{name}.csv")
+        if g.options.get("vtu"):
+            section["vtu"] = _write_vtus(res, folder)
+        all_tables.update(tables)
         manifest["sections"].append(section)
+    if study.claims:
+        _write_table(verdict.verdicts(study.name, study.claims, all_tables), folder / "verdicts")
+        manifest["verdicts"] = "verdicts.csv"
     (folder / "manifest.json").write_text(json.dumps(manifest, indent=1))
     return folder
+
+
+def _write_table(df: pd.DataFrame, stem: Path) -> None:
+    df.to_csv(stem.with_suffix(".csv"), index=False)
+    stem.with_suffix(".md").write_text(_markdown(df))
 
 
 def provenance() -> dict[str, str]:
@@ -127,7 +141,7 @@ def provenance() -> dict[str, str]:
         commit = "unknown"
     info = {"generated": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"), "git commit": commit,
             "machine": f"{platform.node()} {platform.machine()} {platform.processor()}".strip(),
-            "python": platform.python_version()}
+            "python": platform.python_version(), "command": " ".join([Path(sys.argv[0]).name, *sys.argv[1:]])}
     for pkg in PACKAGES:
         try:
             info[pkg] = metadata.version(pkg)
@@ -136,35 +150,87 @@ def provenance() -> dict[str, str]:
     return info
 
 
+CSS = ("body{font-family:sans-serif;max-width:1150px;margin:auto}table{border-collapse:collapse;font-size:12px;"
+       "margin-bottom:1em}td,th{border:1px solid #ccc;padding:2px 6px}h2{border-bottom:1px solid #888}"
+       "img{max-width:100%}.pass{background:#d8f5d0}.fail{background:#f8d0d0}.not-applicable{background:#eee}")
+
+
+def _html_table(df: pd.DataFrame, table_id: str) -> str:
+    if df.empty:
+        return f"<table id='{html.escape(table_id)}' class='data'><tr><td>(no rows)</td></tr></table>"
+    body = df.to_html(index=False, float_format=lambda v: f"{v:.6g}", na_rep="", classes="data",
+                      table_id=table_id, escape=True)
+    if "verdict" in df.columns:
+        for word in ("pass", "fail", "not-applicable"):
+            body = body.replace(f"<td>{word}</td>", f"<td class='{word}'>{word}</td>")
+    return f"<div class='scroll'>{body}</div>"
+
+
+def _read_csv(path: Path) -> pd.DataFrame:
+    try:
+        return pd.read_csv(path)
+    except pd.errors.EmptyDataError:
+        return pd.DataFrame()
+
+
+def _img(path: Path) -> str:
+    data = base64.b64encode(path.read_bytes()).decode()
+    return f"<img alt='{html.escape(path.name)}' src='data:image/png;base64,{data}'>"
+
+
+def _benchmarks(out: Path) -> list[str]:
+    """The benchmark section: history of saved runs and the kernels' cost per pair-step against N."""
+    storage = out / "benchmarks"
+    runs = figures.benchmark_runs(storage)
+    if runs.empty:
+        return ["<h2 id='benchmarks'>Benchmarks</h2><p>No saved benchmark runs under "
+                f"{html.escape(str(storage))} (run <code>tox -e bench</code>).</p>"]
+    folder = out / "benchmark-figures"
+    folder.mkdir(exist_ok=True)
+    parts = ["<h2 id='benchmarks'>Benchmarks</h2>"]
+    for name, draw in (("history", figures.benchmark_history), ("scaling", figures.benchmark_scaling)):
+        if draw(runs, folder / name):
+            parts.append(_img(folder / f"{name}.png"))
+    last = runs[runs["run"] == runs["run"].max()].dropna(axis=1, how="all")
+    parts.append("<p><b>latest run</b></p>" + _html_table(last, "benchmarks-latest"))
+    return parts
+
+
 def write_index(out: Path) -> Path:
-    """One self-contained index.html (images embedded) over every study folder in `out`."""
-    parts = ["<!doctype html><html><head><meta charset='utf-8'><title>pcverify report</title>",
-             "<style>body{font-family:sans-serif;max-width:1100px;margin:auto}table{border-collapse:collapse;"
-             "font-size:12px}td,th{border:1px solid #ccc;padding:2px 6px}h2{border-bottom:1px solid #888}</style>",
-             "</head><body><h1>pcverify report</h1>"]
-    for manifest_path in sorted(out.glob("*/manifest.json")):
-        man = json.loads(manifest_path.read_text())
-        folder = manifest_path.parent
-        parts.append(f"<h2>{html.escape(man['title'])}</h2>")
+    """One self-contained index.html (images embedded): verdicts first, then every study, benchmarks, provenance."""
+    manifests = [(p.parent, json.loads(p.read_text())) for p in sorted(out.glob("*/manifest.json"))]
+    parts = ["<!doctype html><html lang='en'><head><meta charset='utf-8'><title>pcverify report</title>",
+             f"<style>{CSS}</style></head><body><h1>pcverify report</h1>"]
+    verdict_tables = [_read_csv(folder / man["verdicts"]) for folder, man in manifests if man.get("verdicts")]
+    verdict_tables = [v for v in verdict_tables if not v.empty]
+    parts.append("<h2 id='verdicts'>Verdicts</h2><p>Each claim with the kind of reference it stands on, the value, "
+                 "its error against the target, the uncertainty of the number, the tolerance and the verdict.</p>")
+    if verdict_tables:
+        table = pd.concat(verdict_tables, ignore_index=True)
+        counts = table["verdict"].value_counts().to_dict()
+        parts.append("<p>" + ", ".join(f"{v}: {counts[v]}" for v in sorted(counts)) + "</p>")
+        parts.append(_html_table(table, "verdicts-table"))
+    else:
+        parts.append("<p>No study with claims has results yet.</p>")
+    for folder, man in manifests:
+        parts.append(f"<h2 id='{html.escape(man['name'])}'>{html.escape(man['title'])}</h2>")
         for sec in man["sections"]:
             parts.append(f"<h3>{html.escape(sec['title'])}</h3>")
-            for fig in sec["figures"]:
-                data = base64.b64encode((folder / fig).read_bytes()).decode()
-                parts.append(f"<img alt='{html.escape(fig)}' src='data:image/png;base64,{data}'>")
+            parts += [_img(folder / fig) for fig in sec["figures"]]
             for tab in sec["tables"]:
                 parts.append(f"<p><b>{html.escape(tab)}</b></p>")
-                try:
-                    df = pd.read_csv(folder / tab)
-                except pd.errors.EmptyDataError:
-                    parts.append("<p>(no rows)</p>")
-                    continue
-                parts.append(df.to_html(index=False, float_format=lambda v: f"{v:.6g}", na_rep=""))
+                parts.append(_html_table(_read_csv(folder / tab), f"{man['name']}-{Path(tab).stem}"))
+            if sec.get("vtu"):
+                parts.append(f"<p>VTU (ParaView) under {html.escape(str(folder / 'vtu'))}: {len(sec['vtu'])} files</p>")
+    parts += _benchmarks(out)
     prov = provenance()
-    parts.append("<h2>Provenance</h2><table>")
+    parts.append("<h2 id='provenance'>Provenance</h2><table id='provenance-table'>")
     parts += [f"<tr><th>{html.escape(k)}</th><td>{html.escape(v)}</td></tr>" for k, v in prov.items()]
     parts.append("</table></body></html>")
     index = out / "index.html"
-    index.write_text("\n".join(parts))
+    tmp = index.with_suffix(".html.tmp")
+    tmp.write_text("\n".join(parts))
+    tmp.replace(index)
     return index
 
 

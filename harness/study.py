@@ -24,6 +24,7 @@ from tqdm import tqdm
 from harness.cache import Cache, cell_key
 from harness.catalogue import make_scene
 from harness.scene import SceneError
+from harness.verdict import parse_claims
 
 ANALYSES = ("convergence", "timing", "table", "work-precision", "stability")
 SERIAL_ANALYSES = ("timing", "work-precision")  # their wall times are compared: serial pass after a warm-up
@@ -62,6 +63,7 @@ class Study:
     name: str
     title: str
     groups: list[Group]
+    claims: list[Any] = field(default_factory=list)  # harness.verdict.Claim
 
 
 def study_files() -> dict[str, Path]:
@@ -75,6 +77,12 @@ def _list(value: Any, what: str, path: str) -> list[Any]:
     if not items:
         raise SceneError(f"{path}: {what} is empty; allowed: a value or a non-empty list")
     return items
+
+
+def _solver_params(table: dict[str, Any], solver: str) -> dict[str, Any]:
+    """Shared solver parameters plus those under a sub-table named after `solver` (e.g. macromolecule = {...})."""
+    shared = {k: v for k, v in table.items() if not isinstance(v, dict)}
+    return shared | dict(table.get(solver, {}))
 
 
 def load_study(name_or_path: str) -> Study:
@@ -110,7 +118,7 @@ def load_study(name_or_path: str) -> Study:
             _list(g.get("solvers", []), "solvers", where), _list(g.get("n", [4]), "n", where),
             _list(g.get("refine", [1]), "refine", where), combos,
         ):
-            params = dict(g.get("solver_params", {}), **dict(zip(keys, combo, strict=True)))
+            params = _solver_params(g.get("solver_params", {}), solver) | dict(zip(keys, combo, strict=True))
             cells.append(Cell(gid, g["scene"], tuple(sorted(scene_params.items())), solver, int(n), int(refine),
                               tuple(sorted(params.items())), probe=probe))
         serial = bool(g.get("serial", analysis in SERIAL_ANALYSES))
@@ -121,7 +129,8 @@ def load_study(name_or_path: str) -> Study:
         groups.append(Group(gid, g.get("title", gid), analysis, cells, options))
     if not groups:
         raise SceneError(f"study file {path}: no [[group]] tables")
-    return Study(doc.get("name", path.stem), doc.get("title", path.stem), groups)
+    claims = parse_claims(doc.get("claim", []), path.name)
+    return Study(doc.get("name", path.stem), doc.get("title", path.stem), groups, claims)
 
 
 def cell_identity(cell: Cell) -> tuple[dict[str, Any], Any, Any, str | None]:

@@ -1,0 +1,213 @@
+"""Report figures (PNG and SVG): convergence, cost, work-precision, edge profiles, 3-D renders, benchmarks.
+
+Each function takes tables or cached results and a path without suffix, and writes `path.png` and
+`path.svg`; it returns True when it drew something.  Nothing here runs a solver.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+
+EDGES = ("front_top_edge", "bottom_back_edge")
+
+
+def _save(fig: Any, path: Path) -> bool:
+    fig.tight_layout()
+    fig.savefig(path.with_suffix(".png"), dpi=110)
+    fig.savefig(path.with_suffix(".svg"))
+    plt.close(fig)
+    return True
+
+
+def _label(r: dict[str, Any], varying: list[str]) -> str:
+    params = r.get("solver_params") or {}
+    extra = " ".join(f"{k}={params[k]:g}" if isinstance(params.get(k), float) else f"{k}={params.get(k)}"
+                     for k in varying if k in params)
+    return f"{r['solver']} {extra}".strip()
+
+
+def _varying(results: list[dict[str, Any]]) -> list[str]:
+    keys: dict[str, set[str]] = {}
+    for r in results:
+        for k, v in (r.get("solver_params") or {}).items():
+            keys.setdefault(k, set()).add(repr(v))
+    return sorted(k for k, vals in keys.items() if len(vals) > 1)
+
+
+SHOWN = ("ok", "non-stationary", "defect")  # runs that completed: their fields are drawn, status in the label
+
+
+def _shown(r: dict[str, Any], sample: str) -> bool:
+    return r.get("status") in SHOWN and sample in (r.get("samples") or {})
+
+
+def is_particle(result: dict[str, Any]) -> bool:
+    """Whether a result comes from a particle solver (it counts pair-steps)."""
+    return bool((result.get("work") or {}).get("pair_steps"))
+
+
+def convergence(levels: pd.DataFrame, columns: list[str], path: Path, title: str) -> bool:
+    """log-log error (or value) against h, one line per solver sequence and column."""
+    fig, ax = plt.subplots(figsize=(6, 4))
+    for (solver, params), seq in levels.groupby(["solver", "params"], sort=False):
+        seq = seq.sort_values("h")
+        for col in columns:
+            y = pd.to_numeric(seq[col], errors="coerce").abs()
+            if len(y) and (y > 0).all():
+                ax.loglog(seq["h"], y, "o-", label=f"{solver} {params} {col}".strip())
+    ax.set_xlabel("h [m]")
+    ax.set_ylabel("error" if any(c.endswith(("l2", "linf")) for c in columns) else "|value|")
+    ax.set_title(title, fontsize=9)
+    ax.grid(True, which="both", alpha=0.3)
+    if ax.lines:
+        ax.legend(fontsize=6)
+    return _save(fig, path)
+
+
+def cost(df: pd.DataFrame, path: Path, title: str) -> bool:
+    """Wall time against unknowns per solver."""
+    fig, ax = plt.subplots(figsize=(6, 4))
+    for solver, seq in df.groupby("solver"):
+        ax.loglog(seq["unknowns"], seq["wall_s"], "o-", label=solver)
+    ax.set_xlabel("unknowns")
+    ax.set_ylabel("wall time [s]")
+    ax.set_title(title, fontsize=9)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend()
+    return _save(fig, path)
+
+
+def work_precision(df: pd.DataFrame, error: str, path: Path, title: str) -> bool:
+    """Error against wall time (left) and against the work counter (right), one line per solver."""
+    if df.empty:
+        return False
+    fig, (left, right) = plt.subplots(1, 2, figsize=(9, 4))
+    for solver, seq in df.groupby("solver"):
+        seq = seq.sort_values("wall_s")
+        left.loglog(seq["wall_s"], seq[error], "o-", label=solver)
+        seq = seq.sort_values("work")
+        right.loglog(seq["work"], seq[error], "o-", label=f"{solver} ({seq['work_kind'].iloc[0]})")
+    left.set_xlabel("wall time [s]")
+    right.set_xlabel("work (pair-steps or unknowns x time steps)")
+    for ax in (left, right):
+        ax.set_ylabel(error)
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=7)
+    fig.suptitle(title, fontsize=9)
+    return _save(fig, path)
+
+
+def edge_profiles(results: list[dict[str, Any]], path: Path, title: str) -> bool:
+    """The paper's Fig. 9: relative value along the two edges, particle polylines against continuum curves.
+
+    One row of panels per lattice n; one line per parameter set (e.g. per damping value).
+    """
+    ok = [r for r in results if all(_shown(r, e) for e in EDGES)]
+    if not ok:
+        return False
+    ns = sorted({r["n"] for r in ok})
+    varying = _varying(ok)
+    fig, axes = plt.subplots(len(ns), 2, figsize=(9, 2.8 * len(ns)), squeeze=False)
+    for row, n in enumerate(ns):
+        for col, edge in enumerate(EDGES):
+            ax = axes[row, col]
+            for r in (r for r in ok if r["n"] == n):
+                pts = np.asarray(r["samples"][edge]["points"], float)
+                vals = np.asarray(r["samples"][edge]["values"], float)
+                style = dict(marker="o", ms=3, lw=1) if is_particle(r) else dict(lw=2.2, color="k", alpha=0.6)
+                label = _label(r, varying) + ("" if is_particle(r) else f" refine={r['refine']}")
+                label += "" if r["status"] == "ok" else f" ({r['status']})"
+                ax.plot(pts[:, 2] * 1e3, vals, label=label, **style)
+            ax.set_title(f"n = {n}: {edge.replace('_', ' ')}", fontsize=8)
+            ax.set_xlabel("z [mm]")
+            ax.set_ylabel("relative value")
+            ax.grid(True, alpha=0.3)
+        axes[row, 1].legend(fontsize=6, loc="best")
+    fig.suptitle(title, fontsize=9)
+    return _save(fig, path)
+
+
+def render_3d(results: list[dict[str, Any]], path: Path, title: str) -> bool:
+    """Particles coloured by their relative value (the paper's Figs. 2-4), one panel per n."""
+    ok = [r for r in results if is_particle(r) and _shown(r, "nodes")]
+    first: dict[int, dict[str, Any]] = {}
+    for r in ok:
+        first.setdefault(r["n"], r)
+    if not first:
+        return False
+    fig = plt.figure(figsize=(4 * len(first), 4.2))
+    for k, (n, r) in enumerate(sorted(first.items())):
+        ax = fig.add_subplot(1, len(first), k + 1, projection="3d")
+        pts = np.asarray(r["samples"]["nodes"]["points"], float) * 1e3
+        vals = np.asarray(r["samples"]["nodes"]["values"], float)
+        sc = ax.scatter(pts[:, 0], pts[:, 2], pts[:, 1], c=vals, cmap="inferno", s=40, vmin=0.0,
+                        vmax=max(1.0, float(np.nanmax(vals))), depthshade=False)
+        ax.set_xlabel("x [mm]", fontsize=7)
+        ax.set_ylabel("z [mm]", fontsize=7)
+        ax.set_zlabel("y [mm]", fontsize=7)
+        ax.set_box_aspect((1, 3, 1))
+        ax.set_title(f"{r['solver']} n={n} ({len(vals)} particles), {r['status']}", fontsize=8)
+        fig.colorbar(sc, ax=ax, shrink=0.6, label="relative hotness")
+    fig.suptitle(title, fontsize=9)
+    return _save(fig, path)
+
+
+def benchmark_runs(storage: Path) -> pd.DataFrame:
+    """One row per (saved pytest-benchmark run, benchmark): mean/min seconds and extra_info."""
+    rows = []
+    for k, file in enumerate(sorted(storage.glob("*/*.json"))):
+        try:
+            doc = json.loads(file.read_text())
+        except (OSError, json.JSONDecodeError):
+            continue
+        commit = (doc.get("commit_info") or {}).get("id", "")[:10]
+        for b in doc.get("benchmarks", []):
+            extra = {k2: v for k2, v in (b.get("extra_info") or {}).items() if isinstance(v, (int, float, str))}
+            rows.append({"run": k, "saved": file.stem, "datetime": doc.get("datetime", ""), "commit": commit,
+                         "benchmark": b.get("name", ""), "mean_s": b["stats"]["mean"], "min_s": b["stats"]["min"],
+                         **extra})
+    return pd.DataFrame(rows)
+
+
+def benchmark_history(runs: pd.DataFrame, path: Path) -> bool:
+    """Mean time of every benchmark across the saved runs (the regression history)."""
+    if runs.empty:
+        return False
+    fig, ax = plt.subplots(figsize=(7, 4))
+    for name, seq in runs.groupby("benchmark"):
+        ax.semilogy(seq["run"], seq["mean_s"], "o-", label=name)
+    ax.set_xlabel("saved run")
+    ax.set_ylabel("mean time [s]")
+    ax.set_title("Benchmark history (tox -e bench)", fontsize=9)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=5, ncol=2)
+    return _save(fig, path)
+
+
+def benchmark_scaling(runs: pd.DataFrame, path: Path) -> bool:
+    """ns per pair-step against particle count in the latest run, per benchmark family."""
+    need = {"ns_per_pair_step", "particles"}
+    if runs.empty or not need <= set(runs.columns):
+        return False
+    last = runs[runs["run"] == runs["run"].max()].dropna(subset=list(need))
+    if last.empty:
+        return False
+    fig, ax = plt.subplots(figsize=(6, 4))
+    for family, seq in last.groupby(last["benchmark"].str.split("[").str[0]):
+        seq = seq.sort_values("particles")
+        ax.loglog(seq["particles"], seq["ns_per_pair_step"], "o-", label=family)
+    ax.set_xlabel("particles N")
+    ax.set_ylabel("ns per pair-step")
+    ax.set_title("Particle kernels: cost per pair-step against N (latest benchmark run)", fontsize=9)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=6)
+    return _save(fig, path)

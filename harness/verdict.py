@@ -1,0 +1,125 @@
+"""Verdicts: each claim of a study judged against the tables the study produced.
+
+A claim is data in the study file (`[[claim]]`): which table, which rows (`select`), which column
+(`metric`), how rows are combined (`aggregate`), the target and tolerance, and the kind of
+reference the number stands on (analytic / extrapolated / mesh-dependent / same-grid / theory).
+`per` splits a claim into one verdict per value of a column (e.g. per n); `against` takes the
+target from other rows of the same table (e.g. the continuum solver on the same lattice).
+A claim with no usable rows is "not-applicable" with the reason, never a pass.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from harness.scene import SceneError
+
+REFERENCE_KINDS = ("analytic", "extrapolated", "mesh-dependent", "same-grid", "theory", "paper")
+AGGREGATES = {"max": np.max, "min": np.min, "median": np.median, "mean": np.mean}
+VERDICT_COLUMNS = ("study", "claim", "statement", "case", "reference", "value", "target", "error", "uncertainty",
+                   "tolerance", "verdict", "note")
+
+
+@dataclass(frozen=True)
+class Claim:
+    """One checkable statement about a study's results."""
+
+    id: str
+    text: str
+    table: str
+    metric: str
+    reference: str
+    tolerance: float
+    target: float = 0.0
+    select: dict[str, Any] = field(default_factory=dict)
+    aggregate: str = "max"
+    absolute: bool = False  # compare |value| (e.g. signed differences) with the target
+    per: str = ""
+    against: dict[str, Any] = field(default_factory=dict)
+    uncertainty: float | str = math.nan  # a number, or a column aggregated like the metric
+
+
+def parse_claims(items: list[dict[str, Any]], where: str) -> list[Claim]:
+    """Validate the `[[claim]]` tables of a study file; a bad one raises SceneError naming the field."""
+    claims = []
+    known = {f for f in Claim.__dataclass_fields__}
+    for k, item in enumerate(items):
+        at = f"{where} claim {k + 1}"
+        unknown = sorted(set(item) - known)
+        if unknown:
+            raise SceneError(f"{at}: {unknown[0]} is not a claim field; allowed: {', '.join(sorted(known))}")
+        for name in ("id", "text", "table", "metric", "reference", "tolerance"):
+            if name not in item:
+                raise SceneError(f"{at}: {name} is missing")
+        if item["reference"] not in REFERENCE_KINDS:
+            raise SceneError(f"{at}: reference={item['reference']!r} is not allowed; allowed: "
+                             f"{', '.join(REFERENCE_KINDS)}")
+        if item.get("aggregate", "max") not in AGGREGATES:
+            raise SceneError(f"{at}: aggregate={item['aggregate']!r} is not allowed; allowed: {', '.join(AGGREGATES)}")
+        tol = item["tolerance"]
+        if isinstance(tol, bool) or not isinstance(tol, (int, float)) or not math.isfinite(tol) or tol < 0:
+            raise SceneError(f"{at}: tolerance={tol!r} is out of range; allowed: number in [0, inf)")
+        claims.append(Claim(**item))
+    return claims
+
+
+def _rows(df: pd.DataFrame, select: dict[str, Any]) -> pd.DataFrame:
+    for col, want in select.items():
+        if col not in df.columns:
+            return df.iloc[0:0]
+        wanted = want if isinstance(want, list) else [want]
+        df = df[df[col].isin(wanted)]
+    return df
+
+
+def _aggregate(df: pd.DataFrame, column: str, how: str) -> float:
+    if column not in df.columns:
+        return math.nan
+    values = pd.to_numeric(df[column], errors="coerce").to_numpy(float)
+    values = values[np.isfinite(values)]
+    return float(AGGREGATES[how](values)) if values.size else math.nan
+
+
+def judge(study: str, claim: Claim, tables: dict[str, pd.DataFrame]) -> list[dict[str, Any]]:
+    """Verdict rows for one claim (one per `per` value)."""
+    base = {"study": study, "claim": claim.id, "statement": claim.text, "reference": claim.reference,
+            "tolerance": claim.tolerance}
+    df = tables.get(claim.table)
+    if df is None or df.empty:
+        return [base | {"case": "", "verdict": "not-applicable", "note": f"table {claim.table} has no rows"}]
+    rows = _rows(df, claim.select)
+    others = _rows(df, claim.against) if claim.against else None
+    cases = sorted(rows[claim.per].dropna().unique().tolist()) if claim.per and claim.per in rows else [None]
+    out = []
+    for case in cases:
+        part = rows if case is None else rows[rows[claim.per] == case]
+        row = base | {"case": "" if case is None else f"{claim.per}={case}"}
+        value = _aggregate(part, claim.metric, claim.aggregate)
+        target = claim.target
+        if others is not None:
+            ref = others if case is None else others[others[claim.per] == case]
+            target = _aggregate(ref, claim.metric, claim.aggregate)
+        if not (math.isfinite(value) and math.isfinite(target)):
+            reasons = sorted(set(str(r) for r in df.get("reason", pd.Series(dtype=str)).dropna() if r))
+            note = f"no finite {claim.metric} in the selected rows" + (f" ({reasons[0]})" if reasons else "")
+            out.append(row | {"verdict": "not-applicable", "note": note})
+            continue
+        if isinstance(claim.uncertainty, str):
+            unc = _aggregate(part, claim.uncertainty, "max")
+        else:
+            unc = float(claim.uncertainty)
+        error = abs((abs(value) if claim.absolute else value) - target)
+        out.append(row | {"value": value, "target": target, "error": error, "uncertainty": unc,
+                          "verdict": "pass" if error <= claim.tolerance else "fail", "note": ""})
+    return out
+
+
+def verdicts(study: str, claims: list[Claim], tables: dict[str, pd.DataFrame]) -> pd.DataFrame:
+    """All verdict rows of a study, in the fixed column order."""
+    rows = [r for c in claims for r in judge(study, c, tables)]
+    return pd.DataFrame(rows, columns=list(VERDICT_COLUMNS))
