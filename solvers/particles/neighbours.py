@@ -1,0 +1,220 @@
+"""Neighbour lists for large lattices: a cell list builds a Verlet list with a skin, rebuilt on demand.
+
+The list is "full" (each pair appears in both rows) so that a force pass can gather: particle i
+sums the forces of its own row and writes only its own slot, with no write races and a fixed
+summation order whatever the thread count.  Row i holds every j != i with |x_j - x_i| < radius
+at build time, radius = r_cut + skin, in ascending j (a canonical order: two lists holding the
+same pairs are equal array for array, however the cells fell).  Indices are int32 (4 bytes per
+entry, 32 entries per particle on the seven-root lattice), row offsets int64.
+
+Rebuild on demand: while no particle has moved more than skin/2 since the build, no pair that
+was beyond the radius can have come within r_cut (two particles close in by at most skin), so
+the list still holds every interacting pair.  `NeighbourList.update` rebuilds when that bound
+is passed and counts the builds.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from numba import njit, prange
+
+from harness.scene import SceneError
+
+
+@njit(cache=True, error_model="numpy")
+def _cells(x, radius):
+    """Cell of every particle (cells at least `radius` wide) and the particles sorted by cell."""
+    n = x.shape[0]
+    lo = np.empty(3)
+    dims = np.empty(3, dtype=np.int64)
+    width = np.empty(3)
+    for d in range(3):
+        mn = x[0, d]
+        mx = x[0, d]
+        for i in range(n):
+            mn = min(mn, x[i, d])
+            mx = max(mx, x[i, d])
+        lo[d] = mn
+        dims[d] = max(1, int((mx - mn) / radius))
+        width[d] = max((mx - mn) / dims[d], radius)
+    ncell = dims[0] * dims[1] * dims[2]
+    cell = np.empty(n, dtype=np.int64)
+    for i in range(n):
+        c = 0
+        for d in range(3):
+            k = min(int((x[i, d] - lo[d]) / width[d]), dims[d] - 1)
+            c = c * dims[d] + k
+        cell[i] = c
+    cstart = np.zeros(ncell + 1, dtype=np.int64)
+    for i in range(n):
+        cstart[cell[i] + 1] += 1
+    for c in range(ncell):
+        cstart[c + 1] += cstart[c]
+    fill = cstart[:-1].copy()
+    members = np.empty(n, dtype=np.int32)
+    for i in range(n):  # stable counting sort: members of a cell in ascending index
+        members[fill[cell[i]]] = i
+        fill[cell[i]] += 1
+    return cell, cstart, members, dims
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def _build(x, radius):
+    """CSR Verlet list (start int64 (N+1), index int32) of all j != i closer than radius, rows ascending."""
+    n = x.shape[0]
+    cell, cstart, members, dims = _cells(x, radius)
+    r2max = radius * radius
+    counts = np.zeros(n, dtype=np.int64)
+    ny = dims[1]
+    nz = dims[2]
+    for i in prange(n):
+        c = cell[i]
+        cx = c // (ny * nz)
+        cy = (c // nz) % ny
+        cz = c % nz
+        m = 0
+        for ax in range(max(cx - 1, 0), min(cx + 2, dims[0])):
+            for ay in range(max(cy - 1, 0), min(cy + 2, ny)):
+                for az in range(max(cz - 1, 0), min(cz + 2, nz)):
+                    cc = (ax * ny + ay) * nz + az
+                    for q in range(cstart[cc], cstart[cc + 1]):
+                        j = members[q]
+                        if j == i:
+                            continue
+                        r2 = (x[j, 0] - x[i, 0]) ** 2 + (x[j, 1] - x[i, 1]) ** 2 + (x[j, 2] - x[i, 2]) ** 2
+                        if r2 < r2max:
+                            m += 1
+        counts[i] = m
+    start = np.zeros(n + 1, dtype=np.int64)
+    for i in range(n):
+        start[i + 1] = start[i] + counts[i]
+    index = np.empty(start[n], dtype=np.int32)
+    for i in prange(n):
+        c = cell[i]
+        cx = c // (ny * nz)
+        cy = (c // nz) % ny
+        cz = c % nz
+        p0 = start[i]
+        m = 0
+        for ax in range(max(cx - 1, 0), min(cx + 2, dims[0])):
+            for ay in range(max(cy - 1, 0), min(cy + 2, ny)):
+                for az in range(max(cz - 1, 0), min(cz + 2, nz)):
+                    cc = (ax * ny + ay) * nz + az
+                    for q in range(cstart[cc], cstart[cc + 1]):
+                        j = members[q]
+                        if j == i:
+                            continue
+                        r2 = (x[j, 0] - x[i, 0]) ** 2 + (x[j, 1] - x[i, 1]) ** 2 + (x[j, 2] - x[i, 2]) ** 2
+                        if r2 < r2max:
+                            # insertion into the sorted row
+                            s = p0 + m
+                            while s > p0 and index[s - 1] > j:
+                                index[s] = index[s - 1]
+                                s -= 1
+                            index[s] = j
+                            m += 1
+    return start, index
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def moved_beyond(x, x_ref, limit):
+    """Number of particles displaced more than `limit` from x_ref (non-finite positions count too)."""
+    n = x.shape[0]
+    lim2 = limit * limit
+    over = 0
+    for i in prange(n):
+        d2 = (x[i, 0] - x_ref[i, 0]) ** 2 + (x[i, 1] - x_ref[i, 1]) ** 2 + (x[i, 2] - x_ref[i, 2]) ** 2
+        if not d2 <= lim2:
+            over += 1
+    return over
+
+
+@dataclass(eq=False)
+class NeighbourList:
+    """Full Verlet list in CSR form: row i = index[start[i]:start[i+1]] (ascending j)."""
+
+    start: np.ndarray
+    index: np.ndarray
+    x_ref: np.ndarray
+    r_cut: float
+    skin: float
+    builds: int = 1
+    history: list[int] = field(default_factory=list)  # step of each rebuild after the first
+
+    @property
+    def radius(self) -> float:
+        return self.r_cut + self.skin
+
+    @property
+    def size(self) -> int:
+        return int(self.start.shape[0] - 1)
+
+    @property
+    def entries(self) -> int:
+        return int(self.index.shape[0])
+
+    @property
+    def nbytes(self) -> int:
+        """Memory held by the list (offsets, indices and the reference positions)."""
+        return int(self.start.nbytes + self.index.nbytes + self.x_ref.nbytes)
+
+    def expired(self, x: np.ndarray) -> bool:
+        """True once some particle has moved more than skin/2 since the build."""
+        return bool(moved_beyond(x, self.x_ref, 0.5 * self.skin) > 0)
+
+    def rebuild(self, x: np.ndarray, step: int = -1) -> None:
+        """Build again from positions x."""
+        self.start, self.index = _build(np.ascontiguousarray(x, dtype=np.float64), self.radius)
+        self.x_ref = np.array(x, dtype=np.float64, copy=True)
+        self.builds += 1
+        self.history.append(step)
+
+    def update(self, x: np.ndarray, step: int = -1) -> bool:
+        """Rebuild if expired; returns whether it did."""
+        if self.expired(x):
+            self.rebuild(x, step)
+            return True
+        return False
+
+    def pairs(self) -> np.ndarray:
+        """(P, 2) unique pairs i < j of the list (for checks and tests; not used by kernels)."""
+        i = np.repeat(np.arange(self.size, dtype=np.int64), np.diff(self.start))
+        j = self.index.astype(np.int64)
+        keep = i < j
+        return np.stack([i[keep], j[keep]], axis=1)
+
+
+def build_neighbours(x: np.ndarray, r_cut: float, skin: float) -> NeighbourList:
+    """Verlet list of positions x (N, 3) for interaction range r_cut and skin (same length unit)."""
+    x = np.ascontiguousarray(x, dtype=np.float64)
+    if x.ndim != 2 or x.shape[1] != 3 or x.shape[0] < 1:
+        raise SceneError(f"positions of shape {x.shape} are not allowed; allowed: (N, 3) with N >= 1")
+    if x.shape[0] >= 2**31:
+        raise SceneError(f"N={x.shape[0]} particles is out of range; allowed: N < 2**31 (int32 indices)")
+    if not (math.isfinite(r_cut) and r_cut > 0.0):
+        raise SceneError(f"r_cut={r_cut!r} is out of range; allowed: number in (0, inf)")
+    if not (math.isfinite(skin) and skin > 0.0):
+        raise SceneError(f"skin={skin!r} is out of range; allowed: number in (0, inf)")
+    if not np.isfinite(x).all():
+        raise SceneError("positions contain NaN or Inf; allowed: finite numbers")
+    start, index = _build(x, r_cut + skin)
+    return NeighbourList(start=start, index=index, x_ref=x.copy(), r_cut=float(r_cut), skin=float(skin))
+
+
+def merge_lists(lists: list[NeighbourList]) -> NeighbourList:
+    """Union of lists over the same particles (rows ascending); x_ref and radius of the first.
+
+    Used by ensembles: replicas share one list that holds every pair any replica needs.
+    """
+    first = lists[0]
+    n = first.size
+    keys = np.unique(np.concatenate([
+        np.repeat(np.arange(n, dtype=np.int64), np.diff(nl.start)) * n + nl.index.astype(np.int64) for nl in lists
+    ]))
+    start = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(np.bincount(keys // n, minlength=n), out=start[1:])
+    return NeighbourList(start=start, index=(keys % n).astype(np.int32), x_ref=first.x_ref.copy(),
+                         r_cut=first.r_cut, skin=first.skin, builds=first.builds)

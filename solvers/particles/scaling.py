@@ -1,0 +1,333 @@
+"""Large-N kernel of the macromolecule model: Verlet list, per-particle gather, prange over particles.
+
+The same model as the solver's fixed-pair-list kernel (seven-root pair force F(r) plus radial
+damping delta * rdot, F > 0 attraction), for lattices up to ~10^6 particles on a few cores:
+
+- pairs come from a `neighbours.NeighbourList` (cell list, skin, rebuilt on demand), not from
+  the rest lattice; a pair interacts while r < r_cut.  With r_cut between 2a and sqrt(5) a
+  (default 2.1 a) the interacting set of a vibrating lattice is exactly the fixed list's
+  (all pairs with r0 <= 2a: the force vanishes at 2a, the damping acts out to r_cut, as in
+  LAMMPS' dpd/ext cutoff);
+- the force pass gathers: particle i sums over its own row and writes f[i] only, so threads
+  never write the same slot and the summation order is that of the row (ascending j) whatever
+  the thread count: results are bit-identical for any number of threads;
+- time stepping is velocity Verlet (LAMMPS fix nve): half kick, drift, forces, half kick.  The
+  damping in F_{n+1} uses v_{n+1/2}, the velocities at force time (LAMMPS' dpd does the same;
+  it is the half-step predictor of the solver's kernel, see integrate.py);
+- fixes: FREE, FROZEN (held at rest), PRESCRIBED (x = x_rest + amp sin(omega t + phase)).
+
+Work counter: a pair-step is one interacting pair (i < j, r < r_cut) advanced one step; each is
+evaluated twice by the gather (once from each side), which the 2 cores pay for.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from numba import njit, prange
+
+from harness.scene import Box, SceneError, lattice_points, lattice_spacing
+
+from .neighbours import NeighbourList, build_neighbours
+from .seven_root import SevenRoot, energy_x, force_x
+
+FREE, FROZEN, PRESCRIBED = 0, 1, 2
+DONE, EXPIRED = 0, 1
+DEFAULT_R_CUT = 2.1  # in units of a: above the 2a shell, below the sqrt(5) a shell
+DEFAULT_SKIN = 0.1  # in units of a: list radius 2.2 a < sqrt(5) a keeps 32 entries per bulk particle
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def pair_term(dx, dy, dz, dvx, dvy, dvz, r2, c, inv_a, delta):
+    """Force on i from j (conservative + radial damping), given d = x_j - x_i, dv = v_j - v_i."""
+    r = math.sqrt(r2)
+    ir = 1.0 / r
+    ex = dx * ir
+    ey = dy * ir
+    ez = dz * ir
+    g = force_x(r * inv_a, c)
+    if delta != 0.0:
+        g += delta * (dvx * ex + dvy * ey + dvz * ez)
+    return g * ex, g * ey, g * ez
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def gather_forces(x, v, start, index, c, inv_a, rc2, delta, f):
+    """f[i] = sum over row i of the pair terms (pairs with r^2 < rc2); overwrites f."""
+    for i in prange(x.shape[0]):
+        xi = x[i, 0]
+        yi = x[i, 1]
+        zi = x[i, 2]
+        vxi = v[i, 0]
+        vyi = v[i, 1]
+        vzi = v[i, 2]
+        fx = 0.0
+        fy = 0.0
+        fz = 0.0
+        for p in range(start[i], start[i + 1]):
+            j = index[p]
+            dx = x[j, 0] - xi
+            dy = x[j, 1] - yi
+            dz = x[j, 2] - zi
+            r2 = dx * dx + dy * dy + dz * dz
+            if r2 >= rc2:
+                continue
+            tx, ty, tz = pair_term(dx, dy, dz, v[j, 0] - vxi, v[j, 1] - vyi, v[j, 2] - vzi, r2, c, inv_a, delta)
+            fx += tx
+            fy += ty
+            fz += tz
+        f[i, 0] = fx
+        f[i, 1] = fy
+        f[i, 2] = fz
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def advance(x, v, f, x_rest, kind, amp, phase, omega, mass, dt, step0, n_steps, start, index, x_ref, half_skin,
+            c, inv_a, rc2, delta, hot, resume):
+    """Velocity-Verlet steps from step0 until n_steps are done or the list expires.
+
+    Returns (steps completed, status).  On EXPIRED the step in progress has been drifted (x at
+    t_{n+1}, v = v_{n+1/2}) but has no forces yet: rebuild the list and call again with
+    resume=True, which starts at the force pass.  hot (N,) accumulates KE_i dt (if len N).
+    """
+    n = x.shape[0]
+    lim2 = half_skin * half_skin
+    h = 0.5 * dt / mass
+    inv_dt = 1.0 / dt
+    with_hot = hot.shape[0] == n
+    s = 0
+    while s < n_steps:
+        t0 = (step0 + s) * dt
+        t1 = (step0 + s + 1) * dt
+        if not resume:
+            over = 0
+            for i in prange(n):
+                kd = kind[i]
+                if kd == FREE:
+                    for d in range(3):
+                        v[i, d] += h * f[i, d]
+                        x[i, d] += dt * v[i, d]
+                elif kd == PRESCRIBED:
+                    s0 = math.sin(omega * t0 + phase[i])
+                    s1 = math.sin(omega * t1 + phase[i])
+                    for d in range(3):
+                        v[i, d] = amp[i, d] * (s1 - s0) * inv_dt
+                        x[i, d] = x_rest[i, d] + amp[i, d] * s1
+                else:
+                    for d in range(3):
+                        v[i, d] = 0.0
+                d2 = (x[i, 0] - x_ref[i, 0]) ** 2 + (x[i, 1] - x_ref[i, 1]) ** 2 + (x[i, 2] - x_ref[i, 2]) ** 2
+                if not d2 <= lim2:
+                    over += 1
+            if over > 0:
+                return s, EXPIRED
+        resume = False
+        gather_forces(x, v, start, index, c, inv_a, rc2, delta, f)
+        for i in prange(n):
+            kd = kind[i]
+            if kd == FREE:
+                for d in range(3):
+                    v[i, d] += h * f[i, d]
+            elif kd == PRESCRIBED:
+                cs = math.cos(omega * t1 + phase[i])
+                for d in range(3):
+                    v[i, d] = amp[i, d] * omega * cs
+            if with_hot:
+                hot[i] += 0.5 * mass * (v[i, 0] * v[i, 0] + v[i, 1] * v[i, 1] + v[i, 2] * v[i, 2]) * dt
+        s += 1
+    return s, DONE
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def _pair_energy(x, start, index, c, a, rc2):
+    """Per-particle share of U = sum over pairs i < j of a * int_2^{r/a} F dx (U = 0 at 2a)."""
+    n = x.shape[0]
+    out = np.zeros(n)
+    inv_a = 1.0 / a
+    for i in prange(n):
+        u = 0.0
+        for p in range(start[i], start[i + 1]):
+            j = index[p]
+            if j <= i:
+                continue
+            r2 = (x[j, 0] - x[i, 0]) ** 2 + (x[j, 1] - x[i, 1]) ** 2 + (x[j, 2] - x[i, 2]) ** 2
+            if r2 < rc2:
+                u += energy_x(2.0, math.sqrt(r2) * inv_a, c)
+        out[i] = u * a
+    return out
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def _count_pairs(x, start, index, rc2):
+    n = x.shape[0]
+    out = np.zeros(n, dtype=np.int64)
+    for i in prange(n):
+        m = 0
+        for p in range(start[i], start[i + 1]):
+            j = index[p]
+            if j > i and (x[j, 0] - x[i, 0]) ** 2 + (x[j, 1] - x[i, 1]) ** 2 + (x[j, 2] - x[i, 2]) ** 2 < rc2:
+                m += 1
+        out[i] = m
+    return out
+
+
+def check_range(r_cut: float, skin: float) -> None:
+    """SceneError unless 2 < r_cut (units of a) and 0 < skin."""
+    if not (math.isfinite(r_cut) and 2.0 < r_cut <= 4.0):
+        raise SceneError(f"r_cut={r_cut!r} (units of a) is out of range; allowed: number in (2, 4] (the force "
+                         "ends at 2a; pairs resting at 2a must stay inside the interaction range)")
+    if not (math.isfinite(skin) and 0.0 < skin <= 2.0):
+        raise SceneError(f"skin={skin!r} (units of a) is out of range; allowed: number in (0, 2]")
+
+
+@dataclass(eq=False)
+class KernelRun:
+    """State of one run of the large-N kernel (positions, velocities, forces, list, fixes, sums)."""
+
+    x: np.ndarray
+    v: np.ndarray
+    f: np.ndarray
+    x_rest: np.ndarray
+    kind: np.ndarray
+    amp: np.ndarray
+    phase: np.ndarray
+    omega: float
+    mass: float
+    a: float
+    dt: float
+    coeffs: np.ndarray
+    delta: float
+    nl: NeighbourList
+    hot: np.ndarray
+    r_cut: float
+    step: int = 0
+    status: str = "ok"
+    reason: str = ""
+
+    @classmethod
+    def start(cls, x_rest: np.ndarray, mass: float, a: float, model: SevenRoot, delta: float, dt: float,
+              v0: np.ndarray | None = None, x0: np.ndarray | None = None, kind: np.ndarray | None = None,
+              amp: np.ndarray | None = None, phase: np.ndarray | None = None, omega: float = 0.0,
+              r_cut: float = DEFAULT_R_CUT, skin: float = DEFAULT_SKIN, hotness: bool = False) -> KernelRun:
+        """Set up a run at t = 0: list built on x0 (default x_rest), forces F(x0, v0) computed."""
+        check_range(r_cut, skin)
+        if not (math.isfinite(dt) and dt > 0.0):
+            raise SceneError(f"dt={dt!r} is out of range; allowed: number in (0, inf) s")
+        if not (math.isfinite(delta) and delta >= 0.0):
+            raise SceneError(f"delta={delta!r} is out of range; allowed: number in [0, inf) N s/m")
+        n = x_rest.shape[0]
+        x_rest = np.ascontiguousarray(x_rest, dtype=np.float64)
+        kind = np.zeros(n, dtype=np.int8) if kind is None else np.ascontiguousarray(kind, dtype=np.int8)
+        amp = np.zeros((n, 3)) if amp is None else np.ascontiguousarray(amp, dtype=np.float64)
+        phase = np.zeros(n) if phase is None else np.ascontiguousarray(phase, dtype=np.float64)
+        x = x_rest.copy() if x0 is None else np.array(x0, dtype=np.float64)
+        drv = kind == PRESCRIBED
+        x[drv] = x_rest[drv] + amp[drv] * np.sin(phase[drv])[:, None]
+        x[kind == FROZEN] = x_rest[kind == FROZEN]
+        v = np.zeros((n, 3)) if v0 is None else np.array(v0, dtype=np.float64)
+        v[kind == FROZEN] = 0.0
+        v[drv] = amp[drv] * (omega * np.cos(phase[drv]))[:, None]
+        nl = build_neighbours(x, r_cut * a, skin * a)
+        run = cls(x=x, v=v, f=np.zeros((n, 3)), x_rest=x_rest, kind=kind, amp=amp, phase=phase, omega=float(omega),
+                  mass=float(mass), a=float(a), dt=float(dt), coeffs=model.coeffs(), delta=float(delta), nl=nl,
+                  hot=np.zeros(n if hotness else 0), r_cut=float(r_cut) * a)
+        gather_forces(run.x, run.v, nl.start, nl.index, run.coeffs, 1.0 / run.a, run.r_cut**2, run.delta, run.f)
+        return run
+
+    @property
+    def size(self) -> int:
+        return int(self.x.shape[0])
+
+    def advance(self, n_steps: int) -> int:
+        """Advance n_steps (fewer if the run becomes unstable); rebuilds the list on demand."""
+        done = 0
+        resume = False
+        lo = self.x_rest.min(axis=0) - self.a
+        hi = self.x_rest.max(axis=0) + self.a
+        while done < n_steps and self.status == "ok":
+            s, code = advance(self.x, self.v, self.f, self.x_rest, self.kind, self.amp, self.phase, self.omega,
+                              self.mass, self.dt, self.step, n_steps - done, self.nl.start, self.nl.index,
+                              self.nl.x_ref, 0.5 * self.nl.skin, self.coeffs, 1.0 / self.a, self.r_cut**2,
+                              self.delta, self.hot, resume)
+            done += s
+            self.step += s
+            resume = False
+            if code == EXPIRED:
+                if not np.isfinite(self.x).all() or not np.isfinite(self.v).all():
+                    self.status, self.reason = "unstable", f"NaN/Inf in the state at step {self.step}; sums kept"
+                elif (self.x < lo).any() or (self.x > hi).any():
+                    self.status, self.reason = "unstable", (f"a particle left the bar's neighbourhood (more than a "
+                                                            f"outside) at step {self.step}; sums kept")
+                else:
+                    self.nl.rebuild(self.x, self.step)
+                    resume = True
+        if resume:  # stopped between drift and forces: finish the step
+            advance(self.x, self.v, self.f, self.x_rest, self.kind, self.amp, self.phase, self.omega, self.mass,
+                    self.dt, self.step, 1, self.nl.start, self.nl.index, self.nl.x_ref, 0.5 * self.nl.skin,
+                    self.coeffs, 1.0 / self.a, self.r_cut**2, self.delta, self.hot, True)
+            done += 1
+            self.step += 1
+        return done
+
+    def pair_count(self) -> int:
+        """Interacting pairs (i < j, r < r_cut) at the current positions."""
+        return int(_count_pairs(self.x, self.nl.start, self.nl.index, self.r_cut**2).sum())
+
+    def potential_energy(self) -> float:
+        """U(x) (J) with U = 0 for pairs at 2a; summed per particle, then in index order (deterministic)."""
+        return float(_pair_energy(self.x, self.nl.start, self.nl.index, self.coeffs, self.a, self.r_cut**2).sum())
+
+    def kinetic_energy(self) -> float:
+        return float(0.5 * self.mass * np.einsum("ij,ij->", self.v, self.v))
+
+    @property
+    def nbytes(self) -> int:
+        """Memory of the run's arrays: state, fixes, sums and the neighbour list (bytes)."""
+        arrays = (self.x, self.v, self.f, self.x_rest, self.kind, self.amp, self.phase, self.hot)
+        return int(sum(a.nbytes for a in arrays) + self.nl.nbytes)
+
+
+def bench_lattice(n: int, box: Box | None = None, density: float = 2800.0) -> tuple[np.ndarray, float, float]:
+    """Rest positions (N, 3), spacing a and particle mass of the lattice n x n x (3n-2) in the bar."""
+    box = box or Box()
+    x = lattice_points(box, n)
+    return x, lattice_spacing(box, n), density * box.volume / x.shape[0]
+
+
+def omega_bound(model: SevenRoot, a: float, mass: float) -> float:
+    """Upper bound on the lattice's highest angular frequency (Gershgorin on the rest Hessian).
+
+    At rest every pair sits on a root, so its Hessian block is k_s e e^T (k_s = dF/dr of its
+    shell); the absolute row sum of a bulk particle's rows is at most 2 sum_s k_s N_s max_c
+    sum_b |e_c e_b|, with N_s neighbours in shell s.  Cheap at any N (no eigenproblem).
+    """
+    from .seven_root import shell_stiffness
+
+    k = np.abs(shell_stiffness(model, a))
+    offsets = np.array([(i, j, m) for i in (-2, -1, 0, 1, 2) for j in (-2, -1, 0, 1, 2) for m in (-2, -1, 0, 1, 2)
+                        if 0 < i * i + j * j + m * m <= 4], dtype=float)
+    r = np.linalg.norm(offsets, axis=1)
+    e = offsets / r[:, None]
+    shell = np.rint(r**2).astype(int) - 1  # 1, 2, 3, 4 -> shells 0..3
+    ks = k[shell]
+    row = np.abs(e[:, :, None] * e[:, None, :]).sum(axis=2)  # (P, 3): sum_b |e_c e_b| for each c
+    bound = 2.0 * (ks[:, None] * row).sum(axis=0).max()
+    return math.sqrt(bound / mass)
+
+
+def rows_from_benchmark_json(path: str | Path) -> list[dict]:
+    """Rows {N, ns_per_pair_step, bytes_per_particle, threads, name} of the scaling benchmarks in a
+    pytest-benchmark JSON file (benchmarks whose extra_info has those keys), sorted by N."""
+    data = json.loads(Path(path).read_text())
+    rows = []
+    for b in data.get("benchmarks", []):
+        info = b.get("extra_info", {})
+        if "ns_per_pair_step" in info and "bytes_per_particle" in info and "particles" in info:
+            rows.append({"N": int(info["particles"]), "ns_per_pair_step": float(info["ns_per_pair_step"]),
+                         "bytes_per_particle": float(info["bytes_per_particle"]),
+                         "threads": int(info.get("threads", 0)), "name": b.get("name", "")})
+    return sorted(rows, key=lambda r: (r["N"], r["threads"]))

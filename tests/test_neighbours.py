@@ -1,0 +1,250 @@
+"""Verlet lists (cell list, skin, rebuild on demand) and the large-N gather kernel.
+
+Small lattices only (n = 3, 4: 63 and 160 particles).  What is asserted:
+- the list holds exactly the pairs a k-d tree finds within r_cut + skin, rows ascending;
+- rebuild on demand: not below skin/2 of displacement, yes above; a run that moves particles
+  by more than skin/2 rebuilds and still holds every pair within r_cut (brute force);
+- the gather force pass equals the fixed-pair-list force (lattice pairs, numpy scatter) to
+  round-off, and the run equals the solver's fixed-pair-list kernel to round-off;
+- the force pass and the run are bit-identical for 1 and 2 threads and between repeats;
+- velocity Verlet: energy error second order in dt; blow-up is reported as "unstable".
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+import pytest
+from scipy.spatial import cKDTree
+
+from harness.scene import Box, SceneError
+from solvers.particles import macromolecule as mm
+from solvers.particles.lattice import build_lattice
+from solvers.particles.modal import free_dofs, hessian, top_frequency
+from solvers.particles.neighbours import build_neighbours
+from solvers.particles.scaling import (
+    FROZEN,
+    PRESCRIBED,
+    KernelRun,
+    bench_lattice,
+    gather_forces,
+    omega_bound,
+    rows_from_benchmark_json,
+)
+from solvers.particles.seven_root import SevenRoot, force_array
+
+MODEL = SevenRoot(1.0)
+
+
+def _perturbed(n: int, amp: float = 0.02, seed: int = 1):
+    x, a, m = bench_lattice(n)
+    rng = np.random.default_rng(seed)
+    dx = amp * a * rng.standard_normal(x.shape)
+    dx -= dx.mean(axis=0)
+    return x, a, m, x + dx
+
+
+def _numpy_fixed_pair_forces(lat, x, v, delta):
+    """Reference: the solver's fixed pair list (rest r0 <= 2a), scattered with numpy."""
+    P = lat.pairs
+    d = x[P[:, 1]] - x[P[:, 0]]
+    r = np.linalg.norm(d, axis=1)
+    e = d / r[:, None]
+    g = force_array(r / lat.a, MODEL.coeffs()) + delta * np.einsum("ij,ij->i", v[P[:, 1]] - v[P[:, 0]], e)
+    f = np.zeros_like(x)
+    np.add.at(f, P[:, 0], g[:, None] * e)
+    np.add.at(f, P[:, 1], -g[:, None] * e)
+    return f
+
+
+def test_list_equals_kdtree_pairs():
+    _, a, _, x = _perturbed(4, amp=0.05)
+    nl = build_neighbours(x, 2.1 * a, 0.1 * a)
+    ref = cKDTree(x).query_pairs(2.2 * a, output_type="ndarray")
+    ref = {tuple(p) for p in np.sort(ref, axis=1)}
+    assert {tuple(p) for p in nl.pairs()} == ref
+    rows = np.split(nl.index, nl.start[1:-1])
+    assert all(np.all(np.diff(r) > 0) for r in rows)  # ascending, no duplicates
+    assert nl.entries == 2 * len(ref)
+    assert nl.index.dtype == np.int32
+
+
+def test_rest_lattice_list_is_the_solver_pair_list():
+    """r_cut + skin = 2.2a < sqrt(5) a: at rest the list is exactly the solver's pairs (r0 <= 2a)."""
+    x, a, _ = bench_lattice(4)
+    lat = build_lattice(Box(), 4, 2800.0)
+    nl = build_neighbours(x, 2.1 * a, 0.1 * a)
+    assert np.array_equal(nl.pairs(), lat.pairs)
+
+
+def test_rebuild_on_demand_threshold():
+    x, a, _ = bench_lattice(3)
+    skin = 0.1 * a
+    nl = build_neighbours(x, 2.1 * a, skin)
+    y = x.copy()
+    y[7, 0] += 0.499 * skin
+    assert not nl.update(y) and nl.builds == 1
+    y[7, 0] = x[7, 0] + 0.501 * skin
+    assert nl.update(y) and nl.builds == 2
+    assert np.array_equal(nl.x_ref, y)
+    assert not nl.update(y)  # displacement now measured from the new build
+
+
+def test_run_rebuilds_and_list_stays_complete():
+    """A tiny skin (0.005a) with 0.02a vibrations forces rebuilds; the list must still hold every
+    pair within r_cut, and the forces must equal those of a freshly built list."""
+    _, a, m, x0 = _perturbed(3)
+    x, _, _ = bench_lattice(3)
+    w = omega_bound(MODEL, a, m)
+    run = KernelRun.start(x, m, a, MODEL, 0.01 * m * w, 0.2 / w, x0=x0, skin=0.005)
+    run.advance(400)
+    assert run.status == "ok" and run.nl.builds > 1
+    need = {tuple(p) for p in cKDTree(run.x).query_pairs(run.r_cut, output_type="ndarray")}
+    assert need <= {tuple(p) for p in run.nl.pairs()}
+    fresh = build_neighbours(run.x, 2.1 * a, 0.3 * a)
+    f = np.empty_like(run.f)
+    gather_forces(run.x, run.v, fresh.start, fresh.index, run.coeffs, 1 / a, run.r_cut**2, run.delta, f)
+    f_run = np.empty_like(run.f)
+    gather_forces(run.x, run.v, run.nl.start, run.nl.index, run.coeffs, 1 / a, run.r_cut**2, run.delta, f_run)
+    assert np.array_equal(f, f_run)  # same interacting pairs in the same (ascending) order: bit-identical
+
+
+def test_gather_equals_fixed_pair_list_forces():
+    """Per-pair terms are identical; only the summation order differs: relative 1e-13 bounds the
+    round-off of ~32 terms of mixed sign (observed ~4e-15)."""
+    lat = build_lattice(Box(), 4, 2800.0)
+    x, a, m = bench_lattice(4)
+    _, _, _, xp = _perturbed(4)
+    w = omega_bound(MODEL, a, m)
+    v = 0.02 * a * w * np.random.default_rng(2).standard_normal(x.shape)
+    delta = 0.02 * m * w
+    nl = build_neighbours(xp, 2.1 * a, 0.1 * a)
+    f = np.empty_like(xp)
+    gather_forces(xp, v, nl.start, nl.index, MODEL.coeffs(), 1 / a, (2.1 * a) ** 2, delta, f)
+    ref = _numpy_fixed_pair_forces(lat, xp, v, delta)
+    assert np.abs(f - ref).max() <= 1e-13 * np.abs(ref).max()
+
+
+@pytest.mark.parametrize("zeta", [0.0, 0.02])
+def test_run_equals_solver_fixed_pair_kernel(zeta):
+    """Same start (rest positions, velocities v0), same dt, 300 steps: the Verlet-list kernel and the
+    solver's fixed-pair-list kernel (integrate.run via macromolecule.simulate) integrate the same
+    scheme with the same pairs (checked: no unlisted pair within r_cut), so positions agree to
+    round-off: the force sums differ only in order (~1e-16 relative per step), amplified over 300
+    steps of a stable vibration; observed 5e-15 a (undamped) and 2e-15 a (damped), bound 1e-11 a."""
+    lat = build_lattice(Box(), 3, 2800.0)
+    a, m = lat.a, lat.mass
+    w = omega_bound(MODEL, a, m)
+    dt = 0.2 / w
+    delta = zeta * m * w
+    # small amplitude: no unlisted pair comes near r_cut (with 0.01 a w the free lattice deforms by
+    # 0.2a within 100 steps and an unlisted pair enters 2a: then the two models differ by design)
+    v0 = 0.001 * a * w * np.random.default_rng(3).standard_normal(lat.positions.shape)
+    v0 -= v0.mean(axis=0)
+    N = lat.size
+    fx = mm.Fixes(np.zeros(N, dtype=np.int64), np.zeros((N, 3)), np.zeros(N), np.zeros(N), np.zeros(N))
+    ref = mm.simulate(lat, MODEL, fx, delta, dt, 300 * dt, v0=v0)
+    run = KernelRun.start(lat.positions, m, a, MODEL, delta, dt, v0=v0)
+    run.advance(ref.steps)
+    assert ref.steps == 300 and run.status == "ok"
+    assert np.array_equal(cKDTree(run.x).query_pairs(run.r_cut, output_type="ndarray").shape, lat.pairs.shape)
+    assert np.abs(run.x - ref.x).max() <= 1e-11 * a
+
+
+def test_thread_count_independent_and_deterministic():
+    """Gather: each particle sums its own row in row order, so 1 and 2 threads give the same bits."""
+    if numba.config.NUMBA_NUM_THREADS < 2:
+        pytest.skip("numba has a single thread here: nothing to compare")
+    x, a, m = bench_lattice(4)
+    _, _, _, x0 = _perturbed(4)
+    w = omega_bound(MODEL, a, m)
+    results = []
+    for threads in (1, 2, 2, 1):
+        numba.set_num_threads(threads)
+        try:
+            run = KernelRun.start(x, m, a, MODEL, 0.02 * m * w, 0.2 / w, x0=x0, hotness=True)
+            run.advance(200)
+        finally:
+            numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+        results.append((run.x.copy(), run.v.copy(), run.hot.copy(), run.potential_energy()))
+    for other in results[1:]:
+        assert np.array_equal(results[0][0], other[0])
+        assert np.array_equal(results[0][1], other[1])
+        assert np.array_equal(results[0][2], other[2])
+        assert results[0][3] == other[3]
+
+
+def test_energy_error_second_order_in_dt():
+    """Undamped free lattice: velocity Verlet's energy fluctuation scales as dt^2 (ratio 4 per halving;
+    accepted 3.2-4.8 for the anharmonic terms)."""
+    x, a, m, x0 = _perturbed(3, amp=0.01)
+    w = omega_bound(MODEL, a, m)
+    spread = []
+    for dt in (0.2 / w, 0.1 / w):
+        run = KernelRun.start(x, m, a, MODEL, 0.0, dt, x0=x0)
+        e = []
+        for _ in range(40):
+            run.advance(int(round(2.0 / w / dt)))  # sample every 2/w (same times for both dt)
+            e.append(run.kinetic_energy() + run.potential_energy())
+        spread.append(np.ptp(e))
+    assert 3.2 < spread[0] / spread[1] < 4.8
+
+
+def test_omega_bound_is_an_upper_bound():
+    lat = build_lattice(Box(), 4, 2800.0)
+    K = hessian(lat.positions, lat.pairs, MODEL, lat.a)
+    w_top = top_frequency(K, lat.mass, free_dofs(np.ones(lat.size, dtype=bool)))
+    w_bound = omega_bound(MODEL, lat.a, lat.mass)
+    assert w_top <= w_bound <= 1.2 * w_top
+
+
+def test_blowup_reported_unstable_with_sums_kept():
+    """dt at 3x the stability limit 2/omega_max: the run stops early, status unstable, steps kept."""
+    x, a, m, x0 = _perturbed(3, amp=0.01)
+    w = omega_bound(MODEL, a, m)
+    run = KernelRun.start(x, m, a, MODEL, 0.0, 6.0 / w, x0=x0, hotness=True)
+    done = run.advance(5000)
+    assert run.status == "unstable" and done < 5000 and run.step == done
+    assert "NaN" in run.reason or "left" in run.reason
+
+
+def test_fixes_frozen_and_prescribed():
+    """FROZEN stays at rest; PRESCRIBED follows x_rest + amp sin(omega t) exactly."""
+    x, a, m, x0 = _perturbed(3, amp=0.01)
+    w = omega_bound(MODEL, a, m)
+    kind = np.zeros(len(x), dtype=np.int8)
+    kind[0], kind[5] = FROZEN, PRESCRIBED
+    amp = np.zeros((len(x), 3))
+    amp[5, 1] = 0.02 * a
+    dt = 0.2 / w
+    run = KernelRun.start(x, m, a, MODEL, 0.05 * m * w, dt, x0=x0, kind=kind, amp=amp, omega=0.3 * w)
+    run.advance(137)
+    assert np.array_equal(run.x[0], x[0]) and not run.v[0].any()
+    assert np.allclose(run.x[5], x[5] + amp[5] * np.sin(0.3 * w * 137 * dt), rtol=0, atol=1e-15 * a)
+
+
+def test_bad_parameters_raise_scene_error():
+    x, a, m = bench_lattice(2)
+    with pytest.raises(SceneError, match="r_cut"):
+        KernelRun.start(x, m, a, MODEL, 0.0, 1e-4, r_cut=1.9)
+    with pytest.raises(SceneError, match="skin"):
+        KernelRun.start(x, m, a, MODEL, 0.0, 1e-4, skin=0.0)
+    with pytest.raises(SceneError, match="dt"):
+        KernelRun.start(x, m, a, MODEL, 0.0, -1.0)
+    with pytest.raises(SceneError, match="delta"):
+        KernelRun.start(x, m, a, MODEL, -1.0, 1e-4)
+
+
+def test_rows_from_benchmark_json(tmp_path):
+    doc = {"benchmarks": [
+        {"name": "b2", "extra_info": {"particles": 203401, "ns_per_pair_step": 9.0, "bytes_per_particle": 300.0,
+                                      "threads": 2}},
+        {"name": "b1", "extra_info": {"particles": 160, "ns_per_pair_step": 12.5, "bytes_per_particle": 280.0,
+                                      "threads": 1}},
+        {"name": "other", "extra_info": {"n": 4}},
+    ]}
+    path = tmp_path / "bench.json"
+    path.write_text(__import__("json").dumps(doc))
+    rows = rows_from_benchmark_json(path)
+    assert [r["N"] for r in rows] == [160, 203401]
+    assert rows[0] == {"N": 160, "ns_per_pair_step": 12.5, "bytes_per_particle": 280.0, "threads": 1, "name": "b1"}
