@@ -50,7 +50,7 @@ from . import mca_heat
 from . import mca_kernel as mk
 from . import response as rf
 from .mca_lattice import Automata, bar_automata
-from .mca_model import COEFFICIENTS, Elastic, Model, relax
+from .mca_model import COEFFICIENTS, Elastic, Model, rebuild_pairs, relax
 from .mca_stiffness import mass_diagonal, stiffness
 
 PARAMETERS: tuple[Param, ...] = (
@@ -58,7 +58,8 @@ PARAMETERS: tuple[Param, ...] = (
     Param("coefficient", "hooke", "", "many-body coefficient: hooke = 1 - 2G/(3K), psakhie-2G/K = 1 - 2G/K",
           choices=COEFFICIENTS, kind=str),
     Param("rotations", True, "", "automata rotate (moments of the tangential forces)", kind=bool),
-    Param("krot", 0.0, "", "rotational pair spring, in units of G S r0 (0 = none)", low=0.0, high=10.0),
+    Param("krot", 0.01, "", "rotational pair spring k_r = krot G S r0 on phi_j - phi_i (removes the zero-energy "
+          "rotation modes; 0 = none)", low=0.0, high=10.0),
     Param("friction", 0.3, "", "Coulomb friction coefficient of unlinked pairs", low=0.0, high=5.0),
     Param("relink_stress", None, "Pa", "unlinked pairs re-link (micro-welding) at this compressive stress",
           low=0.0, high=1e12, low_open=True, optional=True),
@@ -300,10 +301,16 @@ class Mca:
         done = 0
         code = mk.OK
         chunk = max(every, 2000 // every * every)
+        rebuilds = added = 0
         while done < steps_total:
             code = model.advance(st, min(chunk, steps_total - done), hist, every)
             rows.append(hist[: st.counters[mk.C_ROWS]].copy())
             done = int(st.counters[mk.C_STEPS])
+            if code == mk.MOVED:
+                added += rebuild_pairs(model, st)
+                rebuilds += 1
+                code = mk.OK
+                continue
             if code != mk.OK:
                 break
             h = np.concatenate(rows)
@@ -329,13 +336,14 @@ class Mca:
                 summary["E_eff"] = float(np.polyfit(rise[:, mk.H_U1] / length, rise[:, mk.H_R1] / area, 1)[0])
         summary["unlink_events"] = int(st.counters[mk.C_UNLINK])
         summary["relink_events"] = int(st.counters[mk.C_RELINK])
+        summary["pair_list_rebuilds"] = rebuilds
+        summary["pairs_added"] = added
         status, reason = "ok", ""
         if code in (mk.NAN, mk.GROWTH):
             status, reason = "unstable", f"{mk.STATUS_TEXT[code]} at step {done}; history up to there kept"
-        elif code == mk.MOVED:
-            status, reason = "ok", f"stopped at step {done}: {mk.STATUS_TEXT[code]} (fragments separated)"
         elif st.counters[mk.C_UNLINK] == 0:
             status, reason = "failed", f"no pair unlinked up to strain {h[-1, mk.H_U1] / length:.3g}"
+        aut = model.aut
         diag = {"notes": notes, "history": {"columns": ["t", "kinetic", "potential", "work", "dissipated",
                                                         "reaction_zL", "reaction_z0", "u_zL", "linked",
                                                         "kinetic_rot"], "rows": h}}
@@ -375,7 +383,12 @@ class Mca:
         if rot:
             mm = m[:, None] * full**2
             frac_rot = mm.reshape(aut.size, 6, count)[:, 3:].sum(axis=(0, 1)) / mm.sum(axis=0)
-        summary = {"frequencies_hz": freqs, "rotational_mass_fraction": frac_rot}
+        kinds = mode_kinds(aut, scene.box.extent, full, m, nd, freqs)
+        summary: dict[str, Any] = {"frequencies_hz": freqs, "mode_kinds": kinds, "rotational_mass_fraction": frac_rot}
+        for kind in ("bending-x", "bending-y", "torsion", "axial"):
+            hits = [j for j, kd in enumerate(kinds) if kd == kind]
+            if hits:
+                summary[f"f_{kind.replace('-', '_')}_hz"] = float(freqs[hits[0]])
         work = {"unknowns": int(free.size), "kernel_s": time.perf_counter() - t0}
         return {"field": None, "unknowns": int(free.size), "quantity": "frequencies (Hz)", "summary": summary,
                 "work": work}
@@ -389,3 +402,47 @@ def failure_strain(resp, youngs: float) -> float:
     sig = rf.uniaxial_curve(resp, youngs, eps)
     broken = np.flatnonzero(np.isnan(sig))
     return float(eps[broken[0]]) if broken.size else 0.2
+
+
+KIND_BY_PARITY = {(-1, 1): "bending-x", (1, -1): "bending-y", (-1, -1): "torsion", (1, 1): "axial"}
+
+
+def mode_kinds(aut: Automata, extent: np.ndarray, phi: np.ndarray, m: np.ndarray, nd: int,
+               freqs: np.ndarray | None = None) -> list[str]:
+    """Kind of each mode by its parities under the mirror planes x = W/2 and y = H/2 (as skfem-elastic):
+    (-, +) bending-x, (+, -) bending-y, (-, -) torsion, (+, +) axial; "mixed" when a parity is unclear.
+    A mirror maps automaton i to its image and flips the normal translation and the two other rotations
+    (rotations are pseudo-vectors).  Degenerate clusters (equal frequencies to 1e-6, the two bending
+    families of the square section) are first rotated to eigenvectors of the x mirror."""
+    phi = phi.copy()
+
+    def mirror(vec: np.ndarray, ax: int) -> np.ndarray:
+        img = aut.positions.copy()
+        img[:, ax] = extent[ax] - img[:, ax]
+        perm = aut.node_at(img)
+        sign = np.ones(nd)
+        sign[ax] = -1.0
+        if nd == 6:
+            sign[3:] = -1.0
+            sign[3 + ax] = 1.0
+        return (vec.reshape(aut.size, nd, -1)[perm] * sign[None, :, None]).reshape(vec.shape)
+
+    if freqs is not None:
+        start = 0
+        for j in range(1, len(freqs) + 1):
+            if j == len(freqs) or abs(freqs[j] - freqs[start]) > 1e-6 * max(freqs[start], 1.0):
+                if j - start > 1:
+                    block = phi[:, start:j]
+                    op = block.T @ (m[:, None] * mirror(block, 0))
+                    _, rot = np.linalg.eigh(0.5 * (op + op.T))
+                    phi[:, start:j] = block @ rot
+                start = j
+    parities = []
+    for ax in (0, 1):
+        mw = m[:, None] * phi
+        parities.append((mw * mirror(phi, ax)).sum(axis=0) / (mw * phi).sum(axis=0))
+    out = []
+    for px, py in zip(*parities, strict=True):
+        key = (int(np.sign(px)) if abs(px) > 0.5 else 0, int(np.sign(py)) if abs(py) > 0.5 else 0)
+        out.append(KIND_BY_PARITY.get(key, "mixed"))
+    return out

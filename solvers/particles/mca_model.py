@@ -22,9 +22,10 @@ normal springs along the cube axes has no lateral coupling, so nu_eff = 0 (measu
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from harness.scene import Response, SceneError
 
@@ -217,7 +218,8 @@ class Model:
 
 def relax(model: Model, st: State, force_scale: float, tol: float = 1e-8, chunk: int = 500,
           max_steps: int = 2_000_000) -> tuple[int, float, int]:
-    """Damped run until max residual force <= tol * force_scale; returns (status, residual, steps)."""
+    """Damped run until max residual force <= tol * force_scale, never before the drive has stopped
+    (time >= fp[F_TSTOP]); returns (status, residual, steps)."""
     steps = 0
     res = math.inf
     status = mk.OK
@@ -225,6 +227,38 @@ def relax(model: Model, st: State, force_scale: float, tol: float = 1e-8, chunk:
         status = model.advance(st, chunk)
         steps += chunk
         res = model.residual(st) / force_scale
-        if status != mk.OK or res <= tol:
+        if status != mk.OK or (res <= tol and model.time >= model.fp[mk.F_TSTOP]):
             break
     return status, res, steps
+
+
+def rebuild_pairs(model: Model, st: State) -> int:
+    """Extend the pair list after automata moved beyond the skin; returns the number of pairs added.
+
+    Listed pairs keep their state (an unlinked pair stays listed: it may come back into contact).  Every
+    unlisted pair of automata closer than d (1 + 2 skin) -- d = the smallest spacing, the automata's
+    diameter -- is added unlinked (r0 = d, contact area the mean of the two cells' face areas), so a
+    contact is listed before it closes as long as no automaton moves more than `skin` d between rebuilds.
+    """
+    aut = model.aut
+    d = float(aut.spacing.min())
+    cand = cKDTree(st.x).query_pairs(d * (1 + 2 * model.skin), output_type="ndarray").astype(np.int64)
+    cand = np.sort(cand, axis=1)
+    n = aut.size
+    listed = set((aut.pairs[:, 0] * n + aut.pairs[:, 1]).tolist())
+    key = cand[:, 0] * n + cand[:, 1]
+    new = cand[np.array([k not in listed for k in key.tolist()], dtype=bool)] if len(cand) else cand
+    st.xref[:] = st.x
+    st.counters[mk.C_STATUS] = mk.OK
+    if len(new) == 0:
+        return 0
+    face = aut.volume ** (2.0 / 3.0)
+    r = np.linalg.norm(st.x[new[:, 1]] - st.x[new[:, 0]], axis=1)
+    model.aut = replace(aut, pairs=np.concatenate([aut.pairs, new]), r0=np.concatenate([aut.r0, np.full(len(new), d)]),
+                        area=np.concatenate([aut.area, 0.5 * (face[new[:, 0]] + face[new[:, 1]])]),
+                        axis=np.concatenate([aut.axis, np.full(len(new), -1)]))
+    st.linked = np.concatenate([st.linked, np.zeros(len(new), dtype=np.int64)])
+    st.sig = np.concatenate([st.sig, np.zeros(len(new))])
+    st.tau = np.concatenate([st.tau, np.zeros((len(new), 3))])
+    st.rprev = np.concatenate([st.rprev, r])
+    return int(len(new))
