@@ -53,6 +53,8 @@ from .mca_lattice import Automata, bar_automata
 from .mca_model import COEFFICIENTS, Elastic, Model, rebuild_pairs, relax
 from .mca_stiffness import mass_diagonal, stiffness
 
+ENERGY_ALARM = 1e-2  # relative energy-balance error of an undamped elastic phase that flags a run as unstable
+
 PARAMETERS: tuple[Param, ...] = (
     Param("many_body", True, "", "many-body (volume) term on; off = pair-only (sig = E eps)", kind=bool),
     Param("coefficient", "hooke", "", "many-body coefficient: hooke = 1 - 2G/(3K), psakhie-2G/K = 1 - 2G/K",
@@ -63,8 +65,10 @@ PARAMETERS: tuple[Param, ...] = (
     Param("friction", 0.3, "", "Coulomb friction coefficient of unlinked pairs", low=0.0, high=5.0),
     Param("relink_stress", None, "Pa", "unlinked pairs re-link (micro-welding) at this compressive stress",
           low=0.0, high=1e12, low_open=True, optional=True),
-    Param("cfl", 0.5, "", "time step as a fraction of the stability limit 2/omega_max (Gershgorin bound)",
-          low=0.0, high=1.0, low_open=True),
+    Param("cfl", 0.5, "", "time step as a fraction of 2/omega_max (Gershgorin bound; > 1 may be unstable, "
+          "which is detected and reported)", low=0.0, high=10.0, low_open=True),
+    Param("blowup", 100.0, "", "kinetic energy limit in units of the elastic energy of the loading (sigma_c or "
+          "the support strain); above it the run stops as unstable", low=1.0, high=1e12),
     Param("damping", None, "1/s", "viscous damping rate (default: relaxation_rate for static scenes, 0 for fracture)",
           low=0.0, high=1e9, optional=True),
     Param("relax_tol", 1e-9, "", "static scenes: residual force tolerance in units of E |strain| a^2", low=0.0,
@@ -241,10 +245,11 @@ class Mca:
         disp = {c.face: c.displacement for c in scene.constraints if isinstance(c, FaceSupport)}
         fixm, fixv, group, notes = self._fixes(scene, aut, {f: d / t_ramp for f, d in disp.items()})
         gamma = rate if p["damping"] is None else p["damping"]
-        model = Model(aut, el, rotations=p["rotations"], krot=p["krot"], cfl=p["cfl"], gamma=gamma, fixm=fixm,
-                      fixv=fixv, group=group, t_stop=t_ramp)
-        st = model.new_state()
         strain = max(abs(d) for d in disp.values()) / scene.box.length if disp else 1e-3
+        e_load = 0.5 * el.youngs * strain**2 * scene.box.volume
+        model = Model(aut, el, rotations=p["rotations"], krot=p["krot"], cfl=p["cfl"], gamma=gamma, fixm=fixm,
+                      fixv=fixv, group=group, t_stop=t_ramp, ke_limit=p["blowup"] * e_load)
+        st = model.new_state()
         scale = el.youngs * max(strain, 1e-12) * float(aut.spacing.min()) ** 2
         status, res, _ = relax(model, st, scale, tol=p["relax_tol"], max_steps=p["max_steps"])
         u = st.x - aut.positions
@@ -286,9 +291,10 @@ class Mca:
         speed = scene.strain_rate * length
         fixm, fixv, group, notes = self._fixes(scene, aut, {"zL": speed})
         gamma = 0.0 if p["damping"] is None else p["damping"]
+        e_load = 0.5 * rf.tensile_strength(resp) ** 2 / el.youngs * scene.box.volume
         model = Model(aut, el, response=resp, fracture=True, rotations=p["rotations"], friction=p["friction"],
                       krot=p["krot"], relink_stress=p["relink_stress"], cfl=p["cfl"], gamma=gamma, fixm=fixm,
-                      fixv=fixv, group=group)
+                      fixv=fixv, group=group, ke_limit=p["blowup"] * e_load)
         eps_fail = failure_strain(resp, el.youngs)
         t_end = 1.5 * eps_fail / scene.strain_rate
         steps_total = min(p["max_steps"], math.ceil(t_end / model.dt))
@@ -341,6 +347,9 @@ class Mca:
         status, reason = "ok", ""
         if code in (mk.NAN, mk.GROWTH):
             status, reason = "unstable", f"{mk.STATUS_TEXT[code]} at step {done}; history up to there kept"
+        elif summary.get("energy_error", 0.0) > ENERGY_ALARM:
+            status, reason = "unstable", (f"energy balance of the elastic phase off by {summary['energy_error']:.3g} "
+                                          f"(> {ENERGY_ALARM:g}): the time step is too large; results kept")
         elif st.counters[mk.C_UNLINK] == 0:
             status, reason = "failed", f"no pair unlinked up to strain {h[-1, mk.H_U1] / length:.3g}"
         aut = model.aut

@@ -128,6 +128,7 @@ class Model:
     group: np.ndarray = field(default=None)  # (N,) 1 = driven face, 2 = opposite face
     t_stop: float = math.inf
     skin: float = 0.25  # in units of the smallest spacing
+    ke_limit: float = math.inf  # kinetic energy above which the run stops as blown up (J)
     fp: np.ndarray = field(init=False)
     ip: np.ndarray = field(init=False)
     dt: float = field(init=False)
@@ -154,7 +155,7 @@ class Model:
         fp[mk.F_G], fp[mk.F_LAM], fp[mk.F_KN], fp[mk.F_KC] = el.shear, el.lam, el.kn, el.contact
         fp[mk.F_MU], fp[mk.F_GAMMA], fp[mk.F_TSTOP] = self.friction, self.gamma, self.t_stop
         fp[mk.F_SKIN] = self.skin * float(self.aut.spacing.min())
-        fp[mk.F_KEMAX] = math.inf
+        fp[mk.F_KEMAX] = self.ke_limit
         fp[mk.F_SC:mk.F_HDE + 1] = rf.kernel_params(self.response, el.youngs)
         fp[mk.F_KROT] = self.krot
         fp[mk.F_RELINK] = math.inf if self.relink_stress is None else self.relink_stress
