@@ -1,0 +1,185 @@
+"""MCA solver: elastic constants, the many-body coefficient, response functions, fracture, heat, modes.
+
+Tolerances: static runs relax to a residual force of 1e-9 E |strain| a^2, so constants and fields of the
+homogeneous uniaxial state are exact to ~1e-8 (measured); the assertions leave two to three orders of
+margin and are still far inside the issue's 2 %.  Block tests are quasi-static to within the measured
+dynamic lag (0.5 % at ramp_periods = 8, 0.13 % at 32); the issue's 2 % is asserted.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from harness.catalogue import make_scene
+from harness.scene import Response, SceneError
+from references import analytic
+from solvers import get_solver
+from solvers.base import Resolution
+from solvers.particles import response as rf
+from solvers.particles.mca_block import block_curve
+
+E, NU = 70e9, 0.33
+
+
+@pytest.fixture(scope="module")
+def mca():
+    return get_solver("mca")
+
+
+@pytest.mark.parametrize("n", [4, 5])
+def test_compression_many_body_returns_input_constants_and_the_continuum_field(mca, n):
+    scene = make_scene("bar-compression")
+    sol = mca.solve(scene, Resolution(n))
+    assert sol.status == "ok"
+    assert sol.summary["E_eff"] == pytest.approx(E, rel=1e-6)
+    assert sol.summary["nu_eff"] == pytest.approx(NU, rel=1e-6)
+    ref = get_solver("skfem-elastic").solve(scene, Resolution(n), samples={"nodes": sol.samples["nodes"]["points"]},
+                                            element="q1")
+    um, uf = sol.samples["nodes"]["values"], ref.samples["nodes"]["values"]
+    assert um.shape == uf.shape == (sol.samples["nodes"]["points"].shape[0], 3)
+    assert np.linalg.norm(um - uf) / np.linalg.norm(uf) < 1e-3  # issue: 2 %; measured 3e-5
+    assert sol.work["pair_steps"] > 0 and sol.work["kernel_s"] > 0
+
+
+def test_compression_pair_only_has_zero_poisson_ratio(mca):
+    """Central normal pairs along the cube axes cannot couple lateral and axial strain: nu_eff = 0."""
+    scene = make_scene("bar-compression")
+    sol = mca.solve(scene, Resolution(4), many_body=False)
+    assert sol.status == "ok"
+    assert sol.summary["E_eff"] == pytest.approx(E, rel=1e-6)
+    assert abs(sol.summary["nu_eff"]) < 1e-6
+    ref = get_solver("skfem-elastic").solve(scene, Resolution(4), samples={"nodes": sol.samples["nodes"]["points"]},
+                                            element="q1")
+    um, uf = sol.samples["nodes"]["values"], ref.samples["nodes"]["values"]
+    assert np.linalg.norm(um - uf) / np.linalg.norm(uf) > 0.1  # the lateral field is missing
+
+
+def test_many_body_coefficient_is_settled_by_the_uniaxial_test():
+    """D = 1 - 2G/(3K) gives Hooke's law; D = 1 - 2G/K gives lambda' = K - 2G and its E', nu'."""
+    g, k = E / (2 * (1 + NU)), E / (3 * (1 - 2 * NU))
+    lam2 = k - 2 * g
+    nu2 = lam2 / (2 * (lam2 + g))
+    e2 = g * (3 * lam2 + 2 * g) / (lam2 + g)
+    eps = 1e-3
+    for coef, (e_exp, nu_exp) in (("hooke", (E, NU)), ("psakhie-2G/K", (e2, nu2))):
+        out = block_curve(None, E, NU, np.array([eps]), coefficient=coef, fracture=False)
+        assert out["stress"][0] / out["strain"][0] == pytest.approx(e_exp, rel=1e-5)
+        assert -out["lateral"][0] / out["strain"][0] == pytest.approx(nu_exp, rel=1e-5)
+    assert abs(nu2 - NU) > 0.1  # the two forms are far apart: the test discriminates
+
+
+PATHS = {
+    "elastic": [0.002, 0.004, 0.0055, 0.003, 0.0, 0.004, 0.0056],
+    "degradation": [0.003, 0.005, 0.008, 0.004, 0.0, 0.006, 0.01, 0.014],
+    "plastic": [0.002, 0.004, 0.006, 0.008, 0.004, 0.0, 0.005, 0.01],
+    "plastic-degradation": [0.003, 0.006, 0.01, 0.005, 0.0, 0.006, 0.012],
+}
+
+
+def _reference(resp: Response, path: np.ndarray) -> np.ndarray:
+    """Exact curve at the path's points, integrated on a fine sub-path (return mapping is path dependent)."""
+    starts = np.r_[0.0, path[:-1]]
+    fine = np.concatenate([np.linspace(a, b, 100, endpoint=False) for a, b in zip(starts, path, strict=True)]
+                          + [path[-1:]])
+    return rf.uniaxial_curve(resp, E, fine)[np.r_[np.arange(1, len(path)) * 100, len(fine) - 1]]
+
+
+@pytest.mark.parametrize("kind", list(PATHS))
+def test_block_loading_unloading_follows_the_response_function(kind):
+    resp = Response(kind)
+    path = np.array(PATHS[kind])
+    out = block_curve(resp, E, NU, path, ramp_periods=8.0)
+    ref = _reference(resp, path)
+    assert np.all(np.isfinite(ref)) and np.all(out["linked"] == 1.0)
+    dev = np.max(np.abs(out["stress"] - ref)) / np.max(np.abs(ref))
+    assert dev < 0.02
+    if kind in ("degradation", "plastic-degradation"):
+        # reduced unloading modulus: the slope of the unloading branch is below E
+        i = int(np.flatnonzero(np.diff(path) < 0)[0])  # first unloading step
+        slope = (out["stress"][i] - out["stress"][i + 1]) / (path[i] - path[i + 1])
+        ref_slope = (ref[i] - ref[i + 1]) / (path[i] - path[i + 1])
+        assert ref_slope < 0.99 * E
+        assert slope == pytest.approx(ref_slope, rel=0.02)
+    if kind.startswith("plastic"):
+        assert out["stress"][path.tolist().index(0.0)] < -0.1 * np.max(ref)  # plastic strain left at eps = 0
+
+
+def test_block_quasi_static_limit_is_approached_as_the_loading_slows():
+    resp = Response("plastic")
+    path = np.array([0.004, 0.008, 0.004])
+    ref = _reference(resp, path)
+    devs = [np.max(np.abs(block_curve(resp, E, NU, path, ramp_periods=r)["stress"] - ref)) for r in (2.0, 8.0)]
+    assert devs[1] < 0.5 * devs[0]
+
+
+@pytest.mark.parametrize("k", [1.0, 2.0])
+def test_uniform_bar_fails_at_the_strength_and_conserves_energy(mca, k):
+    scene = make_scene("bar-tension-fracture", k=k)
+    sol = mca.solve(scene, Resolution(3))
+    assert sol.status == "ok", sol.reason
+    strength = 400e6 / k
+    assert sol.summary["failure_stress"] == pytest.approx(strength, rel=0.05)
+    assert sol.summary["energy_error"] < 1e-4
+    assert sol.summary["linked_fraction"] < 1.0
+    assert sol.summary["E_eff"] == pytest.approx(E, rel=0.02)
+
+
+def test_fracture_run_is_deterministic(mca):
+    scene = make_scene("bar-tension-fracture")
+    a = mca.solve(scene, Resolution(2))
+    b = mca.solve(scene, Resolution(2))
+    assert np.array_equal(a.diagnostics["history"]["rows"], b.diagnostics["history"]["rows"])
+    assert np.array_equal(a.samples["nodes"]["values"], b.samples["nodes"]["values"])
+
+
+def test_too_large_a_time_step_is_reported_unstable_with_the_history_kept(mca):
+    sol = mca.solve(make_scene("bar-tension-fracture"), Resolution(3), cfl=3.0)
+    assert sol.status == "unstable"
+    assert len(sol.diagnostics["history"]["rows"]) > 0
+
+
+def test_heat_faces_steady_is_the_exact_linear_profile(mca):
+    scene = make_scene("bar-heat-faces")
+    sol = mca.solve(scene, Resolution(4))
+    pts = sol.samples["nodes"]["points"]
+    assert np.max(np.abs(sol.samples["nodes"]["values"] - analytic(scene, pts))) < 1e-12
+
+
+def test_heat_faces_transient_converges_at_second_order(mca):
+    scene = make_scene("bar-heat-faces", mode="transient", t_end=1.0)
+    hs, errs = [], []
+    for n in (4, 5, 6, 8):
+        sol = mca.solve(scene, Resolution(n))
+        v = sol.samples["nodes"]["values"]
+        errs.append(np.sqrt(np.mean((v - analytic(scene, sol.samples["nodes"]["points"])) ** 2)))
+        hs.append(scene.box.width / (n - 1))
+    order = np.polyfit(np.log(hs), np.log(errs), 1)[0]
+    assert order == pytest.approx(2.0, abs=0.2)
+
+
+def test_heat_paper_bulk_tends_to_one_third_like_the_continuum(mca):
+    """Point constraints: the bulk level approaches 1/3 from below (PHYSICS.md §2), as skfem on the lattice."""
+    scene = make_scene("bar-heat-paper")
+    med = [mca.solve(scene, Resolution(n)).summary["bulk_median"] for n in (4, 8)]
+    assert med[0] < med[1] < 1 / 3
+    fem = get_solver("skfem").solve(scene, Resolution(8)).summary["bulk_median"]
+    assert abs(med[1] - fem) < 0.01
+
+
+def test_modes_converge_to_the_continuum_and_need_rotations(mca):
+    scene = make_scene("bar-modes", modes=4)
+    f = {n: mca.solve(scene, Resolution(n)).summary for n in (4, 6)}
+    fem = get_solver("skfem-elastic").solve(scene, Resolution(2, refine=4), element="q2").summary
+    for key in ("f_bending_x_hz", "f_torsion_hz"):
+        e4 = abs(f[4][key] / fem[key] - 1)
+        e6 = abs(f[6][key] / fem[key] - 1)
+        assert e6 < 0.7 * e4 and e6 < 0.1
+    stiff = mca.solve(scene, Resolution(4), rotations=False).summary
+    assert stiff["frequencies_hz"][0] > 3 * f[4]["frequencies_hz"][0]  # locked rotations: bending far too stiff
+
+
+@pytest.mark.parametrize("bad", [{"many_body": "yes"}, {"cfl": 0.0}, {"coefficient": "other"}, {"krot": -1.0}])
+def test_bad_parameters_raise_scene_error_naming_them(mca, bad):
+    with pytest.raises(SceneError, match=next(iter(bad))):
+        mca.solve(make_scene("bar-compression"), Resolution(2), **bad)
