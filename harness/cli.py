@@ -7,8 +7,11 @@ allowed range, with exit code 2; never a traceback (unless --debug).
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import sys
+import threading
+from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
@@ -36,6 +39,30 @@ write scene.KEY or solver.KEY when both have it.
 
 class CliError(Exception):
     """A user error: printed as one line, exit code 2."""
+
+
+class OneLineParser(argparse.ArgumentParser):
+    """argparse with usage errors as one line `pcverify: error: ...` (exit 2), like every other error."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        self.exit(2, f"pcverify: error: {' '.join(message.split())}\n")
+
+
+def int_in(name: str, low: int, high: int):
+    """argparse type: an integer in [low, high], else a one-line error naming it and the range."""
+
+    def convert(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            value = None
+        if value is None or not low <= value <= high:
+            shown = text if len(text) <= 40 else text[:37] + "..."
+            shown = shown if shown.strip() and shown.isprintable() else repr(shown)
+            raise argparse.ArgumentTypeError(f"{name}={shown} is not valid; allowed: integer in [{low}, {high}]")
+        return value
+
+    return convert
 
 
 def _param_rows(params: tuple[Param, ...]) -> list[dict[str, Any]]:
@@ -117,6 +144,32 @@ def split_settings(settings: list[str], scene_params: tuple[Param, ...], solver_
     return scene_vals, solver_vals
 
 
+@contextlib.contextmanager
+def working(label: str, enabled: bool = True) -> Iterator[None]:
+    """An elapsed-time indicator on stderr for a solve that runs in one call (shown after 2 s)."""
+    from tqdm import tqdm
+
+    bar = tqdm(total=None, desc=label, bar_format="{desc}: {elapsed} elapsed", delay=2.0, disable=not enabled,
+               leave=False)
+    done = threading.Event()
+
+    def tick() -> None:
+        waited = 0.0
+        while not done.wait(0.5):
+            waited += 0.5
+            if waited >= 2.0:
+                bar.refresh()
+
+    thread = threading.Thread(target=tick, daemon=True)
+    thread.start()
+    try:
+        yield
+    finally:
+        done.set()
+        thread.join()
+        bar.close()
+
+
 def cmd_run(args: argparse.Namespace) -> int:
     from solvers import get_solver
     from solvers.base import Resolution, skipped
@@ -128,7 +181,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     scene_vals, solver_vals = split_settings(args.set or [], CATALOGUE[args.scene].parameters, solver.parameters)
     scene = make_scene(args.scene, **scene_vals)
     ok, reason = solver.supports(scene)
-    solution = solver.solve(scene, resolution, **solver_vals) if ok else skipped(scene, solver, resolution, reason)
+    with working(f"{solver.name} on {scene.name} n={resolution.n} refine={resolution.refine}", not args.json):
+        solution = solver.solve(scene, resolution, **solver_vals) if ok else skipped(scene, solver, resolution, reason)
     out = solution.to_dict()
     out["scene_params"] = scene.param_dict
     out["scene_hash"] = scene.content_hash()
@@ -179,7 +233,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = OneLineParser(
         prog="pcverify",
         description="Verify particle methods (macromolecule, MCA) against continuum solvers (FiPy, scikit-fem) "
         "and analytic solutions: run one scene, run studies, write reports.",
@@ -202,8 +256,10 @@ def build_parser() -> argparse.ArgumentParser:
                        description="Solve SCENE with --solver at lattice resolution n (n x n x (3n-2) nodes).")
     p.add_argument("scene", help="scene name (see `pcverify scenes`)")
     p.add_argument("--solver", required=True, help="solver name (see `pcverify solvers`)")
-    p.add_argument("--n", type=int, default=4, help="lattice resolution n >= 2 (default 4: 160 nodes)")
-    p.add_argument("--refine", type=int, default=1, help="grid refinement factor of continuum solvers (default 1)")
+    p.add_argument("--n", type=int_in("n", 2, 1000), default=4,
+                   help="lattice resolution n >= 2 (default 4: 160 nodes)")
+    p.add_argument("--refine", type=int_in("refine", 1, 1000), default=1,
+                   help="grid refinement factor of continuum solvers (default 1)")
     p.add_argument("--set", action="append", metavar="KEY=VALUE", help="scene or solver parameter (repeatable)")
     p.add_argument("--json", action="store_true", help="one JSON object on stdout")
     p.set_defaults(func=cmd_run)
@@ -214,7 +270,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--dry-run", action="store_true", help="list what is cached and what would run; run nothing")
     p.add_argument("--out", default="reports", help="output folder (default reports/)")
     p.add_argument("--cache", default=None, help="cache folder (default OUT/cache)")
-    p.add_argument("--jobs", type=int, default=1, help="parallel cells on local cores (default 1)")
+    p.add_argument("--jobs", type=int_in("jobs", 1, 256), default=1,
+                   help="parallel cells on local cores (default 1)")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="hand the cells to a Dask cluster (e.g. tcp://host:8786; needs pcverify[dask])")
     p.add_argument("--json", action="store_true", help="print a JSON summary of the study")
@@ -235,7 +292,12 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # usage errors were printed as one line by OneLineParser; --help exits 0
+        if exc.code == 2:
+            return 2
+        raise
     if not getattr(args, "func", None):
         parser.print_help()
         return 0

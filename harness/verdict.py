@@ -4,7 +4,8 @@ A claim is data in the study file (`[[claim]]`): which table, which rows (`selec
 (`metric`), how rows are combined (`aggregate`), the target and tolerance, and the kind of
 reference the number stands on (analytic / extrapolated / mesh-dependent / same-grid / theory).
 `per` splits a claim into one verdict per value of a column (e.g. per n); `against` takes the
-target from other rows of the same table (e.g. the continuum solver on the same lattice).
+target from other rows (of `against_table`, default the same table; column `against_metric`,
+default the metric), matched by the `per` value unless `against` fixes that column itself.
 A claim with no usable rows is "not-applicable" with the reason, never a pass.
 """
 
@@ -41,6 +42,8 @@ class Claim:
     absolute: bool = False  # compare |value| (e.g. signed differences) with the target
     per: str = ""
     against: dict[str, Any] = field(default_factory=dict)
+    against_table: str = ""  # default: the claim's own table
+    against_metric: str = ""  # default: the claim's metric
     uncertainty: float | str = math.nan  # a number, or a column aggregated like the metric
 
 
@@ -93,7 +96,9 @@ def judge(study: str, claim: Claim, tables: dict[str, pd.DataFrame]) -> list[dic
     if df is None or df.empty:
         return [base | {"case": "", "verdict": "not-applicable", "note": f"table {claim.table} has no rows"}]
     rows = _rows(df, claim.select)
-    others = _rows(df, claim.against) if claim.against else None
+    others = None
+    if claim.against or claim.against_table:
+        others = _rows(tables.get(claim.against_table or claim.table, pd.DataFrame()), claim.against)
     cases = sorted(rows[claim.per].dropna().unique().tolist()) if claim.per and claim.per in rows else [None]
     out = []
     for case in cases:
@@ -102,8 +107,9 @@ def judge(study: str, claim: Claim, tables: dict[str, pd.DataFrame]) -> list[dic
         value = _aggregate(part, claim.metric, claim.aggregate)
         target = claim.target
         if others is not None:
-            ref = others if case is None else others[others[claim.per] == case]
-            target = _aggregate(ref, claim.metric, claim.aggregate)
+            matched = case is None or claim.per in claim.against or claim.per not in others
+            ref = others if matched else others[others[claim.per] == case]
+            target = _aggregate(ref, claim.against_metric or claim.metric, claim.aggregate)
         if not (math.isfinite(value) and math.isfinite(target)):
             reasons = sorted(set(str(r) for r in df.get("reason", pd.Series(dtype=str)).dropna() if r))
             note = f"no finite {claim.metric} in the selected rows" + (f" ({reasons[0]})" if reasons else "")

@@ -204,3 +204,12 @@ def test_index_renders_in_headless_chromium(report, tmp_path):
     bad.write_text("<!doctype html><img alt='x' src='data:image/png;base64,AAAA'><script>nope();</script>")
     errors, held = _browse(bad.as_uri())
     assert any("nope" in e for e in errors) and held["images"] == [["x", False]]
+
+
+def test_verdict_target_from_another_table():
+    tables = TABLES | {"fits": pd.DataFrame({"quantity": ["bulk", "mean"], "extrapolated": [0.32, 0.5]})}
+    claims = _claims(metric="bulk", select={"solver": "a"}, per="n", against_table="fits",
+                     against={"quantity": "bulk"}, against_metric="extrapolated", tolerance=0.005,
+                     reference="extrapolated")
+    v = verdicts("s", claims, tables)
+    assert v["target"].tolist() == [0.32, 0.32] and v["verdict"].tolist() == ["fail", "pass"]
