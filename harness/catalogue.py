@@ -172,6 +172,6 @@ def scene_names() -> list[str]:
 
 def make_scene(name: str, **params: Any) -> Scene:
     """Build the named scene with parameter overrides; unknown names or bad values raise SceneError."""
-    if name not in CATALOGUE:
+    if not isinstance(name, str) or name not in CATALOGUE:
         raise SceneError(f"scene={name!r} is unknown; allowed: one of {', '.join(CATALOGUE)}")
     return CATALOGUE[name].make(**params)

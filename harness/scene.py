@@ -71,17 +71,20 @@ class Param:
             else:
                 value = text
         except ValueError:
-            raise SceneError(f"{self.name}={text!r} is not valid; allowed: {self.allowed()}") from None
+            raise SceneError(f"{self.name}={_show(text)} is not valid; allowed: {self.allowed()}") from None
         return self.check(value)
 
     def check(self, value: Any) -> Any:
         """Return the value (coerced to the declared kind) or raise SceneError."""
         if value is None and self.optional:
             return None
-        bad = SceneError(f"{self.name}={value!r} is out of range; allowed: {self.allowed()}")
+        bad = SceneError(f"{self.name}={_show(value)} is out of range; allowed: {self.allowed()}")
         if self.choices is not None:
-            if value not in self.choices:
-                raise bad
+            try:
+                if not any(isinstance(value, type(c)) and value == c for c in self.choices):
+                    raise bad
+            except (TypeError, ValueError):  # e.g. an array: ambiguous truth value
+                raise bad from None
             return value
         if self.kind is bool:
             if not isinstance(value, (bool, np.bool_)):
@@ -93,19 +96,33 @@ class Param:
             return value
         if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
             raise bad
+        try:
+            number = float(value)
+        except OverflowError:  # an int beyond the float range
+            raise bad from None
+        if not math.isfinite(number):
+            raise bad
         if self.kind is int:
-            if float(value) != int(value):
+            if isinstance(value, (float, np.floating)) and not number.is_integer():
                 raise bad
             value = int(value)
         else:
-            value = float(value)
-        if not math.isfinite(value):
-            raise bad
+            value = number
         if self.low is not None and (value < self.low or (self.low_open and value == self.low)):
             raise bad
         if self.high is not None and (value > self.high or (self.high_open and value == self.high)):
             raise bad
         return value
+
+
+def _show(value: Any) -> str:
+    """repr of a value for an error message, shortened (a hostile value may be huge or unprintable)."""
+    try:
+        text = repr(value)
+    except Exception:  # noqa: BLE001 - e.g. an int beyond the str conversion limit
+        text = f"<{type(value).__name__}>"
+    text = " ".join(text.split())
+    return text if len(text) <= 60 else text[:57] + "..."
 
 
 def resolve_params(specs: tuple[Param, ...], given: dict[str, Any], owner: str) -> dict[str, Any]:

@@ -13,7 +13,6 @@ import dataclasses
 import itertools
 import json
 import time
-import tomllib
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
@@ -24,6 +23,7 @@ from tqdm import tqdm
 from harness.cache import Cache, cell_key
 from harness.catalogue import make_scene
 from harness.scene import SceneError
+from harness.studyfile import check_study_document, read_study_document
 from harness.verdict import parse_claims
 
 ANALYSES = ("convergence", "timing", "table", "work-precision", "stability")
@@ -92,10 +92,8 @@ def load_study(name_or_path: str) -> Study:
     if not path.exists():
         raise SceneError(f"study={name_or_path!r} is unknown; allowed: one of {', '.join(sorted(shipped))} "
                          "or a path to a .toml file")
-    try:
-        doc = tomllib.loads(path.read_text())
-    except tomllib.TOMLDecodeError as exc:
-        raise SceneError(f"study file {path}: not valid TOML ({exc})") from None
+    doc = read_study_document(path)
+    check_study_document(doc, path, ANALYSES)  # one-line errors for bad fields, before any cell is built
     groups = []
     for gi, g in enumerate(doc.get("group", [])):
         where = f"{path.name} group {gi + 1}"

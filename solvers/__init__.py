@@ -30,7 +30,7 @@ def solver_names() -> list[str]:
 
 def get_solver(name: str):
     """Instantiate the solver called `name` (SceneError if unknown, SolverUnavailable if not importable)."""
-    if name not in REGISTRY:
+    if not isinstance(name, str) or name not in REGISTRY:
         raise SceneError(f"solver={name!r} is unknown; allowed: one of {', '.join(solver_names())}")
     module_name, cls_name = REGISTRY[name].split(":")
     try:
