@@ -33,8 +33,12 @@ Discretisation (PHYSICS.md §5):
   (the two bending families of the square section) are rotated to definite parities first.  A (+, +) mode
   whose mass is mostly lateral is called "symmetric-lateral" instead of axial.
 - Output: displacement (m) at the sample points by exact interpolation of the FE field (`basis.probes`),
-  values shape (k, 3); summary E_eff, nu_eff, reaction_force (static), frequencies_hz, mode_kinds and the
-  lowest frequency of each kind (f_bending_x_hz, ...) for modal scenes.
+  values shape (k, 3) (modal scenes: the lowest mode's shape scaled to max |u| = 1).  Static summary:
+  reaction_force = sum of (K u)_z over the dofs of face zL, the axial force the support applies to the bar
+  (N, negative in compression); E_eff = reaction_force / (W H) / axial_strain (positive for both signs of
+  the strain); nu_eff = -lateral_strain / axial_strain with the lateral strain from the area means of u_x
+  over x0, xW and u_y over y0, yH (facet quadrature).  Modal summary: frequencies_hz, mode_kinds and the
+  lowest frequency of each kind (f_bending_x_hz, f_bending_y_hz, f_torsion_hz, f_axial_hz).
 """
 
 from __future__ import annotations
