@@ -1,0 +1,133 @@
+"""Stability study, small version: the macromolecule model's measured time-step limit against theory,
+every unstable run detected, and the study/report plumbing (probes, skips with reasons, tables, figures).
+
+The full sweep is harness/studies/stability.toml (`pcverify study stability`); here n = 2 and 1 s runs.
+"""
+
+from __future__ import annotations
+
+import math
+
+import pandas as pd
+import pytest
+
+from harness.cache import Cache
+from harness.catalogue import make_scene
+from harness.report import write_study_report
+from harness.scene import SceneError
+from harness.stability import MacromoleculeProbe, get_probe, measure_limit, run_probe_cell, split_params
+from harness.study import execute, load_study
+
+PAPER = make_scene("bar-heat-paper")
+PROBE = MacromoleculeProbe()
+
+
+@pytest.mark.parametrize("zeta", [0.0, 0.1])
+def test_measured_limit_against_theory(zeta: float) -> None:
+    """Small drive (D = 0.01a): the bisected limit of dt*omega_max/2 (to 1e-3 of dt_theory, 1 s runs)
+    lies within 1.5 % of the linear-discrete limit (spectral radius of the scheme).  Undamped, both equal
+    the theory 1 to 1 %.  Damped, the top-mode formula sqrt(1+zeta^2)-zeta is an estimate: measured
+    n = 2, zeta = 0.1: 0.886 against 0.905 (the linear-discrete limit is 0.881), so within 3 %."""
+    prep = PROBE.prepare(PAPER, 2, {"damping_ratio": zeta, "drive_amplitude": 0.01, "t_end": 1.0})
+    theory = math.sqrt(1 + zeta**2) - zeta
+    assert prep["safety_theory"] == pytest.approx(theory, rel=1e-9)
+    lim = measure_limit(PROBE, prep, 0.05, 1.5, 1e-3)
+    linear = PROBE.linear_limit(prep)
+    assert lim["verdict"] == "bisected" and lim["undetected"] == 0
+    assert lim["measured_safety"] == pytest.approx(linear, rel=0.015)
+    assert lim["measured_safety"] == pytest.approx(theory, rel=0.01 if zeta == 0 else 0.03)
+    if zeta == 0:
+        assert linear == pytest.approx(1.0, rel=1e-4)
+
+
+def test_every_unstable_run_is_detected() -> None:
+    """A small map (n = 2): above the linear-discrete limit every run is reported unstable; the
+    independent check of the final state (non-finite, a particle more than a from rest, kinetic energy
+    beyond blowup_factor times the energy supplied) agrees with the solver's status on every run, so
+    no blow-up goes unreported and no stable run is called unstable."""
+    rows = []
+    for zeta in (0.0, 0.1):
+        for D in (0.01, 0.1):
+            prep = PROBE.prepare(PAPER, 2, {"damping_ratio": zeta, "drive_amplitude": D, "t_end": 1.0})
+            linear = PROBE.linear_limit(prep) / prep["safety_theory"]
+            for ratio in (0.5, 1.03 * linear, 1.1, 1.5):
+                out = PROBE.run(prep, ratio)
+                rows.append((zeta, D, ratio, out))
+                assert out["blown"] == (out["status"] == "unstable"), out
+                assert not out["undetected"]
+                if ratio > linear:
+                    assert out["status"] == "unstable" and out["stopped_at_step"] < out["steps_planned"]
+                    assert "stopped at step" in out["reason"]
+    stable_small = [o for z, D, r, o in rows if r == 0.5 and D == 0.01]
+    assert all(o["status"] != "unstable" and o["steps"] == o["steps_planned"] for o in stable_small)
+
+
+def test_large_drive_is_unstable_at_every_dt() -> None:
+    """n = 3, D = 0.1a, undamped: the run blows up even at 5 % of dt_theory, so the bisection reports
+    that this is no time-step limit (observed in the study: the drive, not dt, is unstable)."""
+    prep = PROBE.prepare(PAPER, 3, {"damping_ratio": 0.0, "drive_amplitude": 0.1, "t_end": 1.0})
+    lim = measure_limit(PROBE, prep, 0.05, 1.5, 1e-2)
+    assert lim["verdict"].startswith("unstable at every dt") and lim["runs"] == 1
+
+
+def test_probe_parameters_are_validated() -> None:
+    with pytest.raises(SceneError, match=r"dt_ratio=.*allowed"):
+        split_params({"dt_ratio": -1.0})
+    with pytest.raises(SceneError, match=r"dt=.*allowed: set dt_ratio"):
+        split_params({"dt": 1e-4})
+    with pytest.raises(SceneError, match=r"drive_amplitude=.*allowed"):
+        run_probe_cell("map", PROBE, PAPER, 2, {"drive_amplitude": 0.5})
+
+
+STUDY = """
+name = "stab-tiny"
+[[group]]
+id = "limit"
+analysis = "stability"
+probe = "limit"
+scene = "bar-heat-paper"
+solvers = ["macromolecule", "mca", "not-landed-yet"]
+n = [2]
+solver_params = { t_end = 0.5, ratio_tol = 0.01, drive_amplitude = 0.01 }
+sweep = { damping_ratio = [0.0, 0.2] }
+[[group]]
+id = "map"
+analysis = "stability"
+probe = "map"
+scene = "bar-heat-paper"
+solvers = ["macromolecule"]
+n = [2]
+solver_params = { t_end = 0.5, damping_ratio = 0.05 }
+sweep = { dt_ratio = [0.5, 1.2], drive_amplitude = [0.01, 0.05] }
+"""
+
+
+def test_stability_study_and_report(tmp_path) -> None:
+    """The study runs probe cells, skips models without a probe (or not registered) with the reason,
+    and the report writes the limit table, the map table and their figures."""
+    path = tmp_path / "stab.toml"
+    path.write_text(STUDY)
+    study = load_study(str(path))
+    results, counts = execute(study, Cache(tmp_path / "cache"), progress=False)
+    assert counts["cells"] == 10 and counts["failed"] == 0
+    skipped = {r["solver"]: r["reason"] for r in results if r["status"] == "skipped"}
+    assert "not registered" in skipped["not-landed-yet"]
+    assert "mca" in skipped and ("probe" in skipped["mca"] or "unavailable" in skipped["mca"])
+    folder = write_study_report(study, results, tmp_path / "out")
+    limits = pd.read_csv(folder / "limit-limits.csv")
+    assert list(limits["damping_ratio"]) == [0.0, 0.2]
+    theory = [1.0, math.sqrt(1.04) - 0.2]
+    assert limits["safety_theory"].tolist() == pytest.approx(theory, rel=1e-9)
+    assert (abs(limits["relative_deviation"]) < 0.06).all()  # ratio_tol 0.01, 0.5 s runs
+    smap = pd.read_csv(folder / "map-map.csv")
+    assert set(smap[smap["dt_ratio"] == 1.2]["status"]) == {"unstable"}
+    assert not smap["undetected"].any()
+    assert (folder / "limit-limits.png").exists() and (folder / "map-map-macromolecule-n2.png").exists()
+
+
+def test_unknown_probe_kind_is_a_study_error(tmp_path) -> None:
+    path = tmp_path / "bad.toml"
+    path.write_text(STUDY.replace('probe = "map"', 'probe = "sweep"'))
+    with pytest.raises(SceneError, match=r"probe='sweep' is unknown; allowed: one of limit, map"):
+        load_study(str(path))
+    assert get_probe("macromolecule").theory.startswith("velocity Verlet")
