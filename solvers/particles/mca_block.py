@@ -25,7 +25,7 @@ from .mca_model import Elastic, Model, relax
 def block_curve(resp: Response | None, youngs: float, poisson: float, strain_path: np.ndarray,
                 shape: tuple[int, int, int] = (3, 3, 3), extent: float = 0.01, density: float = 2800.0,
                 many_body: bool = True, coefficient: str = "hooke", fracture: bool = True, tol: float = 1e-7,
-                ramp_periods: float = 2.0) -> dict[str, np.ndarray]:
+                ramp_periods: float = 2.0, relink_stress: float | None = None) -> dict[str, np.ndarray]:
     """Measured (strain, stress, lateral strain, linked fraction) after relaxing at each point of the path."""
     ext = np.full(3, float(extent))
     aut = build_automata(ext, shape, density)
@@ -45,7 +45,7 @@ def block_curve(resp: Response | None, youngs: float, poisson: float, strain_pat
     gamma = probe.relaxation_rate()
     t_inc = ramp_periods * 2 * math.pi / gamma
     model = Model(aut, el, response=resp, fracture=fracture, fixm=fixm, fixv=fixv, group=group, gamma=gamma,
-                  t_stop=0.0)
+                  t_stop=0.0, relink_stress=relink_stress)
     st = model.new_state()
     h = float(aut.spacing.min())
     path = np.asarray(strain_path, dtype=float)
