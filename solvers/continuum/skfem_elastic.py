@@ -21,10 +21,10 @@ Discretisation (PHYSICS.md §5):
   so the matrix keeps its 3x3 nodal blocks.  "direct" = SuperLU; "amg" = CG preconditioned by a pyamg
   smoothed-aggregation V-cycle on the 3x3-block matrix with the six rigid-body modes as near-nullspace
   (without them SA-AMG for elasticity converges slowly); the true relative residual is checked after CG.
-  "auto" switches at `direct_max_unknowns` (static; measured on the loaded 2-core machine, Q2: SuperLU
-  0.4 s vs AMG-CG 1.5 s at 6 075 unknowns, 8.0 s vs 5.4 s at 18 759) and at `modal_direct_max_unknowns`
-  (modal: shift-invert needs ~40 solves with one matrix, so one factorisation beats ~40 AMG-CG solves by
-  an order of magnitude at every size tried; the limit only bounds the factor's memory, ~1 GB at 42k).
+  "auto" switches at `direct_max_unknowns` (static; SuperLU's 3-D fill makes AMG-CG cheaper between
+  ~6k and ~19k Q2 unknowns in tests/bench/test_bench_skfem_elastic.py) and at `modal_direct_max_unknowns`
+  (modal: shift-invert needs ~40 solves with one matrix, so one factorisation beats ~40 AMG-CG solves;
+  the limit only bounds the factor's memory, ~1 GB at 42k Q2 unknowns).
 - Modal: K phi = omega^2 M phi on the free dofs, ARPACK (scipy eigsh) in shift-invert mode about
   sigma = 0 with the inverse of K applied by the same linear solver (direct or AMG-CG to cg_rtol), a
   seeded start vector (deterministic).  The modes are classified by their parities under the two mirror
