@@ -1,0 +1,245 @@
+"""Ensemble runs: K replicas of one lattice, each with its own damping, drive amplitude and drive
+frequency, integrated in one kernel (parameter sweeps of the macromolecule model).
+
+Replicas share the rest lattice, the fixes (kinds, drive directions, phases), the time step and
+one neighbour list: the union of every replica's Verlet list (`neighbours.merge_lists`), valid
+for replica k while no particle of k has moved more than skin/2 from its own build positions.
+State is laid out (N, K, 3) so that the gather over particle i's row reads the K copies of a
+neighbour j together: one index load and one cache line serve all replicas.
+
+Each replica performs exactly the floating-point operations of a single `scaling.KernelRun` with
+its parameters, in the same order (same pair term, same row order, pairs beyond r_cut skipped,
+not added as zeros), so every replica is bit-identical to its single run: the ensemble changes
+throughput, never results.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit, prange
+
+from harness.scene import SceneError
+
+from .neighbours import NeighbourList, build_neighbours, merge_lists
+from .scaling import DEFAULT_R_CUT, DEFAULT_SKIN, DONE, EXPIRED, FREE, FROZEN, PRESCRIBED, check_range, pair_term
+from .seven_root import SevenRoot
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def gather_ensemble(x, v, start, index, c, inv_a, rc2, delta, f):
+    """f[i, k] = sum over row i of replica k's pair terms (delta[k]); overwrites f."""
+    nk = x.shape[1]
+    for i in prange(x.shape[0]):
+        for k in range(nk):
+            f[i, k, 0] = 0.0
+            f[i, k, 1] = 0.0
+            f[i, k, 2] = 0.0
+        for p in range(start[i], start[i + 1]):
+            j = index[p]
+            for k in range(nk):
+                dx = x[j, k, 0] - x[i, k, 0]
+                dy = x[j, k, 1] - x[i, k, 1]
+                dz = x[j, k, 2] - x[i, k, 2]
+                r2 = dx * dx + dy * dy + dz * dz
+                if r2 >= rc2:
+                    continue
+                tx, ty, tz = pair_term(dx, dy, dz, v[j, k, 0] - v[i, k, 0], v[j, k, 1] - v[i, k, 1],
+                                       v[j, k, 2] - v[i, k, 2], r2, c, inv_a, delta[k])
+                f[i, k, 0] += tx
+                f[i, k, 1] += ty
+                f[i, k, 2] += tz
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def advance_ensemble(x, v, f, x_rest, kind, amp, scale, phase, omega, mass, dt, step0, n_steps, start, index, x_ref,
+                     half_skin, c, inv_a, rc2, delta, hot, resume):
+    """Velocity-Verlet steps of all replicas (see scaling.advance; amp of replica k = amp * scale[k]).
+
+    Returns (steps completed, status); EXPIRED as in scaling.advance (any replica's particle moved
+    more than half_skin from x_ref: rebuild, then resume at the force pass).
+    """
+    n = x.shape[0]
+    nk = x.shape[1]
+    lim2 = half_skin * half_skin
+    h = 0.5 * dt / mass
+    inv_dt = 1.0 / dt
+    s = 0
+    while s < n_steps:
+        t0 = (step0 + s) * dt
+        t1 = (step0 + s + 1) * dt
+        if not resume:
+            over = 0
+            for i in prange(n):
+                kd = kind[i]
+                for k in range(nk):
+                    if kd == FREE:
+                        for d in range(3):
+                            v[i, k, d] += h * f[i, k, d]
+                            x[i, k, d] += dt * v[i, k, d]
+                    elif kd == PRESCRIBED:
+                        s0 = math.sin(omega[k] * t0 + phase[i])
+                        s1 = math.sin(omega[k] * t1 + phase[i])
+                        for d in range(3):
+                            ak = amp[i, d] * scale[k]
+                            v[i, k, d] = ak * (s1 - s0) * inv_dt
+                            x[i, k, d] = x_rest[i, d] + ak * s1
+                    else:
+                        for d in range(3):
+                            v[i, k, d] = 0.0
+                    d2 = ((x[i, k, 0] - x_ref[i, k, 0]) ** 2 + (x[i, k, 1] - x_ref[i, k, 1]) ** 2
+                          + (x[i, k, 2] - x_ref[i, k, 2]) ** 2)
+                    if not d2 <= lim2:
+                        over += 1
+            if over > 0:
+                return s, EXPIRED
+        resume = False
+        gather_ensemble(x, v, start, index, c, inv_a, rc2, delta, f)
+        for i in prange(n):
+            kd = kind[i]
+            for k in range(nk):
+                if kd == FREE:
+                    for d in range(3):
+                        v[i, k, d] += h * f[i, k, d]
+                elif kd == PRESCRIBED:
+                    cs = math.cos(omega[k] * t1 + phase[i])
+                    for d in range(3):
+                        v[i, k, d] = amp[i, d] * scale[k] * omega[k] * cs
+                hot[i, k] += 0.5 * mass * (v[i, k, 0] * v[i, k, 0] + v[i, k, 1] * v[i, k, 1]
+                                           + v[i, k, 2] * v[i, k, 2]) * dt
+        s += 1
+    return s, DONE
+
+
+def _param_vector(name: str, values: np.ndarray | float, k: int, low: float, unit: str) -> np.ndarray:
+    out = np.broadcast_to(np.asarray(values, dtype=np.float64), (k,)).copy()
+    bad = ~np.isfinite(out) | (out < low)
+    if bad.any():
+        raise SceneError(f"{name}[{int(np.flatnonzero(bad)[0])}]={out[bad][0]!r} is out of range; allowed: number in "
+                         f"[{low:g}, inf) {unit}".rstrip())
+    return out
+
+
+@dataclass(eq=False)
+class EnsembleRun:
+    """K replicas of one lattice advanced together; hot (N, K) holds sum KE dt per replica."""
+
+    x: np.ndarray
+    v: np.ndarray
+    f: np.ndarray
+    x_rest: np.ndarray
+    kind: np.ndarray
+    amp: np.ndarray
+    scale: np.ndarray
+    phase: np.ndarray
+    omega: np.ndarray
+    delta: np.ndarray
+    mass: float
+    a: float
+    dt: float
+    coeffs: np.ndarray
+    nl: NeighbourList
+    x_ref: np.ndarray
+    hot: np.ndarray
+    r_cut: float
+    step: int = 0
+    status: str = "ok"
+    reason: str = ""
+
+    @classmethod
+    def start(cls, x_rest: np.ndarray, mass: float, a: float, model: SevenRoot, dt: float, delta: np.ndarray | float,
+              omega: np.ndarray | float, scale: np.ndarray | float = 1.0, replicas: int | None = None,
+              kind: np.ndarray | None = None, amp: np.ndarray | None = None, phase: np.ndarray | None = None,
+              v0: np.ndarray | None = None, x0: np.ndarray | None = None, r_cut: float = DEFAULT_R_CUT,
+              skin: float = DEFAULT_SKIN) -> EnsembleRun:
+        """Replica k: damping delta[k], drive frequency omega[k] (rad/s), drive amplitude amp * scale[k].
+
+        Scalars broadcast; K is the longest of the three vectors (or `replicas`).  x0, v0 (N, 3) are
+        the common initial state of the free particles (as in KernelRun.start).
+        """
+        check_range(r_cut, skin)
+        if not (math.isfinite(dt) and dt > 0.0):
+            raise SceneError(f"dt={dt!r} is out of range; allowed: number in (0, inf) s")
+        k = replicas or max(np.size(delta), np.size(omega), np.size(scale))
+        if k < 1:
+            raise SceneError(f"replicas={k!r} is out of range; allowed: integer >= 1")
+        delta = _param_vector("delta", delta, k, 0.0, "N s/m")
+        omega = _param_vector("omega", omega, k, 0.0, "rad/s")
+        scale = _param_vector("scale", scale, k, 0.0, "")
+        n = x_rest.shape[0]
+        x_rest = np.ascontiguousarray(x_rest, dtype=np.float64)
+        kind = np.zeros(n, dtype=np.int8) if kind is None else np.ascontiguousarray(kind, dtype=np.int8)
+        amp = np.zeros((n, 3)) if amp is None else np.ascontiguousarray(amp, dtype=np.float64)
+        phase = np.zeros(n) if phase is None else np.ascontiguousarray(phase, dtype=np.float64)
+        base = x_rest.copy() if x0 is None else np.array(x0, dtype=np.float64)
+        base[kind == FROZEN] = x_rest[kind == FROZEN]
+        vb = np.zeros((n, 3)) if v0 is None else np.array(v0, dtype=np.float64)
+        vb[kind == FROZEN] = 0.0
+        x = np.repeat(base[:, None, :], k, axis=1)
+        v = np.repeat(vb[:, None, :], k, axis=1)
+        drv = np.flatnonzero(kind == PRESCRIBED)
+        for r in range(k):  # loop over replicas (few), vectorised over particles
+            ak = amp[drv] * scale[r]
+            x[drv, r] = x_rest[drv] + ak * np.sin(phase[drv])[:, None]
+            v[drv, r] = ak * (omega[r] * np.cos(phase[drv]))[:, None]
+        run = cls(x=x, v=v, f=np.zeros((n, k, 3)), x_rest=x_rest, kind=kind, amp=amp, scale=scale, phase=phase,
+                  omega=omega, delta=delta, mass=float(mass), a=float(a), dt=float(dt), coeffs=model.coeffs(),
+                  nl=build_neighbours(base, r_cut * a, skin * a), x_ref=x.copy(), hot=np.zeros((n, k)),
+                  r_cut=float(r_cut) * a)
+        run._rebuild(-1)
+        run.nl.builds, run.nl.history = 1, []
+        gather_ensemble(run.x, run.v, run.nl.start, run.nl.index, run.coeffs, 1.0 / run.a, run.r_cut**2, run.delta,
+                        run.f)
+        return run
+
+    @property
+    def replicas(self) -> int:
+        return int(self.x.shape[1])
+
+    def _rebuild(self, step: int) -> None:
+        """Union of every replica's list at the current positions."""
+        lists = [build_neighbours(self.x[:, r], self.nl.r_cut, self.nl.skin) for r in range(self.replicas)]
+        merged = merge_lists(lists)
+        builds, history = self.nl.builds, self.nl.history
+        self.nl = merged
+        self.nl.builds, self.nl.history = builds + 1, [*history, step]
+        self.x_ref = self.x.copy()
+
+    def advance(self, n_steps: int) -> int:
+        """Advance all replicas n_steps (all stop if one becomes non-finite; sums kept)."""
+        done = 0
+        resume = False
+        lo = self.x_rest.min(axis=0) - self.a
+        hi = self.x_rest.max(axis=0) + self.a
+        while done < n_steps and self.status == "ok":
+            s, code = advance_ensemble(self.x, self.v, self.f, self.x_rest, self.kind, self.amp, self.scale,
+                                       self.phase, self.omega, self.mass, self.dt, self.step, n_steps - done,
+                                       self.nl.start, self.nl.index, self.x_ref, 0.5 * self.nl.skin, self.coeffs,
+                                       1.0 / self.a, self.r_cut**2, self.delta, self.hot, resume)
+            done += s
+            self.step += s
+            resume = False
+            if code == EXPIRED:
+                bad = ~np.isfinite(self.x).all(axis=(0, 2)) | ~np.isfinite(self.v).all(axis=(0, 2))
+                left = ((self.x < lo[None, None]) | (self.x > hi[None, None])).any(axis=(0, 2))
+                if bad.any() or left.any():
+                    self.status = "unstable"
+                    self.reason = (f"NaN/Inf in replicas {np.flatnonzero(bad).tolist()}, a particle more than a "
+                                   f"outside the bar in replicas {np.flatnonzero(left).tolist()} at step "
+                                   f"{self.step}; all replicas stopped there, sums kept")
+                else:
+                    self._rebuild(self.step)
+                    resume = True
+        if resume:
+            advance_ensemble(self.x, self.v, self.f, self.x_rest, self.kind, self.amp, self.scale, self.phase,
+                             self.omega, self.mass, self.dt, self.step, 1, self.nl.start, self.nl.index, self.x_ref,
+                             0.5 * self.nl.skin, self.coeffs, 1.0 / self.a, self.r_cut**2, self.delta, self.hot, True)
+            done += 1
+            self.step += 1
+        return done
+
+    def hotness(self) -> np.ndarray:
+        """Time-mean kinetic energy per particle and replica (N, K), J."""
+        return self.hot / max(self.step * self.dt, 1e-300)
