@@ -86,7 +86,7 @@ class Mca:
     """Movable cellular automata on the bar lattice (elasticity, fracture, modes, heat)."""
 
     name = "mca"
-    version = "1.0"
+    version = "1.1"
     parameters = PARAMETERS
 
     def supports(self, scene: Scene) -> tuple[bool, str]:
@@ -127,7 +127,8 @@ class Mca:
         field = out.pop("field")
         values = {} if field is None else {k: {"points": np.asarray(v, float), "values": field[aut.node_at(v)]}
                                            for k, v in pts.items()}
-        return Solution(scene=scene.name, solver=self.name, params=p, resolution={"n": n, "refine": 1},
+        return Solution(scene=scene.name, solver=self.name, params=p,
+                        resolution={"n": n, "refine": 1, "h": float(aut.spacing.min())},
                         samples=values, unknowns=out.pop("unknowns"),
                         wall_s=time.perf_counter() - t_wall, status=out.pop("status", "ok"),
                         reason=out.pop("reason", ""), quantity=out.pop("quantity"), work=out.pop("work"),
