@@ -6,7 +6,9 @@ Discretisation (PHYSICS.md §5):
   ElementHex2 (Q2, triquadratic, 27 nodes), parameter `element`.  Quadrature: Gauss with 2 points per axis
   for Q1 (`intorder=2`) and 3 for Q2 (`intorder=4`): on the undistorted boxes of this grid the integrands of
   K (degree 2k per axis) and M (degree 2k) are then integrated exactly.  scikit-fem's default for Q2 is
-  intorder 12 (7^3 = 343 points per cell instead of 27).
+  intorder 12 (7^3 = 343 points per cell instead of 27).  All cells of the (unwarped) grid are the same
+  translated cube, so K and M are assembled by scikit-fem once on the unit cube, scaled (h, h^3) and
+  scattered (`unit_cell_matrices`, `scatter_uniform`; equal to cell-by-cell assembly to round-off).
 - Material: isotropic Hooke's law with the Lame constants of (E, nu); mass density rho.
 - Constraints, all nodal (Lagrange dofs are point values):
   FaceSupport(face, d): the face-normal component of every dof on the face is d (frictionless support);
