@@ -246,9 +246,8 @@ def rebuild_pairs(model: Model, st: State) -> int:
     cand = cKDTree(st.x).query_pairs(d * (1 + 2 * model.skin), output_type="ndarray").astype(np.int64)
     cand = np.sort(cand, axis=1)
     n = aut.size
-    listed = set((aut.pairs[:, 0] * n + aut.pairs[:, 1]).tolist())
-    key = cand[:, 0] * n + cand[:, 1]
-    new = cand[np.array([k not in listed for k in key.tolist()], dtype=bool)] if len(cand) else cand
+    listed = np.sort(aut.pairs, axis=1)
+    new = cand[~np.isin(cand[:, 0] * n + cand[:, 1], listed[:, 0] * n + listed[:, 1])]
     st.xref[:] = st.x
     st.counters[mk.C_STATUS] = mk.OK
     if len(new) == 0:
