@@ -11,8 +11,10 @@ its theory.  Two kinds of study cell use a probe (a group with `analysis = "stab
   factor dt * omega_max / 2 next to the theory, and optionally next to the linear-discrete limit
   (spectral radius of the scheme's amplification matrix of the linearised, held lattice).
 - `probe = "map"`: one run at `dt_ratio`, classified ok (stable), unstable, defect or non-stationary;
-  an independent check of the final state (finite, inside the bar's neighbourhood, kinetic energy
-  bounded by the energy supplied) flags any blow-up that the solver did not report (`undetected`).
+  an independent check of the final state with the issue's three criteria (finite; no particle more
+  than a outside the bar; kinetic energy at most blowup_factor times the energy supplied, i.e. the
+  initial energy plus the drive and bath work plus the drives' own energy scale) flags any blow-up
+  that the solver did not report (`undetected`).
 
 Nothing here changes a solver; the report reads the cached cell results through `report_tables`.
 """
@@ -77,7 +79,7 @@ class MacromoleculeProbe:
         from solvers.particles.macromolecule import Macromolecule
 
         self.solver = Macromolecule()
-        self.version = self.solver.version
+        self.version = f"{self.solver.version}+probe2"  # bump when the probe's results change
         self.parameters = self.solver.parameters
 
     def supports(self, scene: Scene) -> tuple[bool, str]:
@@ -90,8 +92,10 @@ class MacromoleculeProbe:
         p = effective_params(self.solver, params)
         s = self.solver.setup(scene, n, p)
         w = 2 * math.pi * s["f_top"]
-        return {"p": p, "s": s, "omega_max": w, "zeta": s["zeta"], "dt_theory": s["dt_limit"],
-                "safety_theory": s["dt_limit"] * w / 2, "scene_hash": scene.content_hash(), "n": n}
+        safety = math.sqrt(1 + s["zeta"] ** 2) - s["zeta"]  # the stated theory, whatever guard the solver uses
+        return {"p": p, "s": s, "omega_max": w, "zeta": s["zeta"], "dt_theory": 2 * safety / w,
+                "safety_theory": safety, "solver_dt_limit": s["dt_limit"], "scene_hash": scene.content_hash(),
+                "n": n}
 
     def run(self, prep: dict[str, Any], ratio: float) -> dict[str, Any]:
         """One run at dt = ratio * dt_theory over the solver's window; status and an independent check."""
@@ -103,21 +107,27 @@ class MacromoleculeProbe:
         dt = ratio * prep["dt_theory"]
         run = simulate(lat, s["model"], fx, s["delta"], dt, p["t_end"], p["t_start"],
                        2 * math.pi * p["drive_frequency"], seed=p["seed"], blowup_factor=p["blowup_factor"],
-                       contact_fraction=p["contact_fraction"])
+                       contact_fraction=p["contact_fraction"], **({"kernel": p["kernel"]} if "kernel" in p else {}))
         H = run.hot[0]
         free = (fx.kind == ig.FREE) & (fx.gamma == 0.0)
         status, reason, flags = self.solver._status(run, H, free, p)
         e = run.energy
         finite = bool(np.isfinite(run.x).all() and np.isfinite(e).all())
         disp = float(np.max(np.linalg.norm(run.x - lat.positions, axis=1)) / lat.a) if finite else math.inf
-        supplied = max(abs(e[ig.E_START]) + abs(e[ig.E_DRIVE]) + abs(e[ig.E_BATH]), 1e-300)
+        outside = float(np.max(np.maximum(lat.positions.min(axis=0) - run.x, run.x - lat.positions.max(axis=0)))
+                        / lat.a) if finite else math.inf
+        held = fx.kind != ig.FREE
+        w = 2 * math.pi * p["drive_frequency"]
+        e_scale = 1.5 * fx.kt.sum() + 0.5 * lat.mass * w**2 * float((fx.amp[held] ** 2).sum())
+        supplied = max(e[ig.E_START] + e[ig.E_DRIVE] + e[ig.E_BATH], 0.0) + e_scale
         ke_ratio = float(e[ig.E_KIN_END] / supplied) if finite else math.inf
-        blown = (not finite) or disp > 1.0 or ke_ratio > p["blowup_factor"]
+        # the issue's three criteria, re-evaluated on the final state (the kernel checks every few steps)
+        blown = (not finite) or outside > 1.0 or ke_ratio > p["blowup_factor"]
         return {"status": status, "reason": reason, "dt": dt, "dt_ratio": ratio,
                 "safety": dt * prep["omega_max"] / 2, "steps": run.steps,
                 "steps_planned": int(round(p["t_end"] / dt)), "stopped_at_step": flags["stopped_at_step"],
                 "kernel_status": flags["kernel_status"], "hops": flags["hops"],
-                "stationarity": flags["stationarity"], "max_displacement_over_a": disp,
+                "stationarity": flags["stationarity"], "max_displacement_over_a": disp, "outside_over_a": outside,
                 "kinetic_end_over_supplied": ke_ratio, "blown": blown,
                 "undetected": bool(blown and status != "unstable")}
 
@@ -213,7 +223,8 @@ def run_probe_cell(kind: str, probe: Any, scene: Scene, n: int, params: dict[str
     solver_params, pp = split_params(params)
     prep = probe.prepare(scene, n, solver_params)
     head = {"omega_max": prep["omega_max"], "zeta": prep["zeta"], "dt_theory": prep["dt_theory"],
-            "safety_theory": prep["safety_theory"], "probe": kind}
+            "safety_theory": prep["safety_theory"], "solver_dt_limit_ratio": prep["solver_dt_limit"] /
+            prep["dt_theory"], "probe": kind}
     if kind == "map":
         out = probe.run(prep, pp["dt_ratio"])
         summary = head | {k: v for k, v in out.items() if k not in ("status", "reason")}
