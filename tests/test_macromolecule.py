@@ -193,26 +193,78 @@ def test_stability_limit_undamped() -> None:
     assert linear == pytest.approx(1.0, rel=1e-6)
 
 
-@pytest.mark.parametrize("zeta", [0.05, 0.2])
-def test_stability_limit_damped(zeta: float) -> None:
-    """Lagged (half-step) damping: limit omega dt/2 = sqrt(1+zeta^2) - zeta for the top mode's zeta
-    (central difference with velocity at t_{n-1/2}; Jury: h^2 + 4 zeta h - 4 < 0).  Measured within
-    3 % of it and within 1 % of the exact linear-discrete limit (spectral radius of the scheme)."""
-    measured, linear, z = _measured_limit(3, zeta)
+@pytest.mark.parametrize("n,zeta", [(2, 0.05), (2, 0.2), (3, 0.05), (3, 0.2)])
+def test_stability_limit_damped(n: int, zeta: float) -> None:
+    """Lagged (half-step) damping.  The measured limit (bisection on blow-up of the nonlinear run) is
+    within 1 % of the exact linear-discrete limit (spectral radius 1 of the one-step amplification
+    matrix), and the solver's modal-basis limit equals that one (n = 2: all modes, exact; n = 3:
+    top-48-mode subspace, within 1 %).  The single-mode formula sqrt(1+zeta^2) - zeta for the top
+    mode's zeta holds within 3 % at n = 3 but NOT at n = 2, zeta = 0.2: the damping is
+    non-proportional and a lower, more damped mode (|lambda| = 0.96 omega_max, zeta = 0.29) goes
+    unstable first (measured 0.752, exact linear 0.758, single-mode 0.820)."""
+    measured, linear, z = _measured_limit(n, zeta)
+    _, s, _ = _undriven(n, damping_ratio=zeta)
+    solver_limit = s["dt_limit"] * 2 * np.pi * s["f_top"] / 2
+    single = math.sqrt(1 + zeta**2) - zeta
     assert z == pytest.approx(zeta, rel=1e-9)
-    assert measured == pytest.approx(math.sqrt(1 + zeta**2) - zeta, rel=0.03)
     assert measured == pytest.approx(linear, rel=0.01)
+    assert solver_limit == pytest.approx(linear, rel=1e-6 if n == 2 else 0.01)
+    assert s["dt_limit_single_mode"] * 2 * np.pi * s["f_top"] / 2 == pytest.approx(single, rel=1e-12)
+    if n == 2 and zeta == 0.2:
+        assert single / measured - 1 > 0.05
+    else:
+        assert measured == pytest.approx(single, rel=0.03)
 
 
-@pytest.mark.parametrize("n,zeta,D", [(2, 0.01, 0.05), (3, 0.05, 0.02)])
+@pytest.mark.parametrize("n,zeta,D", [(2, 0.01, 0.05), (3, 0.05, 0.02), (4, 0.01, 0.02)])
 def test_energy_balance_driven_damped(n: int, zeta: float, D: float) -> None:
     """Driven and damped at the default dt: E_end - E_start + dissipated - drive work closes to 1e-3
-    of the drive work (15 s, f = 50 Hz, no hops: defect runs close to ~3e-3 only, see the report)."""
+    of the drive work (15 s, f = 50 Hz, no hops).  The accounting is the exact discrete identity of
+    integrate.py, so the residual is the quadrature error of the anharmonic conservative forces
+    (see test_energy_balance_residual_is_anharmonic_integration_error for n = 5, where it is larger)."""
     sol = SOLVER.solve(PAPER, Resolution(n), damping_ratio=zeta, drive_amplitude=D)
     e = sol.diagnostics["energy"]
     assert e["drive_work"] > 0 and e["dissipated"] > 0
     assert sol.summary["energy_balance_error"] <= 1e-3
     assert sol.summary["hops"] == 0
+
+
+def test_energy_balance_residual_is_anharmonic_integration_error() -> None:
+    """n = 5, zeta = 0.01, D = 0.02: the residual is 2e-3 of the drive work at the default dt (above
+    the 1e-3 target).  It is an integration error, not bookkeeping: it falls as dt^2 (ratio 4 +- 10 %
+    from safety 0.1 to 0.05; an accounting inconsistency would not scale with dt), and it comes from
+    the nonlinear resonance of the chain below the red pair (pair amplitude +-4 % of a): with the
+    pair forces replaced by their linearisation the same run closes to 2e-7 (measured with an
+    instrumented kernel, see integrate.py).  At safety 0.05 it meets 1e-3."""
+    errs = []
+    for safety in (0.1, 0.05):
+        sol = SOLVER.solve(PAPER, Resolution(5), damping_ratio=0.01, drive_amplitude=0.02, t_end=5.0, safety=safety)
+        assert sol.summary["hops"] == 0
+        errs.append(sol.summary["energy_balance_error"])
+    assert errs[0] > 1e-3
+    assert errs[0] / errs[1] == pytest.approx(4.0, rel=0.1)
+    assert errs[1] <= 1e-3
+
+
+@pytest.mark.parametrize("scene,n,given", [("bar-heat-paper", 3, {"drive_amplitude": 0.02}),
+                                           ("bar-heat-paper", 2, {"drive_sharing": "symmetric"}),
+                                           ("bar-heat-faces", 2, {"seed": 4, "drive_amplitude": 0.02})])
+def test_fast_kernel_equals_reference(scene: str, n: int, given: dict) -> None:
+    """kernel.run (SoA, fused pass, product tree, branch-free STEP) and the plain integrate.run give
+    the same run to rounding: relative hotness within 1e-10, energies within 1e-10 of the drive
+    work, identical step and hop counters (0.5 s, no hops: the runs are not chaotic, so rounding
+    differences of 1e-16 cannot grow beyond that)."""
+    sc = make_scene(scene)
+    fast = SOLVER.solve(sc, Resolution(n), t_end=0.5, kernel="fast", **given)
+    ref = SOLVER.solve(sc, Resolution(n), t_end=0.5, kernel="reference", **given)
+    for k in ("steps", "hops", "pair_steps"):
+        assert fast.summary[k] == ref.summary[k]
+    assert fast.summary["hops"] == 0
+    hf, hr = fast.diagnostics["hotness"], ref.diagnostics["hotness"]
+    assert np.max(np.abs(hf - hr)) <= 1e-10 * hr.max()
+    scale = max(abs(v) for v in ref.diagnostics["energy"].values())
+    for key, v in ref.diagnostics["energy"].items():
+        assert fast.diagnostics["energy"][key] == pytest.approx(v, abs=1e-10 * scale)
 
 
 def test_bit_identical_rerun() -> None:
@@ -242,8 +294,10 @@ def test_solution_contract() -> None:
     free = v[(v != 0.0) & (v != 1.0)]
     assert free.max() <= 1.0 and free.min() >= 0.0
     for key in ("f_top_hz", "dt", "steps", "pairs", "pair_steps", "hops", "stationarity", "energy_balance_error",
-                "bulk_median", "volume_mean", "bulk_median_by_driven", "damping_in_force", "delta", "damping_ratio"):
+                "bulk_median", "volume_mean", "bulk_median_by_driven", "damping_in_force", "delta", "damping_ratio",
+                "kernel_s", "dt_limit", "dt_limit_single_mode"):
         assert key in sol.summary
+    assert 0 < sol.summary["kernel_s"] < sol.wall_s
     assert sol.summary["damping_in_force"] == "damping_ratio"
     assert sol.work["pair_steps"] == sol.summary["pairs"] * sol.work["time_steps"]
     assert sol.work["unknowns"] == 3 * 16
@@ -270,6 +324,22 @@ def test_delta_in_force_reports_its_damping_ratio() -> None:
     b = SOLVER.solve(PAPER, Resolution(2), t_end=0.5, delta=a.summary["delta"])
     assert b.summary["damping_in_force"] == "delta"
     assert b.summary["damping_ratio"] == pytest.approx(0.03, rel=1e-8)
+
+
+@pytest.mark.parametrize("direction", ["x", "y", "z"])
+def test_face_drive_direction(direction: str) -> None:
+    """bar-heat-faces with hot_face=driven: every z=0 particle is driven along the requested axis only,
+    with the stroke D a, and the seeded phases are distinct."""
+    scene = make_scene("bar-heat-faces")
+    p = effective_params(SOLVER, {"hot_face": "driven", "face_drive_direction": direction})
+    lat = build_lattice(scene.box, 3, 2700.0)
+    fx = make_fixes(scene, lat, p, 1.0)
+    face = np.flatnonzero(lat.positions[:, 2] == 0.0)
+    assert np.all(fx.kind[face] == ig.PRESCRIBED) and np.sum(fx.kind == ig.PRESCRIBED) == len(face)
+    axis = "xyz".index(direction)
+    assert np.allclose(fx.amp[face, axis], 0.05 * lat.a)
+    assert np.all(np.delete(fx.amp[face], axis, axis=1) == 0.0)
+    assert len(np.unique(fx.phase[face])) == len(face)
 
 
 def test_patch_scene_holds_patch_particles() -> None:

@@ -31,11 +31,13 @@ from harness.scene import FaceTemperature, Param, PointTemperature, Scene, Scene
 from solvers.base import Resolution, Solution, effective_params, heat_summary
 
 from . import integrate as ig
+from . import kernel as fk
 from .lattice import Lattice, build_lattice
 from .modal import (
     damped_top_mode,
     damping_matrix,
     delta_for_damping_ratio,
+    discrete_stability_limit,
     free_dofs,
     hessian,
     modal_basis,
@@ -70,6 +72,10 @@ PARAMETERS: tuple[Param, ...] = (
           low_open=True, optional=True),
     Param("pairs_at_2a", "keep", "", "keep or drop the pairs resting at exactly 2a", choices=("keep", "drop"),
           kind=str),
+    Param("face_drive_direction", "y", "", "bar-heat-faces, hot_face=driven: direction of the face drive (z: "
+          "normal to the face, longitudinal)", choices=("x", "y", "z"), kind=str),
+    Param("kernel", "fast", "", "time-stepping kernel: fast (kernel.py) or the plain reference (integrate.py); "
+          "the same scheme, equal to rounding", choices=("fast", "reference"), kind=str),
     Param("hot_face", "langevin", "", "bar-heat-faces: z=0 face thermostatted or kinematically driven",
           choices=("langevin", "driven"), kind=str),
     Param("far_face", "absorbing", "", "bar-heat-faces: z=L face viscous (0 K bath) or frozen",
@@ -127,7 +133,7 @@ def make_fixes(scene: Scene, lat: Lattice, p: dict[str, Any], omega_top: float |
                 hot_sets.append(idx)
                 if p["hot_face"] == "driven":
                     kind[idx] = ig.PRESCRIBED
-                    amp[idx, 1] = stroke
+                    amp[idx, "xyz".index(p["face_drive_direction"])] = stroke
                     phase[idx] = np.random.default_rng(p["seed"]).uniform(0, 2 * np.pi, len(idx))
                 else:
                     w = 2 * np.pi * p["drive_frequency"]
@@ -185,8 +191,11 @@ class RunResult:
 
 def simulate(lat: Lattice, model: SevenRoot, fx: Fixes, delta: float, dt: float, t_end: float, t_start: float = 0.0,
              omega: float = 0.0, v0: np.ndarray | None = None, seed: int = 0, blowup_factor: float = 10.0,
-             contact_fraction: float = 0.5, check_every: int | None = None) -> RunResult:
-    """Run the kernel from rest (or from velocities v0) and return averaged hotness and diagnostics."""
+             contact_fraction: float = 0.5, check_every: int | None = None, kernel: str = "fast") -> RunResult:
+    """Run the kernel from rest (or from velocities v0) and return averaged hotness and diagnostics.
+
+    kernel "fast" (`kernel.run`, the default) or "reference" (`integrate.run`, the plain one): the
+    same scheme, equal to rounding."""
     N = lat.size
     n_steps = int(round(t_end / dt))
     n_start = min(int(round(t_start / dt)), n_steps)
@@ -208,11 +217,23 @@ def simulate(lat: Lattice, model: SevenRoot, fx: Fixes, delta: float, dt: float,
     skin = unlisted - contact_fraction * lat.a
     held = fx.kind != ig.FREE
     e_scale = 1.5 * fx.kt.sum() + 0.5 * lat.mass * omega**2 * float((fx.amp[held] ** 2).sum())
-    t0 = time.perf_counter()
-    rows = ig.run(x, v, lat.positions, fx.kind, fx.amp, fx.phase, omega, fx.free_centre, lat.mass, fx.gamma, fx.kt,
-                  seed, lat.pairs[:, 0].copy(), lat.pairs[:, 1].copy(), lat.r0, lo, hi, model.coeffs(), lat.a, delta,
-                  dt, n_steps, n_start, n_steps, check, blowup_factor, e_scale, -lat.a * np.ones(3), ext + lat.a,
-                  contact_fraction, cutoff, skin, hot, energy, counters, history, ever)
+    pi, pj = lat.pairs[:, 0].copy(), lat.pairs[:, 1].copy()
+    box_lo, box_hi = -lat.a * np.ones(3), ext + lat.a
+    if kernel == "reference":
+        t0 = time.perf_counter()
+        rows = ig.run(x, v, lat.positions, fx.kind, fx.amp, fx.phase, omega, fx.free_centre, lat.mass, fx.gamma,
+                      fx.kt, seed, pi, pj, lat.r0, lo, hi, model.coeffs(), lat.a, delta, dt, n_steps, n_start,
+                      n_steps, check, blowup_factor, e_scale, box_lo, box_hi, contact_fraction, cutoff, skin, hot,
+                      energy, counters, history, ever)
+    elif kernel == "fast":
+        pint = int(model.p) if float(model.p).is_integer() and 0 <= model.p <= 64 else -1
+        t0 = time.perf_counter()
+        rows = fk.run(x, v, lat.positions, fx.kind, fx.amp, fx.phase, omega, fx.free_centre, lat.mass, fx.gamma,
+                      fx.kt, seed, pi, pj, lo, hi, pint, lat.a, delta, dt, n_steps, n_start, n_steps, check,
+                      blowup_factor, e_scale, box_lo, box_hi, contact_fraction, cutoff, skin, model.coeffs(), lat.r0,
+                      hot, energy, counters, history, ever)
+    else:
+        raise SceneError(f"kernel={kernel!r} is not allowed; allowed: fast, reference")
     wall = time.perf_counter() - t0
     steps = np.maximum(counters[[ig.K_HOT_STEPS, ig.K_HALF1, ig.K_HALF2]], 1) * dt
     return RunResult(hot / steps[:, None], energy, counters, history[:rows], ever, x, wall, int(counters[ig.K_STEPS]))
@@ -230,7 +251,7 @@ class Macromolecule:
     """Solver "macromolecule": relative hotness of the seven-root particle lattice."""
 
     name = "macromolecule"
-    version = "1"
+    version = "2"
     parameters = PARAMETERS
 
     def supports(self, scene: Scene) -> tuple[bool, str]:
@@ -271,16 +292,18 @@ class Macromolecule:
             zeta = DEFAULT_DAMPING_RATIO if p["damping_ratio"] is None else p["damping_ratio"]
             delta = delta_for_damping_ratio(basis, C1, dofs, zeta)
             method = basis[2]
-        limit = 2.0 * (math.sqrt(1 + zeta**2) - zeta) / w_top
+        single = 2.0 * (math.sqrt(1 + zeta**2) - zeta) / w_top
+        limit = 2.0 * discrete_stability_limit(basis, C1 * delta, dofs) / w_top if delta > 0 else 2.0 / w_top
         dt = p["dt"] if p["dt"] is not None else p["safety"] * 2.0 / w_top
         if dt > limit:
-            raise SceneError(f"dt={dt:.6g} s is above the stability limit {limit:.6g} s = 2 (sqrt(1+zeta^2) - zeta) "
-                             f"/ omega_max (omega_max = {w_top:.6g} rad/s, zeta = {zeta:.3g}); allowed: dt <= limit")
+            raise SceneError(f"dt={dt:.6g} s is above the stability limit {limit:.6g} s of the linearised scheme "
+                             f"(spectral radius 1; single-mode estimate 2 (sqrt(1+zeta^2) - zeta) / omega_max = "
+                             f"{single:.6g} s, omega_max = {w_top:.6g} rad/s, zeta = {zeta:.3g}); allowed: dt <= limit")
         if p["t_start"] >= p["t_end"]:
             raise SceneError(f"t_start={p['t_start']!r} is out of range; allowed: number in [0, "
                              f"t_end={p['t_end']:g}) s")
         return dict(lat=lat, fx=fx, model=model, A=A, f_top=w_top / (2 * np.pi), delta=delta, zeta=zeta,
-                    zeta_method=method, in_force=in_force, dt=dt, dt_limit=limit,
+                    zeta_method=method, in_force=in_force, dt=dt, dt_limit=limit, dt_limit_single_mode=single,
                     zeta_rough=delta / (2 * lat.mass * w_top))
 
     def solve(self, scene: Scene, resolution: Resolution, samples: dict[str, np.ndarray] | None = None,
@@ -297,7 +320,7 @@ class Macromolecule:
         lat, fx = s["lat"], s["fx"]
         w_drive = 2 * np.pi * p["drive_frequency"]
         run = simulate(lat, s["model"], fx, s["delta"], s["dt"], p["t_end"], p["t_start"], w_drive, seed=p["seed"],
-                       blowup_factor=p["blowup_factor"], contact_fraction=p["contact_fraction"])
+                       blowup_factor=p["blowup_factor"], contact_fraction=p["contact_fraction"], kernel=p["kernel"])
         H = run.hot[0]
         free = (fx.kind == ig.FREE) & (fx.gamma == 0.0)  # bath particles are held, not free
         rel = H / H[free].max() if H[free].max() > 0 else np.full_like(H, np.nan)
@@ -311,7 +334,8 @@ class Macromolecule:
             bulk_median_by_driven=float(np.median(rel_drv)), volume_mean_by_driven=float(rel_drv.mean()),
             driven_over_hottest_free=float(h_drv / H[free].max()) if H[free].max() > 0 else math.nan,
             hottest_free_index=int(np.flatnonzero(free)[np.argmax(H[free])]),
-            f_top_hz=s["f_top"], stiffness_A=s["A"], dt=s["dt"], dt_limit=s["dt_limit"], steps=run.steps,
+            f_top_hz=s["f_top"], stiffness_A=s["A"], dt=s["dt"], dt_limit=s["dt_limit"],
+            dt_limit_single_mode=s["dt_limit_single_mode"], steps=run.steps, kernel_s=run.wall_s,
             pairs=len(lat.pairs), pair_steps=len(lat.pairs) * run.steps, particles=lat.size,
             damping_in_force=s["in_force"], delta=s["delta"], damping_ratio=s["zeta"],
             damping_ratio_method=s["zeta_method"], damping_ratio_rough=s["zeta_rough"],
@@ -332,7 +356,8 @@ class Macromolecule:
             summary.update(self._faces(lat, H, fx, diagnostics))
         if p["dt_check"]:
             fine = simulate(lat, s["model"], fx, s["delta"], s["dt"] / 2, p["t_end"], p["t_start"], w_drive,
-                            seed=p["seed"], blowup_factor=p["blowup_factor"], contact_fraction=p["contact_fraction"])
+                            seed=p["seed"], blowup_factor=p["blowup_factor"], contact_fraction=p["contact_fraction"],
+                            kernel=p["kernel"])
             Hf = fine.hot[0]
             relf = Hf / Hf[free].max()
             summary["dt_sensitivity"] = float(np.max(np.abs(relf - rel)[free]))

@@ -139,3 +139,37 @@ def delta_for_damping_ratio(
             break
         d0, d1, f0 = d1, d1 - f1 * (d1 - d0) / (f1 - f0), f1
     return float(d1)
+
+
+def discrete_stability_limit(basis: tuple[np.ndarray, np.ndarray, str], C: sp.csr_matrix, dofs: np.ndarray,
+                             tol: float = 1e-9) -> float:
+    """Largest omega_max dt / 2 for which the linearised one-step scheme is stable (spectral radius <= 1).
+
+    The kernel's kick-drift step with lagged damping is, for free particles of a linear lattice,
+    x_{n+1} = (2 - dt C - dt^2 K) x_n - (1 - dt C) x_{n-1} (mass-scaled).  In the modal basis of
+    `modal_basis` (exact when it holds all modes, else its top-mode subspace) K is diag(omega^2)
+    and C is phi^T C phi, full when the damping is not proportional.  Bisection on h = omega_max
+    dt / 2 in (0, 1].  For one mode this is sqrt(1 + zeta^2) - zeta; with non-proportional damping
+    a lower but more damped mode can become unstable first (the 16-particle lattice: see the tests).
+    """
+    omega, phi, _ = basis
+    elastic = omega > 1e-6 * omega.max()  # rigid-body modes (free lattices): undamped, marginal, never limit dt
+    omega, phi = omega[elastic], phi[:, elastic]
+    Cr = phi.T @ (C[dofs][:, dofs] @ phi)
+    m = len(omega)
+    eye = np.eye(m)
+    w2 = np.diag(omega**2)
+    wmax = float(omega.max())
+
+    def rho(h: float) -> float:
+        dt = 2.0 * h / wmax
+        amp = np.block([[2 * eye - dt * Cr - dt * dt * w2, -eye + dt * Cr], [eye, np.zeros((m, m))]])
+        return float(np.abs(sla.eigvals(amp)).max())
+
+    lo, hi = 0.0, 1.0
+    if rho(hi) <= 1 + tol:
+        return hi
+    for _ in range(30):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (lo, mid) if rho(mid) > 1 + tol else (mid, hi)
+    return lo

@@ -1,0 +1,499 @@
+"""Fast time-stepping kernel of the macromolecule model: the same scheme as `integrate.run`, faster.
+
+Same fixes, same kick-drift velocity Verlet with half-step (lagged) pair damping, same energy
+identity and computes (see `integrate`'s docstring); `integrate.run` stays as the plain reference
+kernel the tests and the benchmark compare against.  What is different is only how the work is laid out:
+
+- structure of arrays: positions, velocities and forces as separate x, y, z vectors;
+- one pass over the pairs per step computes the conservative force, the radial damping, the
+  dissipated power and the hop flags; the total force is scattered once (no separate damping
+  arrays, no combine pass).  Dissipation over n -> n+1 is
+  1/2 dt sum_k (G_k^n . (v_j - v_i)_{n+1/2} + delta rdot_k^2), with G_k^n the pair's damping
+  force vector of the previous pass (stored per pair, streamed, not scattered);
+- the seven-root product in Horner form about the pair's own stable root x0 (A prod(x - x_i) =
+  t (c1 + t (c2 + ...)), t = x - x0): 7 multiply-adds, no pow, exactly 0 at the root and as
+  accurate as the product near it.  (Horner in powers of x itself cancels catastrophically near
+  the roots: 6e-7 relative error at x = sqrt3 + 1e-4, so it is not used.)  The envelope (a/r)^p
+  for integer p is repeated multiplication by a/r, which the pass already has;
+- relaxing checks that lose nothing: hop detection stays exact in every pass (two compares per
+  pair); NaN, box, energy-growth and neighbourhood checks run every `check_every` steps, as before;
+- no fastmath: the kernel is exact IEEE arithmetic, deterministic, and equal to the reference
+  kernel to rounding (tested).  (fastmath measured no gain here: see the report.)
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from .integrate import (
+    CONTACT,
+    DONE,
+    E_BATH,
+    E_DISS,
+    E_DRIVE,
+    E_END,
+    E_KIN_END,
+    E_POT_END,
+    E_START,
+    FREE,
+    FROZEN,
+    GROUP,
+    GROWTH,
+    H_BATH,
+    H_DISS,
+    H_DRIVE,
+    H_KIN,
+    H_POT,
+    H_T,
+    ISOLATED,
+    K_FIRST_HOP,
+    K_HALF1,
+    K_HALF2,
+    K_HOP_EVENTS,
+    K_HOP_PAIRS,
+    K_HOT_STEPS,
+    K_STATUS,
+    K_STEPS,
+    K_STOP_STEP,
+    LEFT_BAR,
+    NAN,
+    RUNNING,
+    potential_energy,
+)
+from .seven_root import C_A, C_P, C_ROOTS, C_X0, C_X1
+
+__all__ = ["pair_pass", "run"]
+
+
+@njit(cache=True, boundscheck=False)
+def pair_pass(px, py, pz, vx, vy, vz, pi, pj, lo, hi, rt, amp_a, pint, p, step_lo, inv_w, a, delta,
+              fx, fy, fz, gx, gy, gz, out, ever, step, counters):
+    """Forces at the current positions (damping with the given velocities) into fx, fy, fz.
+
+    Returns 1/2 sum_k (G_k^prev . dv_k + delta rdot_k^2) (times dt: dissipation over the interval
+    ending here); g* hold each pair's damping force vector G_k for the next pass."""
+    n = px.shape[0]
+    for i in range(n):
+        fx[i] = 0.0
+        fy[i] = 0.0
+        fz[i] = 0.0
+    inv_a = 1.0 / a
+    diss = 0.0
+    for k in range(pi.shape[0]):
+        i = pi[k]
+        j = pj[k]
+        dx = px[j] - px[i]
+        dy = py[j] - py[i]
+        dz = pz[j] - pz[i]
+        r = math.sqrt(dx * dx + dy * dy + dz * dz)
+        ir = 1.0 / r
+        ex = dx * ir
+        ey = dy * ir
+        ez = dz * ir
+        x = r * inv_a
+        # product of the root factors as a depth-3 tree (no pow, exact near the roots); the STEP
+        # is branch-free: 1 below its start, 0 from 2a on (so the product beyond 2a is multiplied by 0)
+        p01 = (x - rt[0]) * (x - rt[1])
+        p23 = (x - rt[2]) * (x - rt[3])
+        p45 = (x - rt[4]) * (x - rt[5])
+        p6 = (x - rt[6]) * amp_a
+        ix = a * ir
+        if pint == 2:
+            env = ix * ix
+        elif pint >= 0:
+            env = 1.0
+            for _ in range(pint):
+                env *= ix
+        else:
+            env = x ** (-p)
+        d = (x - step_lo) * inv_w
+        d = d if d > 0.0 else 0.0
+        d = d if d < 1.0 else 1.0
+        f = ((p01 * p23) * (p45 * p6)) * env * (1.0 - d * d * (3.0 - 2.0 * d))
+        if delta != 0.0:
+            dvx = vx[j] - vx[i]
+            dvy = vy[j] - vy[i]
+            dvz = vz[j] - vz[i]
+            rdot = dvx * ex + dvy * ey + dvz * ez
+            g = delta * rdot
+            diss += gx[k] * dvx + gy[k] * dvy + gz[k] * dvz + g * rdot
+            gx[k] = g * ex
+            gy[k] = g * ey
+            gz[k] = g * ez
+            f += g
+        fex = f * ex
+        fey = f * ey
+        fez = f * ez
+        fx[i] += fex
+        fy[i] += fey
+        fz[i] += fez
+        fx[j] -= fex
+        fy[j] -= fey
+        fz[j] -= fez
+        if x < lo[k] or x >= hi[k]:
+            if out[k] == 0:
+                out[k] = 1
+                counters[K_HOP_EVENTS] += 1
+                if ever[k] == 0:
+                    ever[k] = 1
+                    counters[K_HOP_PAIRS] += 1
+                    if counters[K_FIRST_HOP] < 0:
+                        counters[K_FIRST_HOP] = step
+        elif out[k] != 0:
+            out[k] = 0
+    return 0.5 * diss
+
+
+@njit(cache=True)
+def _check(px, py, pz, x_rest, kind, pi, pj, a, cutoff_rest, contact_fraction, skin):
+    """ISOLATED / CONTACT check of the fixed pair list on SoA positions; RUNNING if fine."""
+    n = px.shape[0]
+    near = np.full(n, np.inf)
+    for k in range(pi.shape[0]):
+        i = pi[k]
+        j = pj[k]
+        dx = px[j] - px[i]
+        dy = py[j] - py[i]
+        dz = pz[j] - pz[i]
+        r = math.sqrt(dx * dx + dy * dy + dz * dz)
+        near[i] = min(near[i], r)
+        near[j] = min(near[j], r)
+    for i in range(n):
+        if kind[i] != FROZEN and near[i] > 2.0 * a:
+            return ISOLATED
+    dmax2 = 0.0
+    for i in range(n):
+        dx = px[i] - x_rest[i, 0]
+        dy = py[i] - x_rest[i, 1]
+        dz = pz[i] - x_rest[i, 2]
+        dmax2 = max(dmax2, dx * dx + dy * dy + dz * dz)
+    if 4.0 * dmax2 < skin * skin:
+        return RUNNING
+    lim2 = (contact_fraction * a) ** 2
+    cut2 = cutoff_rest * cutoff_rest
+    for i in range(n):
+        for j in range(i + 1, n):
+            rx = x_rest[j, 0] - x_rest[i, 0]
+            ry = x_rest[j, 1] - x_rest[i, 1]
+            rz = x_rest[j, 2] - x_rest[i, 2]
+            if rx * rx + ry * ry + rz * rz <= cut2:
+                continue
+            dx = px[j] - px[i]
+            dy = py[j] - py[i]
+            dz = pz[j] - pz[i]
+            if dx * dx + dy * dy + dz * dz < lim2:
+                return CONTACT
+    return RUNNING
+
+
+@njit(cache=True)
+def _held_kick(t_next, t_now, dt, kind, held, amp, phase, omega, mass, fx, fy, fz, vmx, vmy, vmz,
+               vpx, vpy, vpz, lam, vc, group_mass, free_centre):
+    """v_{n+1/2} of the held particles (prescribed, group) and lambda_n = m (vp - vm)/dt - F_n."""
+    if free_centre:
+        s0 = 0.0
+        s1 = 0.0
+        s2 = 0.0
+        for q in range(held.shape[0]):
+            i = held[q]
+            if kind[i] == GROUP:
+                s0 += fx[i]
+                s1 += fy[i]
+                s2 += fz[i]
+        vc[0] += dt * s0 / group_mass
+        vc[1] += dt * s1 / group_mass
+        vc[2] += dt * s2 / group_mass
+    inv_dt = 1.0 / dt
+    for q in range(held.shape[0]):
+        i = held[q]
+        if kind[i] == FROZEN:
+            vpx[i] = 0.0
+            vpy[i] = 0.0
+            vpz[i] = 0.0
+        else:
+            ds = (math.sin(omega * t_next + phase[i]) - math.sin(omega * t_now + phase[i])) * inv_dt
+            vpx[i] = amp[i, 0] * ds
+            vpy[i] = amp[i, 1] * ds
+            vpz[i] = amp[i, 2] * ds
+            if kind[i] == GROUP:
+                vpx[i] += vc[0]
+                vpy[i] += vc[1]
+                vpz[i] += vc[2]
+        lam[q, 0] = mass * (vpx[i] - vmx[i]) * inv_dt - fx[i]
+        lam[q, 1] = mass * (vpy[i] - vmy[i]) * inv_dt - fy[i]
+        lam[q, 2] = mass * (vpz[i] - vmz[i]) * inv_dt - fz[i]
+
+
+@njit(cache=True)
+def _bath_kick(dt, bath, gamma, kt, mass, fx, fy, fz, vmx, vmy, vmz, vpx, vpy, vpz, lam):
+    """Langevin particles: exact OU factor with seeded noise, then the kick; lambda as for held ones."""
+    inv_dt = 1.0 / dt
+    for q in range(bath.shape[0]):
+        i = bath[q]
+        damp = math.exp(-gamma[i] * dt)
+        sig = math.sqrt(kt[i] / mass * (1.0 - damp * damp))
+        vpx[i] = vmx[i] * damp + sig * np.random.standard_normal() + dt * fx[i] / mass  # noqa: NPY002
+        vpy[i] = vmy[i] * damp + sig * np.random.standard_normal() + dt * fy[i] / mass  # noqa: NPY002
+        vpz[i] = vmz[i] * damp + sig * np.random.standard_normal() + dt * fz[i] / mass  # noqa: NPY002
+        lam[q, 0] = mass * (vpx[i] - vmx[i]) * inv_dt - fx[i]
+        lam[q, 1] = mass * (vpy[i] - vmy[i]) * inv_dt - fy[i]
+        lam[q, 2] = mass * (vpz[i] - vmz[i]) * inv_dt - fz[i]
+
+
+@njit(cache=True)
+def _work(idx, vx, vy, vz, lam0, lam1):
+    """sum over idx of v . (lambda_prev + lambda_now) (times dt/2: the work over one interval)."""
+    w = 0.0
+    for q in range(idx.shape[0]):
+        i = idx[q]
+        w += vx[i] * (lam0[q, 0] + lam1[q, 0]) + vy[i] * (lam0[q, 1] + lam1[q, 1]) + vz[i] * (lam0[q, 2] + lam1[q, 2])
+    return w
+
+
+@njit(cache=True)
+def run(x, v0, x_rest, kind, amp, phase, omega, free_centre, mass, gamma, kt, seed,
+        pi, pj, lo, hi, pint, a, delta, dt, n_steps, n_start, n_end,
+        check_every, blowup_factor, e_scale, box_lo, box_hi, contact_fraction, cutoff_rest, skin, c,
+        r0, hot, energy, counters, history, ever):
+    """Integrate n_steps from t = 0; same outputs and stopping rules as `integrate.run`.
+
+    c = model.coeffs() (roots, A, p, STEP start); pint = p if p is a small integer else -1.
+    x (N, 3) is overwritten with the final positions.
+    """
+    np.random.seed(seed)  # noqa: NPY002 (numba supports only the legacy seeded RNG in kernels)
+    n = x.shape[0]
+    npair = pi.shape[0]
+    px = np.ascontiguousarray(x[:, 0])
+    py = np.ascontiguousarray(x[:, 1])
+    pz = np.ascontiguousarray(x[:, 2])
+    rt = c[C_ROOTS:C_ROOTS + 7].copy()
+    amp_a = c[C_A]
+    p = c[C_P]
+    step_lo = c[C_X0]
+    inv_w = 1.0 / (c[C_X1] - step_lo)
+    held = np.flatnonzero(kind != FREE)
+    bath = np.flatnonzero((kind == FREE) & (gamma > 0.0))
+    plain = np.flatnonzero((kind == FREE) & (gamma <= 0.0))
+    moving = np.flatnonzero((kind != FREE) & (kind != FROZEN))
+    group_mass = mass * np.sum(kind == GROUP)
+    if group_mass == 0.0:
+        free_centre = False
+    fx = np.zeros(n)
+    fy = np.zeros(n)
+    fz = np.zeros(n)
+    vmx = np.zeros(n)
+    vmy = np.zeros(n)
+    vmz = np.zeros(n)
+    vpx = np.zeros(n)
+    vpy = np.zeros(n)
+    vpz = np.zeros(n)
+    gx = np.zeros(npair)
+    gy = np.zeros(npair)
+    gz = np.zeros(npair)
+    lh0 = np.zeros((held.shape[0], 3))
+    lh1 = np.zeros((held.shape[0], 3))
+    lb0 = np.zeros((bath.shape[0], 3))
+    lb1 = np.zeros((bath.shape[0], 3))
+    vc = np.zeros(3)
+    cpos = np.zeros(3)
+    out = np.zeros(npair, dtype=np.int8)
+    hot1 = np.zeros(n)
+    hot2 = np.zeros(n)
+    for k in range(counters.shape[0]):
+        counters[k] = 0
+    counters[K_FIRST_HOP] = -1
+    counters[K_STATUS] = RUNNING
+    energy[:] = 0.0
+    n_mid = (n_start + n_end) // 2
+    half_m = 0.5 * mass
+    dtm = dt / mass
+
+    # start: forces at t = 0 with damping from v0; v_{-1/2} so that v_{+1/2} = v0 + dt/2 a0
+    for i in range(n):
+        vpx[i] = v0[i, 0]
+        vpy[i] = v0[i, 1]
+        vpz[i] = v0[i, 2]
+    pair_pass(px, py, pz, vpx, vpy, vpz, pi, pj, lo, hi, rt, amp_a, pint, p, step_lo, inv_w, a, delta,
+              fx, fy, fz, gx, gy, gz, out, ever, 0, counters)
+    for q in range(plain.shape[0]):
+        i = plain[q]
+        vmx[i] = v0[i, 0] - 0.5 * dtm * fx[i]
+        vmy[i] = v0[i, 1] - 0.5 * dtm * fy[i]
+        vmz[i] = v0[i, 2] - 0.5 * dtm * fz[i]
+    for q in range(bath.shape[0]):
+        i = bath[q]
+        vmx[i] = v0[i, 0] - 0.5 * dtm * fx[i]
+        vmy[i] = v0[i, 1] - 0.5 * dtm * fy[i]
+        vmz[i] = v0[i, 2] - 0.5 * dtm * fz[i]
+    for q in range(held.shape[0]):
+        i = held[q]
+        if kind[i] == FROZEN:
+            vmx[i] = 0.0
+            vmy[i] = 0.0
+            vmz[i] = 0.0
+        else:
+            ds = (math.sin(phase[i]) - math.sin(-omega * dt + phase[i])) / dt
+            vmx[i] = amp[i, 0] * ds
+            vmy[i] = amp[i, 1] * ds
+            vmz[i] = amp[i, 2] * ds
+    if free_centre:
+        s0 = 0.0
+        s1 = 0.0
+        s2 = 0.0
+        for i in range(n):
+            if kind[i] == GROUP:
+                s0 += fx[i]
+                s1 += fy[i]
+                s2 += fz[i]
+        vc[0] = -0.5 * dt * s0 / group_mass
+        vc[1] = -0.5 * dt * s1 / group_mass
+        vc[2] = -0.5 * dt * s2 / group_mass
+        for i in range(n):
+            if kind[i] == GROUP:
+                vmx[i] += vc[0]
+                vmy[i] += vc[1]
+                vmz[i] += vc[2]
+
+    diss = 0.0
+    w_drive = 0.0
+    w_bath = 0.0
+    hrow = 0
+    status = RUNNING
+    step = 0
+    while True:
+        t = step * dt
+        # --- kick: v_{n+1/2} from v_{n-1/2} and F_n (plain free particles: vectorisable loop)
+        for q in range(plain.shape[0]):
+            i = plain[q]
+            vpx[i] = vmx[i] + dtm * fx[i]
+            vpy[i] = vmy[i] + dtm * fy[i]
+            vpz[i] = vmz[i] + dtm * fz[i]
+        _held_kick(t + dt, t, dt, kind, held, amp, phase, omega, mass, fx, fy, fz, vmx, vmy, vmz,
+                   vpx, vpy, vpz, lh1, vc, group_mass, free_centre)
+        _bath_kick(dt, bath, gamma, kt, mass, fx, fy, fz, vmx, vmy, vmz, vpx, vpy, vpz, lb1)
+        if step == 0:
+            e0 = 0.0
+            for i in range(n):
+                e0 += vmx[i] * vpx[i] + vmy[i] * vpy[i] + vmz[i] * vpz[i]
+            energy[E_START] = half_m * e0 + potential_energy(x, pi, pj, r0, c, a)
+        else:
+            # drive and bath work over n-1 -> n with v_{n-1/2}
+            w_drive += 0.5 * dt * _work(held, vmx, vmy, vmz, lh0, lh1)
+            w_bath += 0.5 * dt * _work(bath, vmx, vmy, vmz, lb0, lb1)
+        lh0, lh1 = lh1, lh0
+        lb0, lb1 = lb1, lb0
+        if step == n_steps:
+            break
+        # --- checks at t_n (every check_every steps)
+        if step % check_every == 0:
+            kin = 0.0
+            bad = False
+            left = False
+            for i in range(n):
+                ux = 0.5 * (vmx[i] + vpx[i])
+                uy = 0.5 * (vmy[i] + vpy[i])
+                uz = 0.5 * (vmz[i] + vpz[i])
+                kin += ux * ux + uy * uy + uz * uz
+                if not (math.isfinite(px[i]) and math.isfinite(py[i]) and math.isfinite(pz[i])
+                        and math.isfinite(ux) and math.isfinite(uy) and math.isfinite(uz)):
+                    bad = True
+                if (px[i] < box_lo[0] or px[i] > box_hi[0] or py[i] < box_lo[1] or py[i] > box_hi[1]
+                        or pz[i] < box_lo[2] or pz[i] > box_hi[2]):
+                    left = True
+            kin *= half_m
+            if bad:
+                status = NAN
+            elif left:
+                status = LEFT_BAR
+            elif kin > blowup_factor * (max(energy[E_START] + w_drive + w_bath, 0.0) + e_scale):
+                status = GROWTH
+            else:
+                status = _check(px, py, pz, x_rest, kind, pi, pj, a, cutoff_rest, contact_fraction, skin)
+            if hrow < history.shape[0]:
+                for i in range(n):
+                    x[i, 0] = px[i]
+                    x[i, 1] = py[i]
+                    x[i, 2] = pz[i]
+                history[hrow, H_T] = t
+                history[hrow, H_KIN] = kin
+                history[hrow, H_POT] = potential_energy(x, pi, pj, r0, c, a) if not bad else np.nan
+                history[hrow, H_DISS] = diss
+                history[hrow, H_DRIVE] = w_drive
+                history[hrow, H_BATH] = w_bath
+                hrow += 1
+            if status != RUNNING:
+                break
+        # --- hotness at t_n from v_n = (v_{n-1/2} + v_{n+1/2}) / 2
+        if n_start <= step < n_end:
+            counters[K_HOT_STEPS] += 1
+            acc = hot1 if step < n_mid else hot2
+            counters[K_HALF1 if step < n_mid else K_HALF2] += 1
+            for i in range(n):
+                ux = vmx[i] + vpx[i]
+                uy = vmy[i] + vpy[i]
+                uz = vmz[i] + vpz[i]
+                acc[i] += ux * ux + uy * uy + uz * uz
+        # --- drift to t_{n+1}
+        t1 = t + dt
+        for q in range(plain.shape[0]):
+            i = plain[q]
+            px[i] += dt * vpx[i]
+            py[i] += dt * vpy[i]
+            pz[i] += dt * vpz[i]
+        for q in range(bath.shape[0]):
+            i = bath[q]
+            px[i] += dt * vpx[i]
+            py[i] += dt * vpy[i]
+            pz[i] += dt * vpz[i]
+        if free_centre:
+            for d in range(3):
+                cpos[d] += dt * vc[d]
+        for q in range(moving.shape[0]):
+            i = moving[q]
+            s1 = math.sin(omega * t1 + phase[i])
+            px[i] = x_rest[i, 0] + amp[i, 0] * s1
+            py[i] = x_rest[i, 1] + amp[i, 1] * s1
+            pz[i] = x_rest[i, 2] + amp[i, 2] * s1
+            if kind[i] == GROUP:
+                px[i] += cpos[0]
+                py[i] += cpos[1]
+                pz[i] += cpos[2]
+        # --- forces at t_{n+1} with damping from v_{n+1/2}; dissipation over n -> n+1
+        diss += dt * pair_pass(px, py, pz, vpx, vpy, vpz, pi, pj, lo, hi, rt, amp_a, pint, p, step_lo, inv_w,
+                               a, delta, fx, fy, fz, gx, gy, gz, out, ever, step + 1, counters)
+        vmx, vpx = vpx, vmx
+        vmy, vpy = vpy, vmy
+        vmz, vpz = vpz, vmz
+        step += 1
+
+    counters[K_STEPS] = step
+    counters[K_STOP_STEP] = step
+    counters[K_STATUS] = DONE if status == RUNNING else status
+    e1 = 0.0
+    kin = 0.0
+    for i in range(n):
+        x[i, 0] = px[i]
+        x[i, 1] = py[i]
+        x[i, 2] = pz[i]
+        # after the loop vm = v_{n-1/2}, vp = v_{n+1/2} (no swap on exit)
+        e1 += vmx[i] * vpx[i] + vmy[i] * vpy[i] + vmz[i] * vpz[i]
+        ux = 0.5 * (vmx[i] + vpx[i])
+        uy = 0.5 * (vmy[i] + vpy[i])
+        uz = 0.5 * (vmz[i] + vpz[i])
+        kin += ux * ux + uy * uy + uz * uz
+    q8 = 0.125 * mass * dt  # KE = m/2 |(vm + vp)/2|^2, times dt
+    for i in range(n):
+        hot[1, i] = q8 * hot1[i]
+        hot[2, i] = q8 * hot2[i]
+        hot[0, i] = hot[1, i] + hot[2, i]
+    pot = potential_energy(x, pi, pj, r0, c, a)
+    energy[E_END] = half_m * e1 + pot
+    energy[E_DISS] = diss
+    energy[E_DRIVE] = w_drive
+    energy[E_BATH] = w_bath
+    energy[E_KIN_END] = half_m * kin
+    energy[E_POT_END] = pot
+    return hrow
