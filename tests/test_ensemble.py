@@ -1,5 +1,6 @@
 """Ensemble runs: K replicas in one kernel equal K single runs, bit for bit.
 
+The single runs use the gather force pass, which the ensemble kernel shares.
 Why bit-identical (not just round-off): each replica performs the single kernel's operations in
 the same order (same pair term, rows in ascending j, pairs beyond r_cut skipped rather than added
 as zeros, drive amplitude amp * scale formed the same way), and numba compiles without fastmath,
@@ -35,7 +36,7 @@ def _fixes():
 def _single(delta, omega, scale, steps, skin=0.1):
     kind, amp = _fixes()
     run = KernelRun.start(X, M, A, MODEL, delta, DT, kind=kind, amp=amp * scale, omega=omega, hotness=True,
-                          skin=skin)
+                          skin=skin, force_pass="gather")
     run.advance(steps)
     return run
 

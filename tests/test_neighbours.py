@@ -28,8 +28,10 @@ from solvers.particles.scaling import (
     KernelRun,
     bench_lattice,
     gather_forces,
+    list_reach,
     omega_bound,
     rows_from_benchmark_json,
+    slab_forces,
 )
 from solvers.particles.seven_root import SevenRoot, force_array
 
@@ -109,24 +111,34 @@ def test_run_rebuilds_and_list_stays_complete():
     assert np.array_equal(f, f_run)  # same interacting pairs in the same (ascending) order: bit-identical
 
 
-def test_gather_equals_fixed_pair_list_forces():
-    """Per-pair terms are identical; only the summation order differs: relative 1e-13 bounds the
-    round-off of ~32 terms of mixed sign (observed ~4e-15)."""
-    lat = build_lattice(Box(), 4, 2800.0)
-    x, a, m = bench_lattice(4)
-    _, _, _, xp = _perturbed(4)
+@pytest.mark.parametrize("shuffle", [False, True])
+def test_force_passes_equal_fixed_pair_list_forces(shuffle):
+    """Gather and slab passes against the fixed pair list (numpy scatter): per-pair terms are
+    identical, only the summation order differs, so relative 1e-13 bounds the round-off of ~32
+    terms of mixed sign (observed ~4e-15).  n = 5 in lattice order gives several slab blocks;
+    a shuffled order makes the reach ~N: one block, the serial fallback."""
+    lat = build_lattice(Box(), 5, 2800.0)
+    x, a, m = bench_lattice(5)
+    _, _, _, xp = _perturbed(5)
     w = omega_bound(MODEL, a, m)
     v = 0.02 * a * w * np.random.default_rng(2).standard_normal(x.shape)
     delta = 0.02 * m * w
-    nl = build_neighbours(xp, 2.1 * a, 0.1 * a)
-    f = np.empty_like(xp)
-    gather_forces(xp, v, nl.start, nl.index, MODEL.coeffs(), 1 / a, (2.1 * a) ** 2, delta, f)
-    ref = _numpy_fixed_pair_forces(lat, xp, v, delta)
-    assert np.abs(f - ref).max() <= 1e-13 * np.abs(ref).max()
+    order = np.random.default_rng(4).permutation(len(x)) if shuffle else np.arange(len(x))
+    xs, vs = xp[order], v[order]
+    nl = build_neighbours(xs, 2.1 * a, 0.1 * a)
+    block = list_reach(nl.start, nl.index)
+    assert (len(x) // block >= 2) != shuffle
+    ref = _numpy_fixed_pair_forces(lat, xp, v, delta)[order]
+    for force_pass in (gather_forces, slab_forces):
+        f = np.empty_like(xs)
+        args = (block,) if force_pass is slab_forces else ()
+        force_pass(xs, vs, nl.start, nl.index, MODEL.coeffs(), 1 / a, (2.1 * a) ** 2, delta, f, *args)
+        assert np.abs(f - ref).max() <= 1e-13 * np.abs(ref).max()
 
 
+@pytest.mark.parametrize("force_pass", ["slabs", "gather"])
 @pytest.mark.parametrize("zeta", [0.0, 0.02])
-def test_run_equals_solver_fixed_pair_kernel(zeta):
+def test_run_equals_solver_fixed_pair_kernel(zeta, force_pass):
     """Same start (rest positions, velocities v0), same dt, 300 steps: the Verlet-list kernel and the
     solver's fixed-pair-list kernel (integrate.run via macromolecule.simulate) integrate the same
     scheme with the same pairs (checked: no unlisted pair within r_cut), so positions agree to
@@ -144,25 +156,28 @@ def test_run_equals_solver_fixed_pair_kernel(zeta):
     N = lat.size
     fx = mm.Fixes(np.zeros(N, dtype=np.int64), np.zeros((N, 3)), np.zeros(N), np.zeros(N), np.zeros(N))
     ref = mm.simulate(lat, MODEL, fx, delta, dt, 300 * dt, v0=v0)
-    run = KernelRun.start(lat.positions, m, a, MODEL, delta, dt, v0=v0)
+    run = KernelRun.start(lat.positions, m, a, MODEL, delta, dt, v0=v0, force_pass=force_pass)
     run.advance(ref.steps)
     assert ref.steps == 300 and run.status == "ok"
     assert np.array_equal(cKDTree(run.x).query_pairs(run.r_cut, output_type="ndarray").shape, lat.pairs.shape)
     assert np.abs(run.x - ref.x).max() <= 1e-11 * a
 
 
-def test_thread_count_independent_and_deterministic():
-    """Gather: each particle sums its own row in row order, so 1 and 2 threads give the same bits."""
+@pytest.mark.parametrize("force_pass", ["slabs", "gather"])
+def test_thread_count_independent_and_deterministic(force_pass):
+    """Gather: each particle sums its own row in row order; slabs: block width and order fixed by the
+    list.  Either way 1 and 2 threads must give the same bits (n = 5: several slab blocks)."""
     if numba.config.NUMBA_NUM_THREADS < 2:
         pytest.skip("numba has a single thread here: nothing to compare")
-    x, a, m = bench_lattice(4)
-    _, _, _, x0 = _perturbed(4)
+    x, a, m = bench_lattice(5)
+    _, _, _, x0 = _perturbed(5)
     w = omega_bound(MODEL, a, m)
     results = []
     for threads in (1, 2, 2, 1):
         numba.set_num_threads(threads)
         try:
-            run = KernelRun.start(x, m, a, MODEL, 0.02 * m * w, 0.2 / w, x0=x0, hotness=True)
+            run = KernelRun.start(x, m, a, MODEL, 0.02 * m * w, 0.2 / w, x0=x0, hotness=True,
+                                  force_pass=force_pass)
             run.advance(200)
         finally:
             numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
@@ -233,6 +248,8 @@ def test_bad_parameters_raise_scene_error():
         KernelRun.start(x, m, a, MODEL, 0.0, -1.0)
     with pytest.raises(SceneError, match="delta"):
         KernelRun.start(x, m, a, MODEL, -1.0, 1e-4)
+    with pytest.raises(SceneError, match="force_pass"):
+        KernelRun.start(x, m, a, MODEL, 0.0, 1e-4, force_pass="scatter")
 
 
 def test_rows_from_benchmark_json(tmp_path):
@@ -247,4 +264,5 @@ def test_rows_from_benchmark_json(tmp_path):
     path.write_text(__import__("json").dumps(doc))
     rows = rows_from_benchmark_json(path)
     assert [r["N"] for r in rows] == [160, 203401]
-    assert rows[0] == {"N": 160, "ns_per_pair_step": 12.5, "bytes_per_particle": 280.0, "threads": 1, "name": "b1"}
+    assert rows[0] == {"N": 160, "ns_per_pair_step": 12.5, "bytes_per_particle": 280.0, "threads": 1,
+                       "force_pass": "", "name": "b1"}

@@ -8,16 +8,20 @@ damping delta * rdot, F > 0 attraction), for lattices up to ~10^6 particles on a
   (default 2.1 a) the interacting set of a vibrating lattice is exactly the fixed list's
   (all pairs with r0 <= 2a: the force vanishes at 2a, the damping acts out to r_cut, as in
   LAMMPS' dpd/ext cutoff);
-- the force pass gathers: particle i sums over its own row and writes f[i] only, so threads
-  never write the same slot and the summation order is that of the row (ascending j) whatever
-  the thread count: results are bit-identical for any number of threads;
+- two force passes, both free of write races and bit-identical for any number of threads:
+  "gather": particle i sums its own row and writes f[i] only (each pair evaluated twice);
+  "slabs" (default): each pair evaluated once (half rows, j > i) and its term added to both
+  particles.  Particles are cut into index blocks at least as wide as the largest j - i of the
+  list, so a block writes only into itself and the next block; blocks of one colour (even,
+  then odd) run in parallel.  Block width and summation order depend on the list only, never
+  on the thread count;
 - time stepping is velocity Verlet (LAMMPS fix nve): half kick, drift, forces, half kick.  The
   damping in F_{n+1} uses v_{n+1/2}, the velocities at force time (LAMMPS' dpd does the same;
   it is the half-step predictor of the solver's kernel, see integrate.py);
 - fixes: FREE, FROZEN (held at rest), PRESCRIBED (x = x_rest + amp sin(omega t + phase)).
 
-Work counter: a pair-step is one interacting pair (i < j, r < r_cut) advanced one step; each is
-evaluated twice by the gather (once from each side), which the 2 cores pay for.
+Work counter: a pair-step is one interacting pair (i < j, r < r_cut) advanced one step (the
+gather evaluates each twice, the slab pass once).
 """
 
 from __future__ import annotations
@@ -39,6 +43,7 @@ FREE, FROZEN, PRESCRIBED = 0, 1, 2
 DONE, EXPIRED = 0, 1
 DEFAULT_R_CUT = 2.1  # in units of a: above the 2a shell, below the sqrt(5) a shell
 DEFAULT_SKIN = 0.1  # in units of a: list radius 2.2 a < sqrt(5) a keeps 32 entries per bulk particle
+FORCE_PASSES = ("slabs", "gather")
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -86,13 +91,78 @@ def gather_forces(x, v, start, index, c, inv_a, rc2, delta, f):
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
+def slab_forces(x, v, start, index, c, inv_a, rc2, delta, f, block):
+    """f = sum of pair terms, each pair (j > i) evaluated once; two-colour index blocks of width
+    `block` >= the list's largest j - i (see `list_reach`), so no two threads write one slot."""
+    n = x.shape[0]
+    for i in prange(n):
+        f[i, 0] = 0.0
+        f[i, 1] = 0.0
+        f[i, 2] = 0.0
+    nb = (n + block - 1) // block
+    for colour in range(2):
+        for q in prange((nb - colour + 1) // 2):
+            b = 2 * q + colour
+            for i in range(b * block, min((b + 1) * block, n)):
+                xi = x[i, 0]
+                yi = x[i, 1]
+                zi = x[i, 2]
+                vxi = v[i, 0]
+                vyi = v[i, 1]
+                vzi = v[i, 2]
+                fx = 0.0
+                fy = 0.0
+                fz = 0.0
+                for p in range(start[i], start[i + 1]):
+                    j = index[p]
+                    if j < i:
+                        continue
+                    dx = x[j, 0] - xi
+                    dy = x[j, 1] - yi
+                    dz = x[j, 2] - zi
+                    r2 = dx * dx + dy * dy + dz * dz
+                    if r2 >= rc2:
+                        continue
+                    tx, ty, tz = pair_term(dx, dy, dz, v[j, 0] - vxi, v[j, 1] - vyi, v[j, 2] - vzi, r2, c, inv_a,
+                                           delta)
+                    fx += tx
+                    fy += ty
+                    fz += tz
+                    f[j, 0] -= tx
+                    f[j, 1] -= ty
+                    f[j, 2] -= tz
+                f[i, 0] += fx
+                f[i, 1] += fy
+                f[i, 2] += fz
+
+
+@njit(cache=True, error_model="numpy")
+def list_reach(start, index):
+    """Largest j - i over the list (rows ascending): the smallest valid slab block width (>= 1)."""
+    reach = 1
+    for i in range(start.shape[0] - 1):
+        if start[i + 1] > start[i]:
+            reach = max(reach, index[start[i + 1] - 1] - i)
+    return reach
+
+
+@njit(cache=True, error_model="numpy")
+def _forces(x, v, start, index, c, inv_a, rc2, delta, f, block):
+    if block > 0:
+        slab_forces(x, v, start, index, c, inv_a, rc2, delta, f, block)
+    else:
+        gather_forces(x, v, start, index, c, inv_a, rc2, delta, f)
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
 def advance(x, v, f, x_rest, kind, amp, phase, omega, mass, dt, step0, n_steps, start, index, x_ref, half_skin,
-            c, inv_a, rc2, delta, hot, resume):
+            c, inv_a, rc2, delta, hot, resume, block):
     """Velocity-Verlet steps from step0 until n_steps are done or the list expires.
 
     Returns (steps completed, status).  On EXPIRED the step in progress has been drifted (x at
     t_{n+1}, v = v_{n+1/2}) but has no forces yet: rebuild the list and call again with
     resume=True, which starts at the force pass.  hot (N,) accumulates KE_i dt (if len N).
+    block > 0: slab force pass of that block width; 0: gather.
     """
     n = x.shape[0]
     lim2 = half_skin * half_skin
@@ -126,7 +196,7 @@ def advance(x, v, f, x_rest, kind, amp, phase, omega, mass, dt, step0, n_steps, 
             if over > 0:
                 return s, EXPIRED
         resume = False
-        gather_forces(x, v, start, index, c, inv_a, rc2, delta, f)
+        _forces(x, v, start, index, c, inv_a, rc2, delta, f, block)
         for i in prange(n):
             kd = kind[i]
             if kd == FREE:
@@ -204,6 +274,7 @@ class KernelRun:
     nl: NeighbourList
     hot: np.ndarray
     r_cut: float
+    force_pass: str = "slabs"
     step: int = 0
     status: str = "ok"
     reason: str = ""
@@ -212,9 +283,12 @@ class KernelRun:
     def start(cls, x_rest: np.ndarray, mass: float, a: float, model: SevenRoot, delta: float, dt: float,
               v0: np.ndarray | None = None, x0: np.ndarray | None = None, kind: np.ndarray | None = None,
               amp: np.ndarray | None = None, phase: np.ndarray | None = None, omega: float = 0.0,
-              r_cut: float = DEFAULT_R_CUT, skin: float = DEFAULT_SKIN, hotness: bool = False) -> KernelRun:
+              r_cut: float = DEFAULT_R_CUT, skin: float = DEFAULT_SKIN, hotness: bool = False,
+              force_pass: str = "slabs") -> KernelRun:
         """Set up a run at t = 0: list built on x0 (default x_rest), forces F(x0, v0) computed."""
         check_range(r_cut, skin)
+        if force_pass not in FORCE_PASSES:
+            raise SceneError(f"force_pass={force_pass!r} is not allowed; allowed: {', '.join(FORCE_PASSES)}")
         if not (math.isfinite(dt) and dt > 0.0):
             raise SceneError(f"dt={dt!r} is out of range; allowed: number in (0, inf) s")
         if not (math.isfinite(delta) and delta >= 0.0):
@@ -234,9 +308,20 @@ class KernelRun:
         nl = build_neighbours(x, r_cut * a, skin * a)
         run = cls(x=x, v=v, f=np.zeros((n, 3)), x_rest=x_rest, kind=kind, amp=amp, phase=phase, omega=float(omega),
                   mass=float(mass), a=float(a), dt=float(dt), coeffs=model.coeffs(), delta=float(delta), nl=nl,
-                  hot=np.zeros(n if hotness else 0), r_cut=float(r_cut) * a)
-        gather_forces(run.x, run.v, nl.start, nl.index, run.coeffs, 1.0 / run.a, run.r_cut**2, run.delta, run.f)
+                  hot=np.zeros(n if hotness else 0), r_cut=float(r_cut) * a, force_pass=force_pass)
+        _forces(run.x, run.v, nl.start, nl.index, run.coeffs, 1.0 / run.a, run.r_cut**2, run.delta, run.f,
+                run.block)
         return run
+
+    @property
+    def block(self) -> int:
+        """Slab block width for the current list (0: gather pass)."""
+        if self.force_pass == "gather":
+            return 0
+        if getattr(self, "_block_for", None) is not self.nl.index:
+            self._block = int(list_reach(self.nl.start, self.nl.index))
+            self._block_for = self.nl.index
+        return self._block
 
     @property
     def size(self) -> int:
@@ -252,7 +337,7 @@ class KernelRun:
             s, code = advance(self.x, self.v, self.f, self.x_rest, self.kind, self.amp, self.phase, self.omega,
                               self.mass, self.dt, self.step, n_steps - done, self.nl.start, self.nl.index,
                               self.nl.x_ref, 0.5 * self.nl.skin, self.coeffs, 1.0 / self.a, self.r_cut**2,
-                              self.delta, self.hot, resume)
+                              self.delta, self.hot, resume, self.block)
             done += s
             self.step += s
             resume = False
@@ -268,7 +353,7 @@ class KernelRun:
         if resume:  # stopped between drift and forces: finish the step
             advance(self.x, self.v, self.f, self.x_rest, self.kind, self.amp, self.phase, self.omega, self.mass,
                     self.dt, self.step, 1, self.nl.start, self.nl.index, self.nl.x_ref, 0.5 * self.nl.skin,
-                    self.coeffs, 1.0 / self.a, self.r_cut**2, self.delta, self.hot, True)
+                    self.coeffs, 1.0 / self.a, self.r_cut**2, self.delta, self.hot, True, self.block)
             done += 1
             self.step += 1
         return done
@@ -320,8 +405,8 @@ def omega_bound(model: SevenRoot, a: float, mass: float) -> float:
 
 
 def rows_from_benchmark_json(path: str | Path) -> list[dict]:
-    """Rows {N, ns_per_pair_step, bytes_per_particle, threads, name} of the scaling benchmarks in a
-    pytest-benchmark JSON file (benchmarks whose extra_info has those keys), sorted by N."""
+    """Rows {N, ns_per_pair_step, bytes_per_particle, threads, force_pass, name} of the scaling benchmarks
+    in a pytest-benchmark JSON file (benchmarks whose extra_info has those keys), sorted by N."""
     data = json.loads(Path(path).read_text())
     rows = []
     for b in data.get("benchmarks", []):
@@ -329,5 +414,6 @@ def rows_from_benchmark_json(path: str | Path) -> list[dict]:
         if "ns_per_pair_step" in info and "bytes_per_particle" in info and "particles" in info:
             rows.append({"N": int(info["particles"]), "ns_per_pair_step": float(info["ns_per_pair_step"]),
                          "bytes_per_particle": float(info["bytes_per_particle"]),
-                         "threads": int(info.get("threads", 0)), "name": b.get("name", "")})
-    return sorted(rows, key=lambda r: (r["N"], r["threads"]))
+                         "threads": int(info.get("threads", 0)), "force_pass": info.get("force_pass", ""),
+                         "name": b.get("name", "")})
+    return sorted(rows, key=lambda r: (r["N"], r["force_pass"], r["threads"]))

@@ -1,7 +1,8 @@
 """Benchmarks: the large-N macromolecule kernel (one force + integration step) from N = 160 to ~10^6,
 and ensemble throughput (K replicas in one kernel against K single runs).
 
-Lattices n = 4, 16, 41, 70 of the family n x n x (3n-2): N = 160, 11 776, 203 401, 1 019 200.
+Lattices n = 4, 16, 41, 70 of the family n x n x (3n-2): N = 160, 11 776, 203 401, 1 019 200;
+both force passes (slabs: each pair once; gather: each pair twice), 1 and 2 threads.
 Each timed call advances a fixed number of steps (about 2e6 pair-steps, at least one step) of a
 damped lattice started from random displacements of 0.003a rms.  extra_info: particles, pairs, unknowns,
 pair_steps per call, threads, ns_per_pair_step (wall, from the benchmark's median when timing is
@@ -56,15 +57,17 @@ def _run(n: int) -> KernelRun:
     return _RUNS[n]
 
 
+@pytest.mark.parametrize("force_pass", ["slabs", "gather"])
 @pytest.mark.parametrize("threads", [1, 2])
 @pytest.mark.parametrize("n", [4, 16, 41, 70])
-def test_bench_kernel_step(benchmark, n: int, threads: int) -> None:
+def test_bench_kernel_step(benchmark, n: int, threads: int, force_pass: str) -> None:
     if threads > numba.config.NUMBA_NUM_THREADS:
         pytest.skip(f"numba has {numba.config.NUMBA_NUM_THREADS} thread(s) here; {threads} asked")
     if benchmark.disabled and n > 16:
         pytest.skip(f"n={n} ({SIZES[n]} particles) runs only with timing on (--benchmark-enable, tox -e bench): "
                     "it would add minutes to the untimed test suite")
     run = _run(n)
+    run.force_pass = force_pass
     pairs = run.pair_count()
     assert run.size == SIZES[n] and pairs == lattice_pair_count(n)
     steps = max(1, int(2e6 // pairs))
@@ -83,7 +86,8 @@ def test_bench_kernel_step(benchmark, n: int, threads: int) -> None:
     work = pairs * steps
     benchmark.extra_info.update(
         n=n, particles=run.size, pairs=pairs, unknowns=3 * run.size, steps_per_call=steps, pair_steps=work,
-        threads=threads, ns_per_pair_step=1e9 * median / work, cpu_ns_per_pair_step=1e9 * cpu / work,
+        threads=threads, force_pass=force_pass, slab_block=run.block, ns_per_pair_step=1e9 * median / work,
+        cpu_ns_per_pair_step=1e9 * cpu / work,
         bytes_per_particle=run.nbytes / run.size, list_entries_per_particle=run.nl.entries / run.size,
         list_builds=run.nl.builds,
     )
@@ -112,7 +116,7 @@ def test_bench_ensemble_throughput(benchmark) -> None:
 
     def make_singles() -> list[KernelRun]:
         return [KernelRun.start(x, m, a, MODEL, deltas[r], dt, kind=kind, amp=amp * scales[r], omega=omegas[r],
-                                hotness=True) for r in range(k)]
+                                hotness=True, force_pass="gather") for r in range(k)]
 
     def run_singles(runs: list[KernelRun]) -> None:
         for s in runs:
