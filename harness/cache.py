@@ -20,6 +20,10 @@ def cell_key(payload: dict[str, Any]) -> str:
     return hashlib.sha256(json.dumps(payload, sort_keys=True, default=str).encode()).hexdigest()[:20]
 
 
+class CacheWriteError(OSError):
+    """An entry could not be written (read-only or full folder): the entries written before are intact."""
+
+
 class Cache:
     """A folder of `<key>.json` entries."""
 
@@ -46,18 +50,32 @@ class Cache:
         return doc["result"], "hit"
 
     def store(self, key: str, result: dict[str, Any]) -> None:
-        """Atomically write one entry."""
-        self.root.mkdir(parents=True, exist_ok=True)
+        """Atomically write one entry; CacheWriteError (one line) if the folder refuses it."""
         body = json.dumps(result, sort_keys=True)
         doc = {"key": key, "sha256": hashlib.sha256(body.encode()).hexdigest(), "result": result}
-        fd, tmp = tempfile.mkstemp(dir=self.root, prefix=f".{key}.", suffix=".tmp")
+        tmp = None
         try:
+            self.root.mkdir(parents=True, exist_ok=True)
+            fd, tmp = tempfile.mkstemp(dir=self.root, prefix=f".{key}.", suffix=".tmp")
             with os.fdopen(fd, "w") as fh:
                 json.dump(doc, fh)
                 fh.flush()
                 os.fsync(fh.fileno())
             os.replace(tmp, self.path(key))
+        except OSError as exc:
+            _discard(tmp)
+            raise CacheWriteError(f"cannot write cache entry {self.path(key)} ({exc.strerror or exc}); the entries "
+                                  "written before are intact: free space or fix permissions, then rerun to resume"
+                                  ) from exc
         except BaseException:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
+            _discard(tmp)
             raise
+
+
+def _discard(tmp: str | None) -> None:
+    """Remove a half-written temporary file (best effort: the folder may be the problem)."""
+    if tmp is not None:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass

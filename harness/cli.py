@@ -310,6 +310,13 @@ def main(argv: list[str] | None = None) -> int:
             raise
         print(f"pcverify: error: {exc}", file=sys.stderr)
         return 2
+    except OSError as exc:  # a read-only or full output folder, a path that is a file, ...
+        if args.debug:
+            raise
+        where = f"{exc.strerror}: {exc.filename}" if exc.filename and exc.strerror else str(exc)
+        hint = "; finished cells are kept in the cache, rerun to resume" if args.command == "study" else ""
+        print(f"pcverify: error: {' '.join(where.split())}{hint if 'rerun' not in where else ''}", file=sys.stderr)
+        return 2
     except KeyboardInterrupt:
         print("pcverify: interrupted (finished cells are kept in the cache)", file=sys.stderr)
         return 130
