@@ -183,3 +183,23 @@ def test_modes_converge_to_the_continuum_and_need_rotations(mca):
 def test_bad_parameters_raise_scene_error_naming_them(mca, bad):
     with pytest.raises(SceneError, match=next(iter(bad))):
         mca.solve(make_scene("bar-compression"), Resolution(2), **bad)
+
+
+def test_linearised_stiffness_gives_hooke_and_the_macromolecule_lattice_is_scaled_to_E():
+    """The assembled MCA stiffness (used for modes and the time step) solved directly in the uniaxial test
+    returns E and nu to round-off; the macromolecule lattice scaled to E returns E (by construction) and
+    its own central-force Poisson's ratio, far from 0.33."""
+    from harness.scene import Box
+    from solvers.particles.mca_compare import macromolecule_modes, uniaxial_constants
+    from solvers.particles.mca_lattice import bar_automata
+    from solvers.particles.mca_model import Elastic
+    from solvers.particles.mca_stiffness import stiffness
+
+    box = Box()
+    aut = bar_automata(box, 4, 2800.0)
+    el = Elastic(E, NU)
+    e_eff, nu_eff = uniaxial_constants(stiffness(aut, el.shear, el.lam, el.kn, rotations=False), aut.positions, box)
+    assert e_eff == pytest.approx(E, rel=1e-9) and nu_eff == pytest.approx(NU, rel=1e-9)
+    mm = macromolecule_modes(box, 3, E, 2800.0, modes=3)
+    assert abs(mm["nu_eff"] - NU) > 0.2
+    assert np.all(np.diff(mm["frequencies_hz"]) >= 0) and mm["frequencies_hz"][0] > 0
