@@ -1,0 +1,213 @@
+"""Fast assembly of scikit-fem's Q1 operators on structured (possibly locally warped) hexahedral grids.
+
+Why: scikit-fem's general assembly (isoparametric mapping, quadrature, COO -> CSR) spends ~18 s on the
+~640 000 cells of a 673 000-node grid, although almost every cell of a `grid.StructuredGrid` is the same
+undistorted box.  On a tensor-product grid the Q1 operators with `intorder=2` (exact for Q1 on boxes) are
+Kronecker sums of the 1-D P1 operators:
+
+    stiffness  K = Kx (x) My (x) Mz + Mx (x) Ky (x) Mz + Mx (x) My (x) Kz
+    mass       M = Mx (x) My (x) Mz
+    load       w = wx (x) wy (x) wz           (w_i = integral of phi_i)
+
+(x slowest, z fastest: the node order of `StructuredGrid`).  The 1-D matrices are assembled by scikit-fem
+itself (MeshLine, ElementLineP1, intorder=2) on the grid's own axis coordinates, so the result is scikit-fem's
+matrix up to round-off (a test checks 1e-12 against scikit-fem's 3-D assembly, plain and warped).
+
+Warped cells (the conforming patch band) are not boxes: for them the box contribution is removed and
+scikit-fem's general assembly on a sub-mesh of just those cells is added:
+
+    K = K_tensor - K_box(warped cells) + K_skfem(warped cells)
+
+Entries that vanish in exact arithmetic (the Q1 Laplacian couples no two nodes joined by a cell edge on a
+box: -4/9 + 2/9 + 2/9 = 0) come out of the Kronecker sum as round-off; `tensor_csr` drops entries below
+`drop_rtol` times their row's diagonal, which cuts the 27-point stencil of K to 21 points (22 % fewer
+nonzeros for every later product: condensation, AMG set-up, CG).
+
+`tensor_csr` (numba) builds any sum of Kronecker products of 1-D tridiagonal matrices straight into a sorted
+CSR matrix, so other Q1 operators on the same grids (e.g. elasticity blocks) can reuse it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+import scipy.sparse as sp
+
+from solvers.continuum.grid import HEX_CORNERS, StructuredGrid
+
+DROP_RTOL = 1e-12  # entries |a_ij| <= DROP_RTOL * |a_ii| are round-off of exact zeros (see module docstring)
+
+
+@numba.njit(cache=True)
+def _tensor_csr_kernel(shape, bands, drop_rtol):
+    """CSR arrays of sum_t bands[t,0] (x) bands[t,1] (x) bands[t,2]; bands[t, d, i, o] = A_td[i, i + o - 1]."""
+    nx, ny, nz = shape[0], shape[1], shape[2]
+    nterms = bands.shape[0]
+    n = nx * ny * nz
+    indptr = np.zeros(n + 1, dtype=np.int64)
+    indices = np.empty(n * 27, dtype=np.int32)
+    data = np.empty(n * 27, dtype=np.float64)
+    vals = np.empty(27)
+    cols = np.empty(27, dtype=np.int64)
+    pos = 0
+    row = 0
+    for i in range(nx):
+        for j in range(ny):
+            for k in range(nz):
+                m = 0
+                diag = 0.0
+                for di in range(-1, 2):
+                    ii = i + di
+                    if ii < 0 or ii >= nx:
+                        continue
+                    for dj in range(-1, 2):
+                        jj = j + dj
+                        if jj < 0 or jj >= ny:
+                            continue
+                        for dk in range(-1, 2):
+                            kk = k + dk
+                            if kk < 0 or kk >= nz:
+                                continue
+                            v = 0.0
+                            for t in range(nterms):
+                                v += bands[t, 0, i, di + 1] * bands[t, 1, j, dj + 1] * bands[t, 2, k, dk + 1]
+                            vals[m] = v
+                            cols[m] = (ii * ny + jj) * nz + kk
+                            if di == 0 and dj == 0 and dk == 0:
+                                diag = abs(v)
+                            m += 1
+                for q in range(m):  # columns are already ascending (x slowest, z fastest)
+                    if abs(vals[q]) > drop_rtol * diag:
+                        indices[pos] = cols[q]
+                        data[pos] = vals[q]
+                        pos += 1
+                row += 1
+                indptr[row] = pos
+    return indptr, indices[:pos].copy(), data[:pos].copy()
+
+
+def tensor_csr(factors: list[tuple[sp.spmatrix, sp.spmatrix, sp.spmatrix]],
+               drop_rtol: float = DROP_RTOL) -> sp.csr_matrix:
+    """Sum over terms of Ax (x) Ay (x) Az for tridiagonal 1-D matrices, as a sorted CSR matrix.
+
+    Equals `sum(sp.kron(ax, sp.kron(ay, az)))` except that entries |a_ij| <= drop_rtol * |a_ii| are left out
+    (drop_rtol = 0 keeps every entry of the 27-point pattern that is not exactly zero).
+    """
+    shape = tuple(int(a.shape[0]) for a in factors[0])
+    nmax = max(shape)
+    bands = np.zeros((len(factors), 3, nmax, 3))
+    for t, term in enumerate(factors):
+        if tuple(int(a.shape[0]) for a in term) != shape:
+            raise ValueError("all terms must have the same 1-D sizes")
+        for d, a in enumerate(term):
+            a = sp.dia_matrix(a)
+            if np.any(np.abs(a.offsets) > 1):
+                raise ValueError("1-D factors must be tridiagonal")
+            dense = a.tocsr()
+            m = shape[d]
+            bands[t, d, :m, 1] = dense.diagonal(0)
+            bands[t, d, 1:m, 0] = dense.diagonal(-1)
+            bands[t, d, : m - 1, 2] = dense.diagonal(1)
+    indptr, indices, data = _tensor_csr_kernel(np.asarray(shape, dtype=np.int64), bands, float(drop_rtol))
+    n = int(np.prod(shape))
+    if indptr[-1] < np.iinfo(np.int32).max:
+        indptr = indptr.astype(np.int32)
+    return sp.csr_matrix((data, indices, indptr), shape=(n, n))
+
+
+def grid_graph(shape: tuple[int, int, int]) -> sp.csr_matrix:
+    """Node adjacency of a structured hex grid (1 wherever two nodes share a cell, 27-point pattern).
+
+    Used as the AMG strength-of-connection graph: the Laplacian's own pattern lacks the edge neighbours
+    (exact zeros), and aggregating on it gives ragged aggregates and ~40 % more CG iterations (measured).
+    """
+    ones = [sp.diags([np.ones(m - 1), np.ones(m), np.ones(m - 1)], [-1, 0, 1]) for m in shape]
+    return tensor_csr([tuple(ones)], drop_rtol=0.0)
+
+
+@dataclass(frozen=True)
+class LineOperators:
+    """scikit-fem's 1-D P1 operators on one axis: global matrices and per-element 2x2 (2,2,ne) / (2,ne)."""
+
+    stiffness: sp.csr_matrix
+    mass: sp.csr_matrix
+    load: np.ndarray
+    stiffness_el: np.ndarray
+    mass_el: np.ndarray
+    load_el: np.ndarray
+
+
+def line_operators(coords: np.ndarray) -> LineOperators:
+    """Assemble the 1-D Laplacian, mass and load with scikit-fem (ElementLineP1, intorder=2)."""
+    from skfem import Basis, ElementLineP1, MeshLine
+    from skfem.models.poisson import laplace, mass, unit_load
+
+    basis = Basis(MeshLine(np.asarray(coords, dtype=float)), ElementLineP1(), intorder=2)
+    return LineOperators(
+        laplace.assemble(basis).tocsr(), mass.assemble(basis).tocsr(), unit_load.assemble(basis),
+        *(np.moveaxis(f.elemental(basis).tolocal(), 0, -1) for f in (laplace, mass, unit_load)),  # -> (..., ne)
+    )
+
+
+@dataclass
+class Q1Operators:
+    """Assembled Q1 operators of a grid with unit coefficients: K = int grad u . grad v, M = int u v, w = int phi."""
+
+    stiffness: sp.csr_matrix
+    weights: np.ndarray
+    mass: sp.csr_matrix | None
+    warped_cells: int
+
+
+def _box_cell_local(lines: list[LineOperators], cells: np.ndarray, shape) -> tuple[np.ndarray, ...]:
+    """Element matrices (8, 8, nc) of K and M and load vectors (8, nc) of undistorted box cells `cells`."""
+    nx, ny, nz = shape
+    ci = np.unravel_index(cells, (nx - 1, ny - 1, nz - 1))
+    oa = [HEX_CORNERS[:, d][:, None, None] for d in range(3)]
+    ob = [HEX_CORNERS[:, d][None, :, None] for d in range(3)]
+    kk = [lines[d].stiffness_el[oa[d], ob[d], ci[d]] for d in range(3)]  # (8, 8, nc) each
+    mm = [lines[d].mass_el[oa[d], ob[d], ci[d]] for d in range(3)]
+    ke = kk[0] * mm[1] * mm[2] + mm[0] * kk[1] * mm[2] + mm[0] * mm[1] * kk[2]
+    me = mm[0] * mm[1] * mm[2]
+    we = np.prod([lines[d].load_el[HEX_CORNERS[:, d][:, None], ci[d]] for d in range(3)], axis=0)  # (8, nc)
+    return ke, me, we
+
+
+def assemble_q1(grid: StructuredGrid, with_mass: bool = False) -> Q1Operators:
+    """Q1 stiffness, load (and mass) of a `StructuredGrid` with unit coefficients, = scikit-fem's intorder=2."""
+    shape = grid.shape
+    axes = [np.linspace(0.0, float(e), m) for e, m in zip(grid.extent, shape, strict=True)]
+    lines = [line_operators(a) for a in axes]
+    stiff = tensor_csr([(lines[0].stiffness, lines[1].mass, lines[2].mass),
+                        (lines[0].mass, lines[1].stiffness, lines[2].mass),
+                        (lines[0].mass, lines[1].mass, lines[2].stiffness)])
+    mass_m = tensor_csr([(lines[0].mass, lines[1].mass, lines[2].mass)]) if with_mass else None
+    weights = np.einsum("i,j,k->ijk", lines[0].load, lines[1].load, lines[2].load).ravel()
+    warped = grid.warped_cells() if grid.warps else np.zeros(0, dtype=np.int64)
+    if warped.size:
+        from skfem import Basis, ElementHex1, MeshHex
+        from skfem.models.poisson import laplace, mass, unit_load
+
+        sub = grid.cells[:, warped]
+        nodes, local = np.unique(sub, return_inverse=True)
+        local = local.reshape(sub.shape)
+        basis = Basis(MeshHex(np.ascontiguousarray(grid.points[nodes].T), local.astype(np.int32)), ElementHex1(),
+                      intorder=2)
+        ke, me, we = _box_cell_local(lines, warped, shape)
+        rows = np.broadcast_to(local[:, None, :], ke.shape).ravel()
+        cols = np.broadcast_to(local[None, :, :], ke.shape).ravel()
+        nloc = nodes.size
+
+        def correction(skfem_matrix: sp.spmatrix, box: np.ndarray) -> sp.csr_matrix:
+            box_m = sp.csr_matrix((box.ravel(), (rows, cols)), shape=(nloc, nloc))
+            d = (skfem_matrix - box_m).tocoo()
+            return sp.csr_matrix((d.data, (nodes[d.row], nodes[d.col])), shape=stiff.shape)
+
+        stiff = (stiff + correction(laplace.assemble(basis), ke)).tocsr()
+        if with_mass:
+            mass_m = (mass_m + correction(mass.assemble(basis), me)).tocsr()
+        w_box = np.bincount(local.ravel(), weights=we.ravel(), minlength=nloc)
+        weights[nodes] += unit_load.assemble(basis) - w_box
+    return Q1Operators(stiff, weights, mass_m, int(warped.size))
