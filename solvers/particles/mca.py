@@ -73,7 +73,7 @@ PARAMETERS: tuple[Param, ...] = (
           low=0.0, high=1e9, optional=True),
     Param("relax_tol", 1e-9, "", "static scenes: residual force tolerance in units of E |strain| a^2", low=0.0,
           high=1e-2, low_open=True),
-    Param("ramp_periods", 4.0, "", "static scenes: load ramp length in periods of 2 pi / damping", low=0.0,
+    Param("ramp_periods", 2.0, "", "static scenes: load ramp length in periods of 2 pi / damping", low=0.0,
           high=1e3, low_open=True),
     Param("max_steps", 5_000_000, "", "largest number of time steps of a run", low=1, high=1e9, kind=int),
     Param("heat_cfl", 0.9, "", "heat: explicit step as a fraction of the Gershgorin-stable step", low=0.0,
@@ -86,7 +86,7 @@ class Mca:
     """Movable cellular automata on the bar lattice (elasticity, fracture, modes, heat)."""
 
     name = "mca"
-    version = "1.1"
+    version = "1.2"
     parameters = PARAMETERS
 
     def supports(self, scene: Scene) -> tuple[bool, str]:
