@@ -53,6 +53,12 @@ THEORY = {
 }
 
 
+THEORY["mca"] = ("velocity Verlet: undamped, stable for omega_max dt < 2; MCA sets dt = cfl * 2 / omega_G with "
+                 "omega_G >= omega_max a Gershgorin bound, so every cfl <= 1 is stable (the guarantee) and the "
+                 "undamped limit lies at cfl = omega_G / omega_max >= 1; viscous damping lowers it (single mode: "
+                 "sqrt(1+zeta^2) - zeta).  Probed through the public `cfl` parameter; dt_theory = dt at cfl = 1")
+
+
 class ProbeUnavailable(LookupError):
     """A model without a stability probe (the study skips its cells with this reason)."""
 
@@ -169,7 +175,56 @@ class MacromoleculeProbe:
 _LINEAR_LIMITS: dict[tuple, float] = {}
 
 
-PROBES: dict[str, type] = {"macromolecule": MacromoleculeProbe}
+class McaProbe:
+    """Stability probe of the MCA solver through its own `cfl` (dt / (2 / omega_G)); mechanics scenes only."""
+
+    name = "mca"
+    theory = THEORY["mca"]
+
+    def __init__(self) -> None:
+        from solvers import get_solver
+
+        self.solver = get_solver("mca")
+        self.version = f"{self.solver.version}+probe1"
+        self.parameters = self.solver.parameters
+
+    def supports(self, scene: Scene) -> tuple[bool, str]:
+        ok, why = self.solver.supports(scene)
+        if ok and "elasticity" not in scene.physics:
+            return False, ("mca heat transfer is explicit with heat_cfl <= 1 by its declared range: no dt above its "
+                           "limit can be set, nothing to probe")
+        if ok and "modes" in scene.physics:
+            return False, "bar-modes is an eigenproblem: no time stepping"
+        return ok, why
+
+    def prepare(self, scene: Scene, n: int, params: dict[str, Any]) -> dict[str, Any]:
+        from solvers.base import Resolution, effective_params
+
+        if "cfl" in params:
+            raise SceneError("cfl is not allowed in a stability cell; allowed: set dt_ratio (the probe sets cfl)")
+        effective_params(self.solver, params)
+        return {"p": params, "scene": scene, "resolution": Resolution(n), "omega_max": math.nan,
+                "zeta": math.nan, "dt_theory": math.nan, "safety_theory": 1.0,
+                "solver_dt_limit": math.nan, "scene_hash": scene.content_hash(), "n": n}
+
+    def run(self, prep: dict[str, Any], ratio: float) -> dict[str, Any]:
+        """One solve at cfl = ratio (the public parameter caps it at 10)."""
+        sol = self.solver.solve(prep["scene"], prep["resolution"], cfl=min(ratio, 10.0), **prep["p"])
+        finite = all(np.all(np.isfinite(np.asarray(v["values"], dtype=float))) for v in sol.samples.values())
+        steps = int(sol.summary.get("steps", sol.work.get("time_steps", 0)) or 0)
+        dt = float(sol.summary.get("dt", math.nan))
+        blown = not finite and sol.status != "unstable"
+        return {"status": sol.status, "reason": sol.reason, "dt": dt, "dt_ratio": ratio, "safety": ratio,
+                "steps": steps, "steps_planned": steps, "stopped_at_step": steps if sol.status == "unstable" else -1,
+                "kernel_status": sol.reason or "completed", "hops": 0, "stationarity": math.nan,
+                "max_displacement_over_a": math.nan, "outside_over_a": math.nan, "kinetic_end_over_supplied": math.nan,
+                "blown": blown or sol.status == "unstable", "undetected": blown}
+
+    def linear_limit(self, prep: dict[str, Any], tol: float = 1e-5) -> float:
+        return math.nan  # the MCA's Hessian is not public: no linear-discrete limit here
+
+
+PROBES: dict[str, type] = {"macromolecule": MacromoleculeProbe, "mca": McaProbe}
 
 
 def get_probe(name: str) -> Any:
@@ -224,7 +279,7 @@ def run_probe_cell(kind: str, probe: Any, scene: Scene, n: int, params: dict[str
     prep = probe.prepare(scene, n, solver_params)
     head = {"omega_max": prep["omega_max"], "zeta": prep["zeta"], "dt_theory": prep["dt_theory"],
             "safety_theory": prep["safety_theory"], "solver_dt_limit_ratio": prep["solver_dt_limit"] /
-            prep["dt_theory"], "probe": kind}
+            prep["dt_theory"], "drive_amplitude": prep["p"].get("drive_amplitude", math.nan), "probe": kind}
     if kind == "map":
         out = probe.run(prep, pp["dt_ratio"])
         summary = head | {k: v for k, v in out.items() if k not in ("status", "reason")}
@@ -251,7 +306,8 @@ def _tables(results: list[dict[str, Any]]) -> tuple[Any, Any]:
             continue
         sp = r.get("solver_params") or {}
         row = {"solver": r["solver"], "scene": r["scene"], "n": r["n"],
-               "damping_ratio": s["zeta"], "drive_amplitude": sp.get("drive_amplitude", 0.05),
+               "damping_ratio": s["zeta"], "drive_amplitude": s.get("drive_amplitude", sp.get("drive_amplitude")),
+               "damping": sp.get("damping"),
                "safety_theory": s["safety_theory"]}
         if s["probe"] == "limit":
             row |= {k: s.get(k) for k in ("measured_safety", "linear_safety", "relative_deviation", "ratio_tol",
@@ -292,6 +348,9 @@ def report_tables(results: list[dict[str, Any]], folder: Path, gid: str, title: 
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize=6)
         fig.tight_layout()
+        for (solver, scene), seq in limits[limits["damping_ratio"].isna()].groupby(["solver", "scene"]):
+            ax.plot(np.zeros(len(seq)), seq["measured_safety"], "s", label=f"{solver} {scene} (cfl limit, n="
+                    f"{','.join(map(str, seq['n']))}; theory >= 1)")
         fig.savefig(folder / f"{gid}-limits.png", dpi=110)
         fig.savefig(folder / f"{gid}-limits.svg")
         plt.close(fig)

@@ -96,10 +96,14 @@ def _check_solver_params(g: dict[str, Any], solvers: list[str], where: str, stab
         variants = [base] + [dict(base, **{k: v}) for k, vals in g.get("sweep", {}).items()
                              for v in (vals if isinstance(vals, list) else [vals])]
         if stability:
-            from harness.stability import PROBES
+            from harness.stability import ProbeUnavailable, get_probe
 
-            if name not in PROBES:
+            try:
+                probe = get_probe(name)
+            except ProbeUnavailable:
                 continue  # listed models without a probe (or not landed yet) are skipped with the reason
+            if not probe.supports(make_scene(g["scene"], **g.get("scene_params", {})))[0]:
+                continue  # skipped with the probe's reason
         if name not in REGISTRY:
             raise SceneError(f"{where}: solver={name!r} is unknown; allowed: one of {', '.join(sorted(REGISTRY))}")
         try:

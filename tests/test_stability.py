@@ -131,3 +131,20 @@ def test_unknown_probe_kind_is_a_study_error(tmp_path) -> None:
     with pytest.raises(SceneError, match=r"probe='sweep' is unknown; allowed: one of limit, map"):
         load_study(str(path))
     assert get_probe("macromolecule").theory.startswith("velocity Verlet")
+
+
+def test_mca_limit_respects_its_gershgorin_guarantee() -> None:
+    """MCA (n = 2, bar-compression): dt = cfl * 2 / omega_G with omega_G >= omega_max, so every cfl <= 1
+    is stable and the measured limit is >= 1 (measured 1.137); above it the run stops as unstable with
+    the step in the reason, and heat scenes are skipped with the reason (heat_cfl <= 1 by range)."""
+    from harness.stability import McaProbe
+
+    probe = McaProbe()
+    scene = make_scene("bar-compression")
+    prep = probe.prepare(scene, 2, {})
+    lim = measure_limit(probe, prep, 0.05, 4.0, 1e-2)
+    assert lim["verdict"] == "bisected" and lim["undetected"] == 0
+    assert 1.0 <= lim["measured_safety"] < 4.0
+    above = probe.run(prep, 2.0)
+    assert above["status"] == "unstable" and "step" in above["reason"]
+    assert not probe.supports(make_scene("bar-heat-faces"))[0]
