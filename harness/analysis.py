@@ -16,13 +16,22 @@ from harness.metrics import field_errors, observed_order, richardson
 from references import analytic
 
 
+def spacing(result: dict[str, Any]) -> float:
+    """h of a cell: the solver's own, else the lattice spacing a / refine of its scene."""
+    h = (result.get("resolution") or {}).get("h")
+    if h is None:
+        box = make_scene(result["scene"], **result.get("scene_params", {})).box
+        h = box.width / (result["n"] - 1) / result["refine"]
+    return float(h)
+
+
 def cells_table(results: list[dict[str, Any]]) -> pd.DataFrame:
     """One row per cell: identity, cost, status and every summary scalar."""
     rows = []
     for r in results:
         row = {k: r.get(k) for k in ("group", "scene", "solver", "n", "refine", "status", "reason", "unknowns",
                                      "wall_s")}
-        row["h"] = (r.get("resolution") or {}).get("h")
+        row["h"] = spacing(r) if r.get("n") else None
         row["params"] = ", ".join(f"{k}={v}" for k, v in sorted((r.get("solver_params") or {}).items()))
         row["scene_params"] = ", ".join(f"{k}={v}" for k, v in sorted((r.get("scene_params") or {}).items()))
         for k, v in (r.get("summary") or {}).items():
@@ -61,7 +70,7 @@ def convergence(results: list[dict[str, Any]], quantities: list[str]) -> tuple[p
     rows = []
     for r in ok:
         row = {"solver": r["solver"], "params": ", ".join(f"{k}={v}" for k, v in sorted(r["solver_params"].items())),
-               "n": r["n"], "refine": r["refine"], "h": r["resolution"]["h"], "unknowns": r["unknowns"],
+               "n": r["n"], "refine": r["refine"], "h": spacing(r), "unknowns": r["unknowns"],
                "wall_s": r["wall_s"]}
         row.update({q: r["summary"].get(q) for q in quantities})
         row.update(analytic_errors(r))

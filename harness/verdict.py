@@ -99,7 +99,8 @@ def judge(study: str, claim: Claim, tables: dict[str, pd.DataFrame]) -> list[dic
     others = None
     if claim.against or claim.against_table:
         others = _rows(tables.get(claim.against_table or claim.table, pd.DataFrame()), claim.against)
-    cases = sorted(rows[claim.per].dropna().unique().tolist()) if claim.per and claim.per in rows else [None]
+    cases = sorted(rows[claim.per].dropna().unique().tolist()) if claim.per and claim.per in rows else []
+    cases = cases or [None]
     out = []
     for case in cases:
         part = rows if case is None else rows[rows[claim.per] == case]
@@ -111,8 +112,11 @@ def judge(study: str, claim: Claim, tables: dict[str, pd.DataFrame]) -> list[dic
             ref = others if matched else others[others[claim.per] == case]
             target = _aggregate(ref, claim.against_metric or claim.metric, claim.aggregate)
         if not (math.isfinite(value) and math.isfinite(target)):
-            reasons = sorted(set(str(r) for r in df.get("reason", pd.Series(dtype=str)).dropna() if r))
-            note = f"no finite {claim.metric} in the selected rows" + (f" ({reasons[0]})" if reasons else "")
+            picked = _rows(df, claim.select) if case is None else part
+            reasons = sorted(set(str(r) for r in picked.get("reason", pd.Series(dtype=str)).dropna() if r))
+            statuses = sorted(set(picked.get("status", pd.Series(dtype=str)).dropna()))
+            note = f"no finite {claim.metric} in the selected rows"
+            note += f" (status {', '.join(statuses)}: {reasons[0]})" if reasons else ""
             out.append(row | {"verdict": "not-applicable", "note": note})
             continue
         if isinstance(claim.uncertainty, str):

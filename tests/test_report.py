@@ -213,3 +213,8 @@ def test_verdict_target_from_another_table():
                      reference="extrapolated")
     v = verdicts("s", claims, tables)
     assert v["target"].tolist() == [0.32, 0.32] and v["verdict"].tolist() == ["fail", "pass"]
+
+
+def test_verdict_with_no_rows_is_not_applicable_even_per_case():
+    v = verdicts("s", _claims(select={"solver": "nobody"}, per="n"), TABLES)
+    assert v["verdict"].tolist() == ["not-applicable"] and v["case"].tolist() == [""]
