@@ -18,10 +18,13 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
 EDGES = ("front_top_edge", "bottom_back_edge")
+CONTINUUM_STYLES = tuple(dict(lw=2.0, color=c, ls=ls, alpha=0.75)
+                         for c, ls in (("k", "-"), ("0.45", "--"), ("0.25", ":"), ("0.6", "-.")))
 
 
 def _save(fig: Any, path: Path) -> bool:
-    fig.tight_layout()
+    title_room = 0.4 / fig.get_figheight() if fig._suptitle is not None else 0.0  # inches kept for the title
+    fig.tight_layout(rect=(0.0, 0.0, 1.0, 1.0 - title_room))
     fig.savefig(path.with_suffix(".png"), dpi=110)
     fig.savefig(path.with_suffix(".svg"))
     plt.close(fig)
@@ -51,8 +54,10 @@ def _shown(r: dict[str, Any], sample: str) -> bool:
 
 
 def is_particle(result: dict[str, Any]) -> bool:
-    """Whether a result comes from a particle solver (it counts pair-steps)."""
-    return bool((result.get("work") or {}).get("pair_steps"))
+    """Whether a result comes from a particle solver (one registered under solvers.particles)."""
+    from solvers import REGISTRY
+
+    return REGISTRY.get(result.get("solver", ""), "").startswith("solvers.particles.")
 
 
 def convergence(levels: pd.DataFrame, columns: list[str], path: Path, title: str) -> bool:
@@ -120,10 +125,11 @@ def edge_profiles(results: list[dict[str, Any]], path: Path, title: str) -> bool
     for row, n in enumerate(ns):
         for col, edge in enumerate(EDGES):
             ax = axes[row, col]
+            continuum = iter(CONTINUUM_STYLES)
             for r in (r for r in ok if r["n"] == n):
                 pts = np.asarray(r["samples"][edge]["points"], float)
                 vals = np.asarray(r["samples"][edge]["values"], float)
-                style = dict(marker="o", ms=3, lw=1) if is_particle(r) else dict(lw=2.2, color="k", alpha=0.6)
+                style = dict(marker="o", ms=3, lw=1) if is_particle(r) else next(continuum, CONTINUUM_STYLES[0])
                 label = _label(r, varying) + ("" if is_particle(r) else f" refine={r['refine']}")
                 label += "" if r["status"] == "ok" else f" ({r['status']})"
                 ax.plot(pts[:, 2] * 1e3, vals, label=label, **style)
