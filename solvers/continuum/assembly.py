@@ -211,3 +211,63 @@ def assemble_q1(grid: StructuredGrid, with_mass: bool = False) -> Q1Operators:
         w_box = np.bincount(local.ravel(), weights=we.ravel(), minlength=nloc)
         weights[nodes] += unit_load.assemble(basis) - w_box
     return Q1Operators(stiff, weights, mass_m, int(warped.size))
+
+
+@numba.njit(cache=True)
+def _split_kernel(indptr, indices, data, new_index, is_free, n_free, n_fixed):
+    """Rows of free nodes, split into the free-free and free-fixed column blocks (order kept)."""
+    nnz_ff = 0
+    nnz_fb = 0
+    for r in range(indptr.size - 1):
+        if is_free[r]:
+            for q in range(indptr[r], indptr[r + 1]):
+                if is_free[indices[q]]:
+                    nnz_ff += 1
+                else:
+                    nnz_fb += 1
+    ptr_ff = np.zeros(n_free + 1, dtype=np.int64)
+    ptr_fb = np.zeros(n_free + 1, dtype=np.int64)
+    ind_ff = np.empty(nnz_ff, dtype=np.int32)
+    ind_fb = np.empty(nnz_fb, dtype=np.int32)
+    dat_ff = np.empty(nnz_ff)
+    dat_fb = np.empty(nnz_fb)
+    a = 0
+    b = 0
+    row = 0
+    for r in range(indptr.size - 1):
+        if not is_free[r]:
+            continue
+        for q in range(indptr[r], indptr[r + 1]):
+            c = indices[q]
+            if is_free[c]:
+                ind_ff[a] = new_index[c]
+                dat_ff[a] = data[q]
+                a += 1
+            else:
+                ind_fb[b] = new_index[c]
+                dat_fb[b] = data[q]
+                b += 1
+        row += 1
+        ptr_ff[row] = a
+        ptr_fb[row] = b
+    return ptr_ff, ind_ff, dat_ff, ptr_fb, ind_fb, dat_fb
+
+
+def split_free(a: sp.csr_matrix, free: np.ndarray) -> tuple[sp.csr_matrix, sp.csr_matrix]:
+    """(A[free][:, free], A[free][:, ~free]) for a boolean mask `free`, in one O(nnz) pass.
+
+    Same matrices as scipy's fancy indexing (columns keep their order), without its two copies of the
+    matrix; used to condense Dirichlet nodes out of ~14-million-entry operators.
+    """
+    a = sp.csr_matrix(a)
+    free = np.asarray(free, dtype=bool)
+    n_free = int(free.sum())
+    new_index = np.empty(free.size, dtype=np.int64)
+    new_index[free] = np.arange(n_free)
+    new_index[~free] = np.arange(free.size - n_free)
+    pf, jf, df, pb, jb, db = _split_kernel(a.indptr.astype(np.int64), a.indices.astype(np.int32, copy=False),
+                                           np.asarray(a.data, dtype=np.float64), new_index, free, n_free,
+                                           free.size - n_free)
+    shape_b = (n_free, free.size - n_free)
+    return (sp.csr_matrix((df, jf, pf.astype(np.int32)), shape=(n_free, n_free)),
+            sp.csr_matrix((db, jb, pb.astype(np.int32)), shape=shape_b))

@@ -179,7 +179,16 @@ class _Linear:
         else:
             import pyamg
 
-            self.ml = pyamg.smoothed_aggregation_solver(A, symmetry="symmetric", max_coarse=500)
+            # pyamg's spectral-radius estimate (Jacobi prolongation smoothing) starts from np.random.rand:
+            # seed it so that results are bit-reproducible, and leave the caller's random state as it was.
+            # ('local' Gershgorin weighting needs no random numbers but took 20 CG iterations instead of 15
+            # at 666 000 unknowns, with the same set-up time.)
+            state = np.random.get_state()  # noqa: NPY002  (pyamg draws from the legacy global generator)
+            np.random.seed(20240607)  # noqa: NPY002
+            try:
+                self.ml = pyamg.smoothed_aggregation_solver(A, symmetry="symmetric", max_coarse=500)
+            finally:
+                np.random.set_state(state)  # noqa: NPY002
 
     def __call__(self, b: np.ndarray, x0: np.ndarray | None = None) -> np.ndarray:
         if self.method == "empty":
@@ -202,7 +211,7 @@ class FipyHeat:
     """FiPy cell-centred finite volumes on the node-centred dual grid of the refined lattice."""
 
     name = "fipy"
-    version = "1.1"
+    version = "1.2"
     parameters = (
         Param("patch", "cut", "", "patch constraint: cut (fixed cells + Shortley-Weller faces), volume-fraction "
               "weighted penalty, or staircase", choices=("cut", "fraction", "staircase"), kind=str),

@@ -42,7 +42,7 @@ from scipy.sparse.linalg import cg, splu
 
 from harness.scene import FaceTemperature, Param, PatchTemperature, PointTemperature, Scene, SceneError
 from solvers.base import Resolution, Solution, effective_params, heat_summary
-from solvers.continuum.assembly import assemble_q1, grid_graph
+from solvers.continuum.assembly import assemble_q1, grid_graph, split_free
 from solvers.continuum.grid import StructuredGrid, plan_sphere_warp
 
 PARAMETERS: tuple[Param, ...] = (
@@ -236,11 +236,11 @@ class SkfemHeat:
         residual = 0.0
         n_solves = 0
         if scene.mode == "steady":
-            rows = stiff[free]
-            graph = grid_graph(grid.shape)[free][:, free] if method == "amg" else None
-            solver = _LinearSolver(rows[:, free], method, p["cg_rtol"], graph)
-            rhs = -(rows[:, bnd] @ fixed[bnd])
-            del rows
+            k_ff, k_fb = split_free(stiff, ~is_fixed)
+            graph = split_free(grid_graph(grid.shape), ~is_fixed)[0] if method == "amg" else None
+            solver = _LinearSolver(k_ff, method, p["cg_rtol"], graph)
+            rhs = -(k_fb @ fixed[bnd])
+            del k_ff, k_fb, graph
             temp[free] = solver.solve(rhs)
             iterations, residual, n_solves = solver.iterations, solver.worst_residual, 1
         else:
@@ -251,8 +251,8 @@ class SkfemHeat:
                 if key not in solvers:
                     a = (mss + theta * dt * stiff).tocsr()
                     b = (mss - (1.0 - theta) * dt * stiff).tocsr()
-                    ls = _LinearSolver(a[free][:, free], method, p["cg_rtol"])
-                    solvers[key] = (ls, b[free], a[free][:, bnd] @ fixed[bnd])
+                    a_ff, a_fb = split_free(a, ~is_fixed)
+                    solvers[key] = (_LinearSolver(a_ff, method, p["cg_rtol"]), b[free], a_fb @ fixed[bnd])
                 ls, b_free, lift = solvers[key]
                 rhs = b_free @ temp - lift
                 temp[free] = ls.solve(rhs, x0=temp[free])
