@@ -22,6 +22,7 @@ Nothing here changes a solver; the report reads the cached cell results through 
 from __future__ import annotations
 
 import math
+import textwrap
 import time
 from pathlib import Path
 from typing import Any
@@ -342,9 +343,16 @@ def report_tables(results: list[dict[str, Any]], folder: Path, gid: str, title: 
         for (solver, n, D), seq in limits.groupby(["solver", "n", "drive_amplitude"]):
             seq = seq.sort_values("damping_ratio")
             ax.plot(seq["damping_ratio"], seq["measured_safety"], "o--", label=f"{solver} n={n} D={D:g}a")
+        if "linear_safety" in limits:
+            lin = limits.dropna(subset=["linear_safety", "damping_ratio"])
+            lin = lin.drop_duplicates(["solver", "n", "damping_ratio"])
+            for (solver, n), seq in lin.groupby(["solver", "n"]):
+                seq = seq.sort_values("damping_ratio")
+                ax.plot(seq["damping_ratio"], seq["linear_safety"], ":", color="grey",
+                        label=f"{solver} n={n} linear-discrete limit")
         ax.set_xlabel("top-mode damping ratio zeta")
         ax.set_ylabel("limit of dt omega_max / 2")
-        ax.set_title(title, fontsize=9)
+        ax.set_title("\n".join(textwrap.wrap(title, 80)), fontsize=8)
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize=6)
         fig.tight_layout()
