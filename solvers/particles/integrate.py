@@ -30,6 +30,31 @@ Energy accounting (exact algebra, per step n -> n+1):
 The first sum is minus the dissipated energy, the second the drive (or bath) work, the bracket
 the quadrature error of the conservative work, O(|dx|^3 F'') per pair-step: the balance error.
 
+What the balance error is (measured, issue 3a).  The dissipation and drive work above are what
+the scheme applies, so the residual E_end - E_start + dissipated - work is exactly the sum of
+the per-pair brackets (checked to 1e-10 with an instrumented kernel).  It vanishes for a harmonic
+lattice: with every pair force replaced by its linearisation at the rest root (same lattice,
+drive, damping, dt) the n = 5, zeta = 0.01 run closes to 3e-8 (D = 0.005) and 2e-7 (D = 0.02).
+With the seven-root force the same runs leave 2.5e-3 and 1.9e-3 of the drive work at safety 0.1,
+falling as dt^2 (3.1e-3 -> 7.8e-4, 2.0e-3 -> 5.0e-4 from safety 0.1 to 0.05 over 15 s), and
+99.8 % of it sits in the single shell-a bond between the red pair's lower particle and the
+particle below it: the drive at f = f_top puts the x = 0, z = 0 column below the red pair into a
+nonlinear resonance (bond excursion +-2 to +-4 % of a, nearly independent of D; with linear forces
+the same bond moves +-0.006 % of a).  So the residual is the genuine O(dt^2) integration error of
+velocity Verlet on the anharmonic force in that resonance, not bookkeeping and not the damping
+treatment (the lagged damping changes the trajectory at O(dt zeta) but enters the identity
+exactly).  At n = 2, 3, 4 it is below 1e-4 at the default dt; at n = 5 the default dt (safety 0.1)
+misses 1e-3 by a factor ~2 and safety 0.05 meets it.  A shadow-energy correction would hide the
+error, not remove it; a higher-order integrator would remove it and is not done.
+
+Stability with damping (issue 3b).  For one mode of frequency omega and damping ratio zeta the
+scheme is stable for omega dt / 2 < sqrt(1 + zeta^2) - zeta.  The radial pair damping is not
+proportional to the stiffness, so on small lattices another mode can limit first: at n = 2,
+zeta = 0.2 (top mode) a mode at |lambda| = 0.96 omega_max has zeta = 0.29, and the measured limit
+0.752 agrees with the spectral radius of the exact linearised one-step map (0.758), not with the
+single-mode formula (0.820).  `modal.discrete_stability_limit` computes the former; the solver
+guards dt with it and reports both.
+
 Computes: hotness sums (whole window and its two halves), hop events (pairs leaving their root
 interval), neighbourhood checks, blow-up checks and a coarse energy history.
 """
