@@ -297,7 +297,7 @@ def test_solution_contract() -> None:
     assert free.max() <= 1.0 and free.min() >= 0.0
     for key in ("f_top_hz", "dt", "steps", "pairs", "pair_steps", "hops", "stationarity", "energy_balance_error",
                 "bulk_median", "volume_mean", "bulk_median_by_driven", "damping_in_force", "delta", "damping_ratio",
-                "kernel_s", "dt_limit", "dt_limit_single_mode"):
+                "kernel_s", "kernel_cpu_s", "dt_limit", "dt_limit_single_mode"):
         assert key in sol.summary
     assert 0 < sol.summary["kernel_s"] < sol.wall_s
     assert sol.summary["damping_in_force"] == "damping_ratio"
