@@ -15,6 +15,7 @@ from harness.catalogue import make_scene
 from harness.scene import SceneError
 from solvers.base import Resolution, effective_params
 from solvers.particles import integrate as ig
+from solvers.particles import kernel as fk
 from solvers.particles.lattice import build_lattice
 from solvers.particles.macromolecule import Macromolecule, energy_balance_error, make_fixes, simulate
 from solvers.particles.modal import (
@@ -357,3 +358,20 @@ def test_patch_scene_holds_patch_particles() -> None:
     # relative stroke D a, momentum-neutral split
     assert fx.amp[m_side, 1][0] - fx.amp[q, 1][0] == pytest.approx(0.05 * lat.a)
     assert fx.amp[m_side, 1].sum() + fx.amp[q, 1].sum() == pytest.approx(0.0, abs=1e-18)
+
+
+@pytest.mark.parametrize("n,drop", [(2, False), (3, False), (4, True)])
+def test_stencil_holds_each_pair_once(n: int, drop: bool) -> None:
+    """The fast kernel's stencil layout: every listed pair (i, j) sits in exactly one slot, of a
+    group with offset j - i and the pair's shell basin, at slot base + i with mask 1; all other
+    slots have mask 0 (so they contribute nothing); n = 2 has offsets shared by two shells."""
+    lat = build_lattice(PAPER.box, n, 2700.0, "drop" if drop else "keep")
+    basins = SevenRoot().basins()
+    g_off, base, lo, hi, mask, slot = fk.stencil(lat.pairs, lat.shell, lat.size, basins)
+    assert len(np.unique(slot)) == len(lat.pairs) and mask.sum() == len(lat.pairs)
+    assert np.all(mask[slot] == 1.0)
+    group = np.searchsorted(base, slot, side="right") - 1
+    assert np.array_equal(g_off[group], lat.pairs[:, 1] - lat.pairs[:, 0])
+    assert np.array_equal(slot - base[group], lat.pairs[:, 0])
+    assert np.array_equal(lo[group], basins[lat.shell, 0]) and np.array_equal(hi[group], basins[lat.shell, 1])
+    assert base[-1] == mask.size == np.sum(lat.size - g_off)

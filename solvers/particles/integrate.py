@@ -1,5 +1,8 @@
 """Velocity-Verlet kernel of the macromolecule model with its fixes and computes in one loop.
 
+This is the plain reference kernel (pair list, array-of-structures); `kernel.run` integrates the
+same scheme faster and is tested equal to it to rounding.
+
 Fixes (what a particle's motion is):
   FREE        Newton, optionally with a Langevin bath (gamma, kT): exact OU factor, then kick;
               kT = 0 makes it an absorbing (viscous) face.
@@ -32,20 +35,23 @@ the quadrature error of the conservative work, O(|dx|^3 F'') per pair-step: the 
 
 What the balance error is (measured, issue 3a).  The dissipation and drive work above are what
 the scheme applies, so the residual E_end - E_start + dissipated - work is exactly the sum of
-the per-pair brackets (checked to 1e-10 with an instrumented kernel).  It vanishes for a harmonic
-lattice: with every pair force replaced by its linearisation at the rest root (same lattice,
-drive, damping, dt) the n = 5, zeta = 0.01 run closes to 3e-8 (D = 0.005) and 2e-7 (D = 0.02).
-With the seven-root force the same runs leave 2.5e-3 and 1.9e-3 of the drive work at safety 0.1,
-falling as dt^2 (3.1e-3 -> 7.8e-4, 2.0e-3 -> 5.0e-4 from safety 0.1 to 0.05 over 15 s), and
-99.8 % of it sits in the single shell-a bond between the red pair's lower particle and the
-particle below it: the drive at f = f_top puts the x = 0, z = 0 column below the red pair into a
-nonlinear resonance (bond excursion +-2 to +-4 % of a, nearly independent of D; with linear forces
-the same bond moves +-0.006 % of a).  So the residual is the genuine O(dt^2) integration error of
+the per-pair brackets (checked to 1e-10 with an instrumented kernel).  It vanishes for a
+harmonic lattice: with every pair force replaced by its linearisation at the rest root (same
+lattice, drive, damping, dt) the n = 5, zeta = 0.01 run closes to 3e-8 (D = 0.005) and 2e-7 (D =
+0.02).  With the seven-root force the same runs leave 2.5e-3 and 1.9e-3 of the drive work at
+safety 0.1, falling as dt^2 (3.1e-3 -> 7.8e-4, 2.0e-3 -> 5.0e-4 from safety 0.1 to 0.05 over 15
+s), and it sits in one bond, the shell-a bond between the red pair's lower particle and the
+particle below it (1.39e-11 J of the 1.24e-11 J residual; all other pairs together -0.15e-11 J):
+the drive at f = f_top puts the x = 0, z = 0 column below the red pair into a nonlinear
+resonance (bond excursion +-2 to +-4 % of a, nearly independent of D; with linear forces the
+same bond moves +-0.006 % of a).  So the residual is the genuine O(dt^2) integration error of
 velocity Verlet on the anharmonic force in that resonance, not bookkeeping and not the damping
 treatment (the lagged damping changes the trajectory at O(dt zeta) but enters the identity
-exactly).  At n = 2, 3, 4 it is below 1e-4 at the default dt; at n = 5 the default dt (safety 0.1)
-misses 1e-3 by a factor ~2 and safety 0.05 meets it.  A shadow-energy correction would hide the
-error, not remove it; a higher-order integrator would remove it and is not done.
+exactly).  Runs without hops at n = 2, 3, 4 stay below 2e-4 at the default dt; at n = 5 the
+default dt (safety 0.1) misses 1e-3 by a factor ~2 and safety 0.05 meets it.  Runs with hops
+(the paper's D = 0.05 a at n = 3, 4) leave 2-3e-3: the same error, in a chaotic defect regime.
+A shadow-energy correction would hide the error, not remove it; a higher-order integrator would
+remove it and is not done.
 
 Stability with damping (issue 3b).  For one mode of frequency omega and damping ratio zeta the
 scheme is stable for omega dt / 2 < sqrt(1 + zeta^2) - zeta.  The radial pair damping is not
