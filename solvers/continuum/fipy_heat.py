@@ -77,6 +77,7 @@ from harness.scene import (
     lattice_shape,
 )
 from solvers.base import Resolution, Solution, effective_params, heat_summary
+from solvers.continuum.assembly import grid_graph, split_free
 
 _FACE_AXIS = {"x0": (0, 0), "xW": (0, 1), "y0": (1, 0), "yH": (1, 1), "z0": (2, 0), "zL": (2, 1)}
 _FIPY_FACES = {"x0": "facesLeft", "xW": "facesRight", "y0": "facesBottom", "yH": "facesTop",
@@ -169,7 +170,7 @@ def interpolate(values: np.ndarray, edges: list[np.ndarray], fixed_faces: dict[s
 class _Linear:
     """Solve A x = b for one fixed matrix: cached splu, or a reused pyamg hierarchy + CG."""
 
-    def __init__(self, A: sp.csr_matrix, method: str, rtol: float):
+    def __init__(self, A: sp.csr_matrix, method: str, rtol: float, graph: sp.csr_matrix | None = None):
         self.method, self.rtol, self.A = method, rtol, A
         self.iterations = 0
         if A.shape[0] == 0:
@@ -183,10 +184,16 @@ class _Linear:
             # seed it so that results are bit-reproducible, and leave the caller's random state as it was.
             # ('local' Gershgorin weighting needs no random numbers but took 20 CG iterations instead of 15
             # at 666 000 unknowns, with the same set-up time.)
+            # Aggregation on `graph` (cells sharing a node: 27 neighbours) on the finest level: the 7-point
+            # FV stencil alone gave aggregates of ~8 cells, operator complexity 1.55 and a slow second level;
+            # with the graph 3x3x3 aggregates, complexity 1.15, set-up + CG 2.7 s instead of 4.6 s (CPU, 673 501
+            # cells, same 15 iterations).
+            strength = {} if graph is None else {"strength": [("predefined", {"C": graph}),
+                                                              ("symmetric", {"theta": 0.0})]}
             state = np.random.get_state()  # noqa: NPY002  (pyamg draws from the legacy global generator)
             np.random.seed(20240607)  # noqa: NPY002
             try:
-                self.ml = pyamg.smoothed_aggregation_solver(A, symmetry="symmetric", max_coarse=500)
+                self.ml = pyamg.smoothed_aggregation_solver(A, symmetry="symmetric", max_coarse=500, **strength)
             finally:
                 np.random.set_state(state)  # noqa: NPY002
 
@@ -375,15 +382,16 @@ class FipyHeat:
         if method == "auto":
             method = "direct" if nfree <= p["amg_threshold"] else "amg"
         t_solve = time.perf_counter()
-        Kff = K[free][:, free].tocsr()
-        Kfc = K[free][:, fixed].tocsr()
+        Kff, Kfc = split_free(K, free)
+        # cell adjacency graph for AMG aggregation; FiPy numbers cells x fastest, grid_graph z fastest
+        graph = split_free(grid_graph(sysd["shape"][::-1]), free)[0] if method == "amg" else None
         T = np.full(K.shape[0], float(scene.initial_temperature))
         T[fixed] = tfix[fixed]
         tc = tfix[fixed]
         solvers: list[_Linear] = []
         steps_taken = 0
         if scene.mode == "steady":
-            lin = _Linear(Kff, method, p["rtol"])
+            lin = _Linear(Kff, method, p["rtol"], graph)
             solvers.append(lin)
             T[free] = lin(f[free] - Kfc @ tc)
         else:
@@ -399,7 +407,7 @@ class FipyHeat:
                     plan.append((scene.dt, 0.5, nsteps - r // 2))
             for dt, theta, count in plan:
                 A = (sp.diags(C[free] / dt) + theta * Kff).tocsr()
-                lin = _Linear(A, method, p["rtol"])
+                lin = _Linear(A, method, p["rtol"], graph)
                 solvers.append(lin)
                 for _ in range(count):
                     rhs = C * T / dt - (1.0 - theta) * (K @ T) + f
