@@ -119,13 +119,13 @@ def _build(x, radius):
     return start, index
 
 
-@njit(cache=True, parallel=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")  # serial: called once per rebuild check outside the kernels
 def moved_beyond(x, x_ref, limit):
     """Number of particles displaced more than `limit` from x_ref (non-finite positions count too)."""
     n = x.shape[0]
     lim2 = limit * limit
     over = 0
-    for i in prange(n):
+    for i in range(n):
         d2 = (x[i, 0] - x_ref[i, 0]) ** 2 + (x[i, 1] - x_ref[i, 1]) ** 2 + (x[i, 2] - x_ref[i, 2]) ** 2
         if not d2 <= lim2:
             over += 1

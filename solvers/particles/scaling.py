@@ -1,4 +1,4 @@
-"""Large-N kernel of the macromolecule model: Verlet list, per-particle gather, prange over particles.
+"""Large-N kernel of the macromolecule model: Verlet list, race-free force passes, prange over particles.
 
 The same model as the solver's fixed-pair-list kernel (seven-root pair force F(r) plus radial
 damping delta * rdot, F > 0 attraction), for lattices up to ~10^6 particles on a few cores:
@@ -37,7 +37,7 @@ from numba import njit, prange
 from harness.scene import Box, SceneError, lattice_points, lattice_spacing
 
 from .neighbours import NeighbourList, build_neighbours
-from .seven_root import SevenRoot, energy_x, force_x
+from .seven_root import SevenRoot, energy_x, force_x, shell_stiffness
 
 FREE, FROZEN, PRESCRIBED = 0, 1, 2
 DONE, EXPIRED = 0, 1
@@ -212,13 +212,13 @@ def advance(x, v, f, x_rest, kind, amp, phase, omega, mass, dt, step0, n_steps, 
     return s, DONE
 
 
-@njit(cache=True, parallel=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")  # serial: a check, not a hot loop (compiles faster)
 def _pair_energy(x, start, index, c, a, rc2):
     """Per-particle share of U = sum over pairs i < j of a * int_2^{r/a} F dx (U = 0 at 2a)."""
     n = x.shape[0]
     out = np.zeros(n)
     inv_a = 1.0 / a
-    for i in prange(n):
+    for i in range(n):
         u = 0.0
         for p in range(start[i], start[i + 1]):
             j = index[p]
@@ -231,11 +231,11 @@ def _pair_energy(x, start, index, c, a, rc2):
     return out
 
 
-@njit(cache=True, parallel=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")  # serial: a check, not a hot loop (compiles faster)
 def _count_pairs(x, start, index, rc2):
     n = x.shape[0]
     out = np.zeros(n, dtype=np.int64)
-    for i in prange(n):
+    for i in range(n):
         m = 0
         for p in range(start[i], start[i + 1]):
             j = index[p]
@@ -390,8 +390,6 @@ def omega_bound(model: SevenRoot, a: float, mass: float) -> float:
     shell); the absolute row sum of a bulk particle's rows is at most 2 sum_s k_s N_s max_c
     sum_b |e_c e_b|, with N_s neighbours in shell s.  Cheap at any N (no eigenproblem).
     """
-    from .seven_root import shell_stiffness
-
     k = np.abs(shell_stiffness(model, a))
     offsets = np.array([(i, j, m) for i in (-2, -1, 0, 1, 2) for j in (-2, -1, 0, 1, 2) for m in (-2, -1, 0, 1, 2)
                         if 0 < i * i + j * j + m * m <= 4], dtype=float)
