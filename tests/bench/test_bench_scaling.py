@@ -8,7 +8,8 @@ damped lattice started from random displacements of 0.003a rms.  extra_info: par
 pair_steps per call, threads, ns_per_pair_step (wall, from the benchmark's median when timing is
 on, else from the single untimed call), cpu_ns_per_pair_step (process CPU time of one call: less
 sensitive to other jobs on the machine, but it counts idle-spinning worker threads),
-bytes_per_particle (all arrays of the run, list included).  `scaling.rows_from_benchmark_json`
+bytes_per_particle (all arrays of the run, list included; peak_rss_mb is the process's peak, which
+includes the set-up's temporaries and everything run before).  `scaling.rows_from_benchmark_json`
 turns a saved run into the rows of the ns-per-pair-step-against-N plot.
 
 Run: pytest tests/bench/test_bench_scaling.py --benchmark-enable --benchmark-only
@@ -17,6 +18,7 @@ Run: pytest tests/bench/test_bench_scaling.py --benchmark-enable --benchmark-onl
 
 from __future__ import annotations
 
+import resource
 import time
 
 import numba
@@ -89,7 +91,7 @@ def test_bench_kernel_step(benchmark, n: int, threads: int, force_pass: str) -> 
         threads=threads, force_pass=force_pass, slab_block=run.block, ns_per_pair_step=1e9 * median / work,
         cpu_ns_per_pair_step=1e9 * cpu / work,
         bytes_per_particle=run.nbytes / run.size, list_entries_per_particle=run.nl.entries / run.size,
-        list_builds=run.nl.builds,
+        list_builds=run.nl.builds, peak_rss_mb=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
     )
     assert run.status == "ok"
     assert builds == 1  # 0.003a (rms) vibrations stay below skin/2 = 0.05a (max ~0.03a at 10^6): list kept
