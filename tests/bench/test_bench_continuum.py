@@ -1,0 +1,73 @@
+"""Benchmark: continuum steady solves at fixed unknowns (scikit-fem Q1 FEM, FiPy FV), issue 7 item 6.
+
+Sizes: the refined lattice of n = 4 at refine 5 / 10 / 20, i.e. 11 776 / 87 451 / 673 501 unknowns for both
+solvers (skfem: grid nodes; FiPy: the node-centred dual cells, one per node).  Scene bar-heat-faces (plain
+grid) for both; bar-heat-patch for skfem at the largest size (the warped conforming-patch band goes through
+scikit-fem's general assembly).  One side-by-side pair measures the assembly speed-up at ~87 000 nodes:
+scikit-fem's general assembly of the same Q1 matrix against the tensor-product assembly.
+
+Timed by pytest-benchmark (`pcverify bench --tests tests/bench/test_bench_continuum.py`); a small solve
+warms imports and the numba cache outside the timing.  extra_info carries the work counters (unknowns,
+iterations) and where the time went (assembly_s, solve_s, of the last round).  Under the default
+`--benchmark-disable` (the plain test suite) the ~673 000-unknown cases are skipped to keep the suite short.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from harness.catalogue import make_scene
+from solvers import get_solver
+from solvers.base import Resolution
+from solvers.continuum.assembly import assemble_q1
+from solvers.continuum.grid import StructuredGrid
+
+SIZES = {5: 11_776, 10: 87_451, 20: 673_501}  # refine of n = 4 -> unknowns
+LARGE = 20
+
+
+def _case(benchmark, solver_name: str, scene_name: str, refine: int, rounds: int) -> None:
+    if benchmark.disabled and refine >= LARGE:
+        pytest.skip("~673 000 unknowns: run only when benchmarking (pcverify bench)")
+    solver, scene = get_solver(solver_name), make_scene(scene_name)
+    solver.solve(scene, Resolution(4, 3))  # warm-up outside the timing (imports, numba cache)
+    sol = benchmark.pedantic(solver.solve, args=(scene, Resolution(4, refine)), rounds=rounds, iterations=1)
+    benchmark.extra_info.update(
+        solver=solver_name, scene=scene_name, n=4, refine=refine, unknowns=sol.unknowns,
+        assembly_s=sol.work["assembly_s"], solve_s=sol.work["solve_s"], iterations=sol.work["iterations"],
+        linear_solver=sol.diagnostics.get("linear_solver", sol.diagnostics.get("linear_method")),
+    )
+    assert sol.unknowns == SIZES[refine] and sol.status == "ok"
+    if scene_name == "bar-heat-faces":  # the steady face scene is linear in z: both methods reproduce it
+        assert sol.summary["volume_mean"] == pytest.approx(0.5, abs=1e-8)
+
+
+@pytest.mark.parametrize("refine", [5, 10, 20])
+@pytest.mark.parametrize("solver_name", ["skfem", "fipy"])
+def test_bench_steady_faces(benchmark, solver_name: str, refine: int) -> None:
+    _case(benchmark, solver_name, "bar-heat-faces", refine, rounds=3 if refine < LARGE else 3)
+
+
+def test_bench_skfem_steady_patch_large(benchmark) -> None:
+    _case(benchmark, "skfem", "bar-heat-patch", LARGE, rounds=3)
+
+
+def _skfem_general(grid: StructuredGrid):
+    from skfem import Basis, ElementHex1, MeshHex
+    from skfem.models.poisson import laplace
+
+    basis = Basis(MeshHex(np.ascontiguousarray(grid.points.T), grid.cells.astype(np.int32)), ElementHex1(),
+                  intorder=2)
+    return laplace.assemble(basis).tocsr()
+
+
+@pytest.mark.parametrize("method", ["skfem-general", "tensor"])
+def test_bench_q1_assembly(benchmark, method: str) -> None:
+    grid = StructuredGrid.lattice(np.array([0.01, 0.01, 0.03]), 4, 10)  # 87 451 nodes
+    assemble_q1(StructuredGrid.lattice(np.array([0.01, 0.01, 0.03]), 2, 2))  # numba cache warm-up
+    fn = _skfem_general if method == "skfem-general" else (lambda g: assemble_q1(g).stiffness)
+    mat = benchmark.pedantic(fn, args=(grid,), rounds=3, iterations=1)
+    benchmark.extra_info.update(method=method, unknowns=len(grid.points), nnz=int(mat.nnz))
+    # the Q1 Laplacian annihilates constants: every row sums to zero (round-off ~1e-16 of the diagonal)
+    assert np.abs(mat @ np.ones(mat.shape[0])).max() <= 1e-12 * mat.diagonal().max()
