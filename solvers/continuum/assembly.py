@@ -25,6 +25,10 @@ nonzeros for every later product: condensation, AMG set-up, CG).
 
 `tensor_csr` (numba) builds any sum of Kronecker products of 1-D tridiagonal matrices straight into a sorted
 CSR matrix, so other Q1 operators on the same grids (e.g. elasticity blocks) can reuse it.
+
+Two helpers for the linear algebra that follows: `grid_graph`, the 27-point node adjacency that the AMG
+set-up aggregates on (both continuum heat solvers), and `split_free`, which condenses Dirichlet nodes out of
+a matrix in one numba pass (scipy's A[free][:, free] copies the ~14-million-entry matrix twice).
 """
 
 from __future__ import annotations
