@@ -203,9 +203,11 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 
 def cmd_study(args: argparse.Namespace) -> int:
+    from harness.interrupt import remember_sigint
     from harness.study import run_study_cli
 
-    return run_study_cli(args)
+    with remember_sigint():
+        return run_study_cli(args)
 
 
 def cmd_report(args: argparse.Namespace) -> int:

@@ -22,6 +22,7 @@ from tqdm import tqdm
 
 from harness.cache import Cache, cell_key
 from harness.catalogue import make_scene
+from harness.interrupt import check_interrupted
 from harness.scene import SceneError
 from harness.studyfile import check_study_document, read_study_document
 from harness.verdict import parse_claims
@@ -270,6 +271,7 @@ def execute(study: Study, cache: Cache, dry_run: bool = False, jobs: int = 1, pr
         counts["failed" if res.get("status") == "failed" else "done"] += 1
         bar.set_postfix(done=counts["done"], cached=counts["cached"], failed=counts["failed"])
         bar.update(1)
+        check_interrupted()  # a Ctrl-C that a library swallowed stops the study here, this cell stored
 
     free = [i for i in todo if not cells[i].serial]
     timed = [i for i in todo if cells[i].serial and identities[i][3] is None]

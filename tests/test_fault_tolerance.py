@@ -3,8 +3,9 @@ every kind, a full or read-only cache folder, an output folder that cannot be wr
 a clear one-line message, no finished cell lost, and a rerun that resumes and ends with the same
 tables as an uninterrupted run.
 
-The kill tests run the real console script as a subprocess on a user study file (macromolecule cells
-of ~0.3 s each, so the kill lands mid-study); the write-failure tests run in-process on cheap skfem cells.
+The kill tests run the real console script as a subprocess on a user study file (FiPy cells of a
+fraction of a second each, so the kill lands mid-study; reference runs and reruns go through main()
+in-process); the write-failure tests run in-process on cheap skfem cells.
 As root (CI containers) chmod cannot make a folder read-only, so write failures are injected at the
 system call (errno ENOSPC / EROFS) or provoked with a path whose parent is a regular file.
 """
@@ -30,15 +31,13 @@ from harness.cli import main
 from harness.study import execute, load_study
 
 SLOW_STUDY = """name = "killme"
-title = "cells of about a quarter of a second"
+title = "FiPy cells of a fraction of a second each"
 [[group]]
-id = "drive"
+id = "faces"
 analysis = "table"
-scene = "bar-heat-paper"
-solvers = ["macromolecule"]
-n = [3]
-solver_params = { damping_ratio = 0.1, t_end = 8.0 }
-sweep = { drive_amplitude = [0.01, 0.02, 0.03, 0.04, 0.05, 0.06, 0.07] }
+scene = "bar-heat-faces"
+solvers = ["fipy"]
+n = [5, 6, 7, 8, 9, 10, 11]
 """
 FAST_STUDY = """name = "quick"
 title = "cheap continuum cells"
@@ -78,16 +77,22 @@ def _assert_same_tables(a: Path, b: Path) -> None:
         pd.testing.assert_frame_equal(ta[name], tb[name], check_exact=True, obj=name)
 
 
-def _start(study: Path, cache: Path, out: Path) -> subprocess.Popen:
-    return subprocess.Popen([EXE, "study", str(study), "--cache", str(cache), "--out", str(out), "--json"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV)
+def _start(study: Path, cache: Path, out: Path, jobs: int = 1) -> subprocess.Popen:
+    """The console script in its own process group (Ctrl-C in a terminal signals the whole group)."""
+    return subprocess.Popen([EXE, "study", str(study), "--cache", str(cache), "--out", str(out), "--json",
+                             "--jobs", str(jobs)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV,
+                            start_new_session=True)
 
 
 def _run(study: Path, cache: Path, out: Path) -> dict:
-    proc = subprocess.run([EXE, "study", str(study), "--cache", str(cache), "--out", str(out), "--json"],
-                          capture_output=True, text=True, env=ENV, timeout=600, check=False)
-    assert proc.returncode == 0, proc.stderr
-    return json.loads(proc.stdout.strip().splitlines()[-1])[0]
+    """An uninterrupted run (or a rerun) in-process: its JSON summary."""
+    import contextlib
+    import io
+
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf):
+        assert main(["study", str(study), "--cache", str(cache), "--out", str(out), "--json"]) == 0
+    return json.loads(buf.getvalue().strip().splitlines()[-1])[0]
 
 
 def _wait_for_entries(proc: subprocess.Popen, cache: Path, count: int, timeout: float = 300.0) -> None:
@@ -129,14 +134,16 @@ def test_sigkill_then_resume(slow_study, tmp_path) -> None:
     _assert_same_tables(out / "killme", reference)
 
 
-def test_sigint_stops_with_a_message_and_resumes(slow_study, tmp_path) -> None:
-    """Ctrl-C: exit code 130, one line saying finished cells are kept, no traceback; every entry on
-    disk is valid and the rerun picks up exactly those."""
+@pytest.mark.parametrize("jobs", [1, 2])
+def test_sigint_stops_with_a_message_and_resumes(jobs, slow_study, tmp_path) -> None:
+    """Ctrl-C (SIGINT to the process group, joblib workers included): exit code 130, one line saying
+    finished cells are kept, no traceback, no worker left; every entry on disk is valid and the rerun
+    picks up exactly those."""
     path, reference = slow_study
     cache, out = tmp_path / "cache", tmp_path / "out"
-    proc = _start(path, cache, out)
+    proc = _start(path, cache, out, jobs)
     _wait_for_entries(proc, cache, 1)
-    proc.send_signal(signal.SIGINT)
+    os.killpg(proc.pid, signal.SIGINT)
     _, err = proc.communicate(timeout=120)
     assert proc.returncode == 130, err
     assert "Traceback" not in err
@@ -250,3 +257,31 @@ def test_unwritable_output_folder_keeps_the_cells(fast_study, tmp_path, capsys) 
     summary = json.loads(capsys.readouterr().out.strip().splitlines()[-1])[0]
     assert summary["cached"] == 5 and summary["done"] == 0
     assert (tmp_path / "out" / "quick" / "cells.csv").exists()
+
+
+def test_swallowed_ctrl_c_still_stops_the_study(fast_study, tmp_path, monkeypatch) -> None:
+    """FiPy evaluates variables under bare `except:`, so a KeyboardInterrupt raised inside it is lost
+    (seen as a flaky Ctrl-C: the study ran to the end).  The runner remembers the SIGINT and stops
+    after the cell in progress, which is stored: here the second cell swallows the interrupt."""
+    import harness.study as st
+    from harness.interrupt import remember_sigint
+
+    real = st.run_cell
+    calls = {"n": 0}
+
+    def swallowing(cell):
+        calls["n"] += 1
+        if calls["n"] == 2:
+            try:
+                os.kill(os.getpid(), signal.SIGINT)
+                time.sleep(1.0)
+            except KeyboardInterrupt:  # what a bare `except:` in a library does
+                pass
+        return real(cell)
+
+    monkeypatch.setattr(st, "run_cell", swallowing)
+    cache = Cache(tmp_path / "cache")
+    with pytest.raises(KeyboardInterrupt), remember_sigint():
+        execute(load_study(str(fast_study)), cache, progress=False)
+    assert calls["n"] == 2 and len(list(cache.root.glob("*.json"))) == 2
+    assert all(cache.load(p.stem)[1] == "hit" for p in cache.root.glob("*.json"))

@@ -1,0 +1,42 @@
+"""Ctrl-C during a study must not be lost.
+
+Python raises KeyboardInterrupt wherever the main thread happens to be; inside a library block with a
+bare `except:` (FiPy evaluates its variables under several) the exception is swallowed and the study
+would run on to the end.  While a study runs, SIGINT therefore also sets INTERRUPTED, and the runner
+checks it after every finished cell: it stores that cell, then stops with KeyboardInterrupt.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import signal
+import threading
+from collections.abc import Iterator
+
+INTERRUPTED = threading.Event()
+
+
+@contextlib.contextmanager
+def remember_sigint() -> Iterator[None]:
+    """Within the block, SIGINT raises KeyboardInterrupt as usual and is also remembered in INTERRUPTED."""
+    INTERRUPTED.clear()
+    if threading.current_thread() is not threading.main_thread() or \
+            signal.getsignal(signal.SIGINT) is not signal.default_int_handler:
+        yield  # SIGINT ignored or handled by someone else (e.g. a test runner): leave it alone
+        return
+
+    def handler(signum, frame):  # noqa: ARG001 - the signal-handler signature
+        INTERRUPTED.set()
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGINT, handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def check_interrupted() -> None:
+    """Raise KeyboardInterrupt if a SIGINT arrived (even one a library swallowed)."""
+    if INTERRUPTED.is_set():
+        raise KeyboardInterrupt
