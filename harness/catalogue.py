@@ -34,7 +34,7 @@ FROZEN_CORNERS = {
     "diagonal": ((BOX.width, 0.0, 0.0), (0.0, 0.0, BOX.length)),
 }
 
-T_MAX = Param("t_max", 500.0, "K", "hot temperature (relative results are T/t_max)", low=0.0, high=1e5, low_open=True)
+T_MAX = Param("t_max", 500.0, "K", "hot temperature (relative results are T/t_max)", low=1e-3, high=1e5)
 PLACEMENT = Param("placement", "back-edge", "", "which two bottom corners are frozen", choices=tuple(FROZEN_CORNERS),
                   kind=str)
 
