@@ -22,7 +22,7 @@ from tqdm import tqdm
 
 from harness.cache import Cache, cell_key
 from harness.catalogue import make_scene
-from harness.interrupt import check_interrupted
+from harness.interrupt import check_interrupted, ignore_sigint_in_worker
 from harness.scene import SceneError
 from harness.studyfile import check_study_document, read_study_document
 from harness.verdict import parse_claims
@@ -195,6 +195,7 @@ def run_cell(cell: Cell) -> dict[str, Any]:
 
 
 def _indexed(i: int, cell: Cell) -> tuple[int, dict[str, Any]]:
+    ignore_sigint_in_worker()
     return i, run_cell(cell)
 
 
@@ -207,7 +208,7 @@ def _parallel(cells: list[Cell], todo: list[int], jobs: int, scheduler: str | No
             raise SceneError("--scheduler needs the optional dependency dask[distributed]; allowed: install it with "
                              "pip install 'pcverify[dask]', or run without --scheduler") from None
         try:
-            client = Client(scheduler, timeout=10)
+            client = Client(scheduler, timeout="5s")
         except OSError as exc:
             raise SceneError(f"scheduler={scheduler!r} is not reachable ({exc}); allowed: the address of a running "
                              "Dask scheduler, e.g. tcp://host:8786") from None
