@@ -284,6 +284,11 @@ def test_tensor_assembly_equals_skfem(warped):
     interior = grid.shape[0] - 2, grid.shape[1] - 2, grid.shape[2] - 2
     dropped = stiff.nnz - ops.stiffness.nnz
     assert dropped >= 6 * int(np.prod(interior)) * (0.9 if warped else 1.0)
+    # full_pattern (used with SuperLU, whose ordering fills in far more on the 21-point pattern) stores the
+    # whole 27-point pattern, zeros included: (3m - 2) neighbour pairs per axis
+    full = assemble_q1(grid, full_pattern=True).stiffness
+    assert full.nnz == int(np.prod([3 * m - 2 for m in grid.shape]))
+    assert abs(full - stiff).max() <= 1e-12 * abs(stiff).max()
 
 
 def test_tensor_csr_is_kronecker_sum():

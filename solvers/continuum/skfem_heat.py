@@ -218,17 +218,17 @@ class SkfemHeat:
         bnd = np.flatnonzero(is_fixed)
         n_nodes = len(grid.points)
 
+        method = p["linear_solver"]
+        if method == "auto":
+            method = "direct" if free.size <= p["direct_max_unknowns"] else "amg"
         t0 = time.perf_counter()
-        ops = assemble_q1(grid, with_mass=scene.mode == "transient")
+        ops = assemble_q1(grid, with_mass=scene.mode == "transient", full_pattern=method == "direct")
         mat = scene.material
         stiff = mat.conductivity * ops.stiffness
         weights = ops.weights
         mss = mat.density * mat.heat_capacity * ops.mass if scene.mode == "transient" else None
         assembly_s = time.perf_counter() - t0
 
-        method = p["linear_solver"]
-        if method == "auto":
-            method = "direct" if free.size <= p["direct_max_unknowns"] else "amg"
         t1 = time.perf_counter()
         temp = np.full(n_nodes, float(scene.initial_temperature))
         temp[bnd] = fixed[bnd]
