@@ -216,7 +216,14 @@ def assemble_q1(grid: StructuredGrid, with_mass: bool = False, full_pattern: boo
             d = (skfem_matrix - box_m).tocoo()
             return sp.csr_matrix((d.data, (nodes[d.row], nodes[d.col])), shape=stiff.shape)
 
-        stiff = (stiff + correction(laplace.assemble(basis), ke)).tocsr()
+        corr = correction(laplace.assemble(basis), ke)
+        if full_pattern:  # scipy's sparse sum drops entries that cancel to 0.0: sum as COO to keep the pattern
+            a, c = stiff.tocoo(), corr.tocoo()
+            stiff = sp.csr_matrix((np.concatenate([a.data, c.data]), (np.concatenate([a.row, c.row]),
+                                   np.concatenate([a.col, c.col]))), shape=stiff.shape)
+            stiff.sum_duplicates()
+        else:
+            stiff = (stiff + corr).tocsr()
         if with_mass:
             mass_m = (mass_m + correction(mass.assemble(basis), me)).tocsr()
         w_box = np.bincount(local.ravel(), weights=we.ravel(), minlength=nloc)
