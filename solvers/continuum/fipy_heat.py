@@ -33,7 +33,9 @@ How constraints reach the equations (all of it FiPy's discretisation):
     cell, vectorised).  f = 1 cells are fixed; partially covered cells get the penalty
     B_c = f / (1 - f) * D_c / V_c, D_c the cell's conduction diagonal, so their row reads
     T_c = f T_fix + (1 - f) * (conductance-weighted mean of the neighbours): the constraint varies
-    continuously with the geometry under refinement instead of jumping cell by cell.
+    continuously with the geometry under refinement instead of jumping cell by cell.  A patch so
+    small that no sub-sample falls inside it is held at the cell containing its centre (the point
+    limit, as the particle solvers hold the node at the corner) instead of vanishing.
   FiPy grids are tensor-product grids and cannot be warped to conform to the sphere, so the patch
   surface is always represented to O(h) (a conforming patch is the scikit-fem solver's job).
   The penalty source is added as FiPy's ImplicitSourceTerm discretises it (S_P V_P on the
@@ -106,6 +108,12 @@ def grid_axes(scene: Scene, resolution: Resolution) -> tuple[list[np.ndarray], l
 
 def _centres(e: np.ndarray) -> np.ndarray:
     return 0.5 * (e[1:] + e[:-1])
+
+
+def _cell_of(edges: list[np.ndarray], point) -> tuple[int, int, int]:
+    """Index of the cell that contains `point` (boundary points go to the boundary cell)."""
+    return tuple(int(np.clip(np.searchsorted(e, p, side="right") - 1, 0, len(e) - 2))
+                 for e, p in zip(edges, point, strict=True))
 
 
 def patch_fraction(edges: list[np.ndarray], centre, radius: float, sub: int = SUBSAMPLES):
@@ -218,7 +226,7 @@ class FipyHeat:
     """FiPy cell-centred finite volumes on the node-centred dual grid of the refined lattice."""
 
     name = "fipy"
-    version = "1.2"
+    version = "1.3"
     parameters = (
         Param("patch", "cut", "", "patch constraint: cut (fixed cells + Shortley-Weller faces), volume-fraction "
               "weighted penalty, or staircase", choices=("cut", "fraction", "staircase"), kind=str),
@@ -254,8 +262,7 @@ class FipyHeat:
         cen = [_centres(e) for e in edges]
         for ic, c in enumerate(scene.constraints):
             if isinstance(c, PointTemperature):
-                idx = tuple(int(np.clip(np.searchsorted(e, p, side="right") - 1, 0, len(e) - 2))
-                            for e, p in zip(edges, c.point, strict=True))
+                idx = _cell_of(edges, c.point)
                 fixed[idx] = True
                 tfix[idx] = c.value
                 point_cells.append((idx, c.value))
@@ -279,6 +286,11 @@ class FipyHeat:
                 else:
                     ((i0, i1), (j0, j1), (k0, k1)), f = patch_fraction(edges, c.centre, c.radius)
                     sl = (slice(i0, i1), slice(j0, j1), slice(k0, k1))
+                    if not (f > 0.0).any():  # smaller than a sub-sample: the point limit, the centre's cell
+                        idx = _cell_of(edges, c.centre)
+                        fixed[idx], tfix[idx] = True, c.value
+                        point_cells.append((idx, c.value))
+                        continue
                     full = f >= 1.0
                     part = (f > 0.0) & ~full
                     blk_fixed, blk_t, blk_f = fixed[sl], tfix[sl], frac[sl]
