@@ -375,3 +375,11 @@ def test_stencil_holds_each_pair_once(n: int, drop: bool) -> None:
     assert np.array_equal(slot - base[group], lat.pairs[:, 0])
     assert np.array_equal(lo[group], basins[lat.shell, 0]) and np.array_equal(hi[group], basins[lat.shell, 1])
     assert base[-1] == mask.size == np.sum(lat.size - g_off)
+
+
+def test_runs_beyond_max_steps_are_refused_before_they_start() -> None:
+    """f_top = 1e5 Hz would need ~4.7e7 steps over 15 s: refused at once, naming max_steps."""
+    with pytest.raises(SceneError, match=r"steps is out of range; allowed: at most max_steps=20000000"):
+        Macromolecule().solve(make_scene("bar-heat-paper"), Resolution(2), f_top=1e5)
+    sol = Macromolecule().solve(make_scene("bar-heat-paper"), Resolution(2), t_end=0.2, max_steps=1000)
+    assert sol.summary["steps"] <= 1000

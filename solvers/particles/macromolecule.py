@@ -89,6 +89,8 @@ PARAMETERS: tuple[Param, ...] = (
           low=1.0, high=1e12),
     Param("contact_fraction", 0.5, "a", "unlisted particles closer than this break the pair list", low=0.0, high=1.0,
           low_open=True),
+    Param("max_steps", 20_000_000, "", "largest number of time steps a run may take (t_end / dt)", low=1, high=1e10,
+          kind=int),
     Param("dt_check", False, "", "rerun at dt/2 and report the change in relative hotness", kind=bool),
 )
 
@@ -302,6 +304,10 @@ class Macromolecule:
             raise SceneError(f"dt={dt:.6g} s is above the stability limit {limit:.6g} s of the linearised scheme "
                              f"(spectral radius 1; single-mode estimate 2 (sqrt(1+zeta^2) - zeta) / omega_max = "
                              f"{single:.6g} s, omega_max = {w_top:.6g} rad/s, zeta = {zeta:.3g}); allowed: dt <= limit")
+        steps = p["t_end"] / dt
+        if steps > p["max_steps"]:
+            raise SceneError(f"t_end / dt = {p['t_end']:g} s / {dt:.3g} s = {steps:.3g} steps is out of range; "
+                             f"allowed: at most max_steps={p['max_steps']}; lower t_end or f_top, or raise max_steps")
         if p["t_start"] >= p["t_end"]:
             raise SceneError(f"t_start={p['t_start']!r} is out of range; allowed: number in [0, "
                              f"t_end={p['t_end']:g}) s")
