@@ -109,13 +109,16 @@ def stencil(pairs: np.ndarray, shell: np.ndarray, n: int, basins: np.ndarray) ->
     return g_off, base, lo, hi, mask, slot
 
 
-@njit(cache=True, boundscheck=False, error_model="numpy")
-def _group_p2(px, py, pz, vx, vy, vz, o, base, lo, hi, mask, rt, amp_a, p, step_lo, inv_w, a, delta,
-           gx, gy, gz, fsx, fsy, fsz, dk, hk):
-    """One stencil group for the default envelope (a/r)^2: per-slot force vectors, dissipation terms
-    and hop flags in one vectorised loop.  Indices are unsigned so that numba emits no negative-index
-    wrap-around (which hides the contiguous access from LLVM's vectoriser), and the loop body has
-    no inner loop and no call (either keeps LLVM from vectorising it)."""
+@njit(inline="always")
+def _group(px, py, pz, vx, vy, vz, o, base, lo, hi, mask, rt, amp_a, p, step_lo, inv_w, a, delta,
+           gx, gy, gz, fsx, fsy, fsz, dk, hk, square):
+    """One stencil group: per-slot force vectors, dissipation terms and hop flags in one loop.
+
+    Inlined at Numba IR level into `_group_p2` and `_group_any`, each passing `square` as a
+    constant, so each compiled loop holds only its own envelope: (a * (1/r))^2, vectorised, or
+    x^-p through pow (correct, not vectorised).  Indices are unsigned so that numba emits no
+    negative-index wrap-around (which hides the contiguous access from LLVM's vectoriser), and the
+    loop body has no inner loop and no call (either keeps LLVM from vectorising it)."""
     inv_a = 1.0 / a
     r0 = rt[0]
     r1 = rt[1]
@@ -141,8 +144,11 @@ def _group_p2(px, py, pz, vx, vy, vz, o, base, lo, hi, mask, rt, amp_a, p, step_
         # product of the root factors as a depth-3 tree (no pow, exact near the roots); the STEP
         # is branch-free: 1 below its start, 0 from 2a on (the product beyond 2a is multiplied by 0)
         prod = (((x - r0) * (x - r1)) * ((x - r2) * (x - r3))) * (((x - r4) * (x - r5)) * ((x - r6) * amp_a))
-        ix = a * ir
-        env = ix * ix
+        if square:
+            ix = a * ir
+            env = ix * ix
+        else:
+            env = x ** (-p)
         d = (x - step_lo) * inv_w
         d = d if d > 0.0 else 0.0
         d = d if d < 1.0 else 1.0
@@ -161,56 +167,22 @@ def _group_p2(px, py, pz, vx, vy, vz, o, base, lo, hi, mask, rt, amp_a, p, step_
         fsy[s] = f * ey
         fsz[s] = f * ez
         hk[s] = m if (x < lo) | (x >= hi) else 0.0
+
+
+@njit(cache=True, boundscheck=False, error_model="numpy")
+def _group_p2(px, py, pz, vx, vy, vz, o, base, lo, hi, mask, rt, amp_a, p, step_lo, inv_w, a, delta,
+              gx, gy, gz, fsx, fsy, fsz, dk, hk):
+    """`_group` for the default envelope (a/r)^2 (the vectorised loop)."""
+    _group(px, py, pz, vx, vy, vz, o, base, lo, hi, mask, rt, amp_a, p, step_lo, inv_w, a, delta,
+           gx, gy, gz, fsx, fsy, fsz, dk, hk, True)
 
 
 @njit(cache=True, boundscheck=False, error_model="numpy")
 def _group_any(px, py, pz, vx, vy, vz, o, base, lo, hi, mask, rt, amp_a, p, step_lo, inv_w, a, delta,
-           gx, gy, gz, fsx, fsy, fsz, dk, hk):
-    """As `_group_p2` for any envelope exponent p (x^-p through pow: correct, not vectorised)."""
-    inv_a = 1.0 / a
-    r0 = rt[0]
-    r1 = rt[1]
-    r2 = rt[2]
-    r3 = rt[3]
-    r4 = rt[4]
-    r5 = rt[5]
-    r6 = rt[6]
-    for i in range(px.shape[0] - o):
-        s = np.uint64(base + i)
-        iu = np.uint64(i)
-        j = np.uint64(i + o)
-        m = mask[s]
-        dx = px[j] - px[iu]
-        dy = py[j] - py[iu]
-        dz = pz[j] - pz[iu]
-        r = math.sqrt(dx * dx + dy * dy + dz * dz)
-        ir = 1.0 / r
-        ex = dx * ir
-        ey = dy * ir
-        ez = dz * ir
-        x = r * inv_a
-        # product of the root factors as a depth-3 tree (no pow, exact near the roots); the STEP
-        # is branch-free: 1 below its start, 0 from 2a on (the product beyond 2a is multiplied by 0)
-        prod = (((x - r0) * (x - r1)) * ((x - r2) * (x - r3))) * (((x - r4) * (x - r5)) * ((x - r6) * amp_a))
-        env = x ** (-p)
-        d = (x - step_lo) * inv_w
-        d = d if d > 0.0 else 0.0
-        d = d if d < 1.0 else 1.0
-        f = prod * env * (1.0 - d * d * (3.0 - 2.0 * d)) * m
-        dvx = vx[j] - vx[iu]
-        dvy = vy[j] - vy[iu]
-        dvz = vz[j] - vz[iu]
-        rdot = dvx * ex + dvy * ey + dvz * ez
-        g = delta * rdot * m
-        dk[s] = gx[s] * dvx + gy[s] * dvy + gz[s] * dvz + g * rdot
-        gx[s] = g * ex
-        gy[s] = g * ey
-        gz[s] = g * ez
-        f += g
-        fsx[s] = f * ex
-        fsy[s] = f * ey
-        fsz[s] = f * ez
-        hk[s] = m if (x < lo) | (x >= hi) else 0.0
+               gx, gy, gz, fsx, fsy, fsz, dk, hk):
+    """`_group` for any envelope exponent p (x^-p through pow: correct, not vectorised)."""
+    _group(px, py, pz, vx, vy, vz, o, base, lo, hi, mask, rt, amp_a, p, step_lo, inv_w, a, delta,
+           gx, gy, gz, fsx, fsy, fsz, dk, hk, False)
 
 
 @njit(cache=True, boundscheck=False)
