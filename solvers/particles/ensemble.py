@@ -23,8 +23,20 @@ from numba import njit, prange
 
 from harness.scene import SceneError
 
-from .neighbours import NeighbourList, build_neighbours, merge_lists
-from .scaling import DEFAULT_R_CUT, DEFAULT_SKIN, DONE, EXPIRED, FREE, FROZEN, PRESCRIBED, check_range, pair_term
+from .neighbours import NeighbourList, build_neighbours, dist2, merge_lists
+from .scaling import (
+    DEFAULT_R_CUT,
+    DEFAULT_SKIN,
+    DONE,
+    EXPIRED,
+    FROZEN,
+    PRESCRIBED,
+    check_range,
+    drift,
+    kick,
+    kinetic_dt,
+    pair_term,
+)
 from .seven_root import SevenRoot
 
 
@@ -73,42 +85,19 @@ def advance_ensemble(x, v, f, x_rest, kind, amp, scale, phase, omega, mass, dt, 
         if not resume:
             over = 0
             for i in prange(n):
-                kd = kind[i]
                 for k in range(nk):
-                    if kd == FREE:
-                        for d in range(3):
-                            v[i, k, d] += h * f[i, k, d]
-                            x[i, k, d] += dt * v[i, k, d]
-                    elif kd == PRESCRIBED:
-                        s0 = math.sin(omega[k] * t0 + phase[i])
-                        s1 = math.sin(omega[k] * t1 + phase[i])
-                        for d in range(3):
-                            ak = amp[i, d] * scale[k]
-                            v[i, k, d] = ak * (s1 - s0) * inv_dt
-                            x[i, k, d] = x_rest[i, d] + ak * s1
-                    else:
-                        for d in range(3):
-                            v[i, k, d] = 0.0
-                    d2 = ((x[i, k, 0] - x_ref[i, k, 0]) ** 2 + (x[i, k, 1] - x_ref[i, k, 1]) ** 2
-                          + (x[i, k, 2] - x_ref[i, k, 2]) ** 2)
-                    if not d2 <= lim2:
+                    drift(x, v, f, x_rest, amp, (i, k), i, kind[i], scale[k], omega[k], phase[i], t0, t1, h, dt,
+                          inv_dt)
+                    if not dist2(x, (i, k), x_ref, (i, k)) <= lim2:
                         over += 1
             if over > 0:
                 return s, EXPIRED
         resume = False
         gather_ensemble(x, v, start, index, c, inv_a, rc2, delta, f)
         for i in prange(n):
-            kd = kind[i]
             for k in range(nk):
-                if kd == FREE:
-                    for d in range(3):
-                        v[i, k, d] += h * f[i, k, d]
-                elif kd == PRESCRIBED:
-                    cs = math.cos(omega[k] * t1 + phase[i])
-                    for d in range(3):
-                        v[i, k, d] = amp[i, d] * scale[k] * omega[k] * cs
-                hot[i, k] += 0.5 * mass * (v[i, k, 0] * v[i, k, 0] + v[i, k, 1] * v[i, k, 1]
-                                           + v[i, k, 2] * v[i, k, 2]) * dt
+                kick(v, f, amp, (i, k), i, kind[i], scale[k], omega[k], phase[i], t1, h)
+                hot[i, k] += kinetic_dt(v, (i, k), mass, dt)
         s += 1
     return s, DONE
 

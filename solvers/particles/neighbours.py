@@ -61,6 +61,46 @@ def _cells(x, radius):
     return cell, cstart, members, dims
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def dist2(p, ip, q, iq):
+    """Squared distance between row ip of p and row iq of q, rows named by index tuples ((i,) or (i, k)):
+    the one expression of every distance test.  Index tuples, not row views: a view costs a reference
+    count per call in the hot loops."""
+    return ((p[ip + (0,)] - q[iq + (0,)]) ** 2 + (p[ip + (1,)] - q[iq + (1,)]) ** 2
+            + (p[ip + (2,)] - q[iq + (2,)]) ** 2)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _scan(x, i, cell, cstart, members, dims, r2max, index, p0, fill):
+    """Neighbours j != i of particle i closer than sqrt(r2max), searched in the 27 cells around i's:
+    returns their number and, if fill, inserts them in ascending j into index[p0:] (row kept sorted).
+    One body for the counting and the filling pass of `_build`."""
+    ny = dims[1]
+    nz = dims[2]
+    c = cell[i]
+    cx = c // (ny * nz)
+    cy = (c // nz) % ny
+    cz = c % nz
+    m = 0
+    for ax in range(max(cx - 1, 0), min(cx + 2, dims[0])):
+        for ay in range(max(cy - 1, 0), min(cy + 2, ny)):
+            for az in range(max(cz - 1, 0), min(cz + 2, nz)):
+                cc = (ax * ny + ay) * nz + az
+                for q in range(cstart[cc], cstart[cc + 1]):
+                    j = members[q]
+                    if j == i:
+                        continue
+                    if dist2(x, (j,), x, (i,)) < r2max:
+                        if fill:  # insertion into the sorted row
+                            s = p0 + m
+                            while s > p0 and index[s - 1] > j:
+                                index[s] = index[s - 1]
+                                s -= 1
+                            index[s] = j
+                        m += 1
+    return m
+
+
 @njit(cache=True, parallel=True, error_model="numpy")
 def _build(x, radius):
     """CSR Verlet list (start int64 (N+1), index int32) of all j != i closer than radius, rows ascending."""
@@ -68,54 +108,15 @@ def _build(x, radius):
     cell, cstart, members, dims = _cells(x, radius)
     r2max = radius * radius
     counts = np.zeros(n, dtype=np.int64)
-    ny = dims[1]
-    nz = dims[2]
+    none = np.empty(0, dtype=np.int32)
     for i in prange(n):
-        c = cell[i]
-        cx = c // (ny * nz)
-        cy = (c // nz) % ny
-        cz = c % nz
-        m = 0
-        for ax in range(max(cx - 1, 0), min(cx + 2, dims[0])):
-            for ay in range(max(cy - 1, 0), min(cy + 2, ny)):
-                for az in range(max(cz - 1, 0), min(cz + 2, nz)):
-                    cc = (ax * ny + ay) * nz + az
-                    for q in range(cstart[cc], cstart[cc + 1]):
-                        j = members[q]
-                        if j == i:
-                            continue
-                        r2 = (x[j, 0] - x[i, 0]) ** 2 + (x[j, 1] - x[i, 1]) ** 2 + (x[j, 2] - x[i, 2]) ** 2
-                        if r2 < r2max:
-                            m += 1
-        counts[i] = m
+        counts[i] = _scan(x, i, cell, cstart, members, dims, r2max, none, 0, False)
     start = np.zeros(n + 1, dtype=np.int64)
     for i in range(n):
         start[i + 1] = start[i] + counts[i]
     index = np.empty(start[n], dtype=np.int32)
     for i in prange(n):
-        c = cell[i]
-        cx = c // (ny * nz)
-        cy = (c // nz) % ny
-        cz = c % nz
-        p0 = start[i]
-        m = 0
-        for ax in range(max(cx - 1, 0), min(cx + 2, dims[0])):
-            for ay in range(max(cy - 1, 0), min(cy + 2, ny)):
-                for az in range(max(cz - 1, 0), min(cz + 2, nz)):
-                    cc = (ax * ny + ay) * nz + az
-                    for q in range(cstart[cc], cstart[cc + 1]):
-                        j = members[q]
-                        if j == i:
-                            continue
-                        r2 = (x[j, 0] - x[i, 0]) ** 2 + (x[j, 1] - x[i, 1]) ** 2 + (x[j, 2] - x[i, 2]) ** 2
-                        if r2 < r2max:
-                            # insertion into the sorted row
-                            s = p0 + m
-                            while s > p0 and index[s - 1] > j:
-                                index[s] = index[s - 1]
-                                s -= 1
-                            index[s] = j
-                            m += 1
+        _scan(x, i, cell, cstart, members, dims, r2max, index, start[i], True)
     return start, index
 
 
@@ -126,8 +127,7 @@ def moved_beyond(x, x_ref, limit):
     lim2 = limit * limit
     over = 0
     for i in range(n):
-        d2 = (x[i, 0] - x_ref[i, 0]) ** 2 + (x[i, 1] - x_ref[i, 1]) ** 2 + (x[i, 2] - x_ref[i, 2]) ** 2
-        if not d2 <= lim2:
+        if not dist2(x, (i,), x_ref, (i,)) <= lim2:
             over += 1
     return over
 

@@ -36,7 +36,7 @@ from numba import njit, prange
 
 from harness.scene import Box, SceneError, lattice_points, lattice_spacing
 
-from .neighbours import NeighbourList, build_neighbours
+from .neighbours import NeighbourList, build_neighbours, dist2
 from .seven_root import SevenRoot, energy_x, force_x, shell_stiffness
 
 FREE, FROZEN, PRESCRIBED = 0, 1, 2
@@ -60,34 +60,45 @@ def pair_term(dx, dy, dz, dvx, dvy, dvz, r2, c, inv_a, delta):
     return g * ex, g * ey, g * ez
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def row_sum(x, v, start, index, i, c, inv_a, rc2, delta, f, half):
+    """Sum of row i's pair terms (pairs with r^2 < rc2).  half: only j > i, and each term is also
+    subtracted from f[j] (Newton's third law; the slab pass).  One body for both force passes."""
+    xi = x[i, 0]
+    yi = x[i, 1]
+    zi = x[i, 2]
+    vxi = v[i, 0]
+    vyi = v[i, 1]
+    vzi = v[i, 2]
+    fx = 0.0
+    fy = 0.0
+    fz = 0.0
+    for p in range(start[i], start[i + 1]):
+        j = index[p]
+        if half and j < i:
+            continue
+        dx = x[j, 0] - xi
+        dy = x[j, 1] - yi
+        dz = x[j, 2] - zi
+        r2 = dx * dx + dy * dy + dz * dz
+        if r2 >= rc2:
+            continue
+        tx, ty, tz = pair_term(dx, dy, dz, v[j, 0] - vxi, v[j, 1] - vyi, v[j, 2] - vzi, r2, c, inv_a, delta)
+        fx += tx
+        fy += ty
+        fz += tz
+        if half:
+            f[j, 0] -= tx
+            f[j, 1] -= ty
+            f[j, 2] -= tz
+    return fx, fy, fz
+
+
 @njit(cache=True, parallel=True, error_model="numpy")
 def gather_forces(x, v, start, index, c, inv_a, rc2, delta, f):
     """f[i] = sum over row i of the pair terms (pairs with r^2 < rc2); overwrites f."""
     for i in prange(x.shape[0]):
-        xi = x[i, 0]
-        yi = x[i, 1]
-        zi = x[i, 2]
-        vxi = v[i, 0]
-        vyi = v[i, 1]
-        vzi = v[i, 2]
-        fx = 0.0
-        fy = 0.0
-        fz = 0.0
-        for p in range(start[i], start[i + 1]):
-            j = index[p]
-            dx = x[j, 0] - xi
-            dy = x[j, 1] - yi
-            dz = x[j, 2] - zi
-            r2 = dx * dx + dy * dy + dz * dz
-            if r2 >= rc2:
-                continue
-            tx, ty, tz = pair_term(dx, dy, dz, v[j, 0] - vxi, v[j, 1] - vyi, v[j, 2] - vzi, r2, c, inv_a, delta)
-            fx += tx
-            fy += ty
-            fz += tz
-        f[i, 0] = fx
-        f[i, 1] = fy
-        f[i, 2] = fz
+        f[i, 0], f[i, 1], f[i, 2] = row_sum(x, v, start, index, i, c, inv_a, rc2, delta, f, False)
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
@@ -104,33 +115,7 @@ def slab_forces(x, v, start, index, c, inv_a, rc2, delta, f, block):
         for q in prange((nb - colour + 1) // 2):
             b = 2 * q + colour
             for i in range(b * block, min((b + 1) * block, n)):
-                xi = x[i, 0]
-                yi = x[i, 1]
-                zi = x[i, 2]
-                vxi = v[i, 0]
-                vyi = v[i, 1]
-                vzi = v[i, 2]
-                fx = 0.0
-                fy = 0.0
-                fz = 0.0
-                for p in range(start[i], start[i + 1]):
-                    j = index[p]
-                    if j < i:
-                        continue
-                    dx = x[j, 0] - xi
-                    dy = x[j, 1] - yi
-                    dz = x[j, 2] - zi
-                    r2 = dx * dx + dy * dy + dz * dz
-                    if r2 >= rc2:
-                        continue
-                    tx, ty, tz = pair_term(dx, dy, dz, v[j, 0] - vxi, v[j, 1] - vyi, v[j, 2] - vzi, r2, c, inv_a,
-                                           delta)
-                    fx += tx
-                    fy += ty
-                    fz += tz
-                    f[j, 0] -= tx
-                    f[j, 1] -= ty
-                    f[j, 2] -= tz
+                fx, fy, fz = row_sum(x, v, start, index, i, c, inv_a, rc2, delta, f, True)
                 f[i, 0] += fx
                 f[i, 1] += fy
                 f[i, 2] += fz
@@ -152,6 +137,46 @@ def _forces(x, v, start, index, c, inv_a, rc2, delta, f, block):
         slab_forces(x, v, start, index, c, inv_a, rc2, delta, f, block)
     else:
         gather_forces(x, v, start, index, c, inv_a, rc2, delta, f)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def drift(x, v, f, x_rest, amp, at, i, kd, scale, omega, phase, t0, t1, h, dt, inv_dt):
+    """First half of a velocity-Verlet step of particle i, state row `at` ((i,) or (i, k)): half kick
+    and drift (FREE), the drive over [t0, t1] with amplitude amp[i] * scale (PRESCRIBED) or rest
+    (FROZEN).  Shared by the single run (scale 1.0: amp * 1.0 is amp exactly) and the ensemble.
+    Index tuples, not row views: a view costs a reference count per particle in the hot loop."""
+    if kd == FREE:
+        for d in range(3):
+            v[at + (d,)] += h * f[at + (d,)]
+            x[at + (d,)] += dt * v[at + (d,)]
+    elif kd == PRESCRIBED:
+        s0 = math.sin(omega * t0 + phase)
+        s1 = math.sin(omega * t1 + phase)
+        for d in range(3):
+            ak = amp[i, d] * scale
+            v[at + (d,)] = ak * (s1 - s0) * inv_dt
+            x[at + (d,)] = x_rest[i, d] + ak * s1
+    else:
+        for d in range(3):
+            v[at + (d,)] = 0.0
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def kick(v, f, amp, at, i, kd, scale, omega, phase, t1, h):
+    """Second half of the step of particle i (row `at`): half kick (FREE) or the drive's velocity at t1."""
+    if kd == FREE:
+        for d in range(3):
+            v[at + (d,)] += h * f[at + (d,)]
+    elif kd == PRESCRIBED:
+        cs = math.cos(omega * t1 + phase)
+        for d in range(3):
+            v[at + (d,)] = amp[i, d] * scale * omega * cs
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def kinetic_dt(v, at, mass, dt):
+    """KE dt of row `at` of v: its step's share of the time integral of the kinetic energy."""
+    return 0.5 * mass * (v[at + (0,)] * v[at + (0,)] + v[at + (1,)] * v[at + (1,)] + v[at + (2,)] * v[at + (2,)]) * dt
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
@@ -176,38 +201,17 @@ def advance(x, v, f, x_rest, kind, amp, phase, omega, mass, dt, step0, n_steps, 
         if not resume:
             over = 0
             for i in prange(n):
-                kd = kind[i]
-                if kd == FREE:
-                    for d in range(3):
-                        v[i, d] += h * f[i, d]
-                        x[i, d] += dt * v[i, d]
-                elif kd == PRESCRIBED:
-                    s0 = math.sin(omega * t0 + phase[i])
-                    s1 = math.sin(omega * t1 + phase[i])
-                    for d in range(3):
-                        v[i, d] = amp[i, d] * (s1 - s0) * inv_dt
-                        x[i, d] = x_rest[i, d] + amp[i, d] * s1
-                else:
-                    for d in range(3):
-                        v[i, d] = 0.0
-                d2 = (x[i, 0] - x_ref[i, 0]) ** 2 + (x[i, 1] - x_ref[i, 1]) ** 2 + (x[i, 2] - x_ref[i, 2]) ** 2
-                if not d2 <= lim2:
+                drift(x, v, f, x_rest, amp, (i,), i, kind[i], 1.0, omega, phase[i], t0, t1, h, dt, inv_dt)
+                if not dist2(x, (i,), x_ref, (i,)) <= lim2:
                     over += 1
             if over > 0:
                 return s, EXPIRED
         resume = False
         _forces(x, v, start, index, c, inv_a, rc2, delta, f, block)
         for i in prange(n):
-            kd = kind[i]
-            if kd == FREE:
-                for d in range(3):
-                    v[i, d] += h * f[i, d]
-            elif kd == PRESCRIBED:
-                cs = math.cos(omega * t1 + phase[i])
-                for d in range(3):
-                    v[i, d] = amp[i, d] * omega * cs
+            kick(v, f, amp, (i,), i, kind[i], 1.0, omega, phase[i], t1, h)
             if with_hot:
-                hot[i] += 0.5 * mass * (v[i, 0] * v[i, 0] + v[i, 1] * v[i, 1] + v[i, 2] * v[i, 2]) * dt
+                hot[i] += kinetic_dt(v, (i,), mass, dt)
         s += 1
     return s, DONE
 
@@ -224,7 +228,7 @@ def _pair_energy(x, start, index, c, a, rc2):
             j = index[p]
             if j <= i:
                 continue
-            r2 = (x[j, 0] - x[i, 0]) ** 2 + (x[j, 1] - x[i, 1]) ** 2 + (x[j, 2] - x[i, 2]) ** 2
+            r2 = dist2(x, (j,), x, (i,))
             if r2 < rc2:
                 u += energy_x(2.0, math.sqrt(r2) * inv_a, c)
         out[i] = u * a
@@ -239,7 +243,7 @@ def _count_pairs(x, start, index, rc2):
         m = 0
         for p in range(start[i], start[i + 1]):
             j = index[p]
-            if j > i and (x[j, 0] - x[i, 0]) ** 2 + (x[j, 1] - x[i, 1]) ** 2 + (x[j, 2] - x[i, 2]) ** 2 < rc2:
+            if j > i and dist2(x, (j,), x, (i,)) < rc2:
                 m += 1
         out[i] = m
     return out
