@@ -42,39 +42,21 @@ import numpy as np
 from numba import njit
 
 from .integrate import (
-    CONTACT,
-    DONE,
-    E_BATH,
-    E_DISS,
-    E_DRIVE,
-    E_END,
-    E_KIN_END,
-    E_POT_END,
     E_START,
     FREE,
     FROZEN,
     GROUP,
-    GROWTH,
-    H_BATH,
-    H_DISS,
-    H_DRIVE,
-    H_KIN,
-    H_POT,
-    H_T,
-    ISOLATED,
-    K_FIRST_HOP,
     K_HALF1,
     K_HALF2,
-    K_HOP_EVENTS,
-    K_HOP_PAIRS,
     K_HOT_STEPS,
-    K_STATUS,
-    K_STEPS,
-    K_STOP_STEP,
-    LEFT_BAR,
-    NAN,
     RUNNING,
+    finish,
+    hop_out,
+    neighbourhood,
     potential_energy,
+    record,
+    reset_outputs,
+    verdict,
 )
 from .seven_root import C_A, C_P, C_ROOTS, C_X0, C_X1
 
@@ -240,60 +222,54 @@ def pair_pass(px, py, pz, vx, vy, vz, g_off, g_base, g_lo, g_hi, mask, rt, amp_a
     if changed == 0:
         return 0.5 * diss
     for k in range(ns):
-        if (hk[k] != 0.0) != (out[k] != 0):
-            if out[k] == 0:
-                out[k] = 1
-                counters[K_HOP_EVENTS] += 1
-                if ever[k] == 0:
-                    ever[k] = 1
-                    counters[K_HOP_PAIRS] += 1
-                    if counters[K_FIRST_HOP] < 0:
-                        counters[K_FIRST_HOP] = step
-            else:
-                out[k] = 0
+        if hk[k] != 0.0:
+            hop_out(k, out, ever, step, counters)
+        elif out[k] != 0:
+            out[k] = 0
     return 0.5 * diss
 
 
-@njit(cache=True)
-def _check(px, py, pz, x_rest, kind, pi, pj, a, cutoff_rest, contact_fraction, skin):
-    """ISOLATED / CONTACT check of the fixed pair list on SoA positions; RUNNING if fine."""
-    n = px.shape[0]
-    near = np.full(n, np.inf)
-    for k in range(pi.shape[0]):
-        i = pi[k]
-        j = pj[k]
-        dx = px[j] - px[i]
-        dy = py[j] - py[i]
-        dz = pz[j] - pz[i]
-        r = math.sqrt(dx * dx + dy * dy + dz * dz)
-        near[i] = min(near[i], r)
-        near[j] = min(near[j], r)
-    for i in range(n):
-        if kind[i] != FROZEN and near[i] > 2.0 * a:
-            return ISOLATED
-    dmax2 = 0.0
-    for i in range(n):
-        dx = px[i] - x_rest[i, 0]
-        dy = py[i] - x_rest[i, 1]
-        dz = pz[i] - x_rest[i, 2]
-        dmax2 = max(dmax2, dx * dx + dy * dy + dz * dz)
-    if 4.0 * dmax2 < skin * skin:
-        return RUNNING
-    lim2 = (contact_fraction * a) ** 2
-    cut2 = cutoff_rest * cutoff_rest
-    for i in range(n):
-        for j in range(i + 1, n):
-            rx = x_rest[j, 0] - x_rest[i, 0]
-            ry = x_rest[j, 1] - x_rest[i, 1]
-            rz = x_rest[j, 2] - x_rest[i, 2]
-            if rx * rx + ry * ry + rz * rz <= cut2:
-                continue
-            dx = px[j] - px[i]
-            dy = py[j] - py[i]
-            dz = pz[j] - pz[i]
-            if dx * dx + dy * dy + dz * dz < lim2:
-                return CONTACT
-    return RUNNING
+@njit(inline="always")
+def _group_force(kind, held, fx, fy, fz):
+    """Sum of the forces on the group particles (in index order)."""
+    s0 = 0.0
+    s1 = 0.0
+    s2 = 0.0
+    for q in range(held.shape[0]):
+        i = held[q]
+        if kind[i] == GROUP:
+            s0 += fx[i]
+            s1 += fy[i]
+            s2 += fz[i]
+    return s0, s1, s2
+
+
+@njit(inline="always")
+def _held_velocity(t_next, t_now, dt, kind, held, amp, phase, omega, vc, vx, vy, vz, start):
+    """Velocity of the held particles over [t_now, t_next] into vx, vy, vz (0 for frozen ones).
+
+    `start` is a constant: v_{-1/2} at the start divides the sine difference by dt and leaves out
+    the group's centre velocity (added after); a step multiplies by 1/dt and adds it.  The two
+    roundings are kept as they were, so that results stay bit-identical."""
+    inv_dt = 1.0 / dt
+    for q in range(held.shape[0]):
+        i = held[q]
+        if kind[i] == FROZEN:
+            vx[i] = 0.0
+            vy[i] = 0.0
+            vz[i] = 0.0
+        else:
+            if start:
+                ds = (math.sin(omega * t_next + phase[i]) - math.sin(omega * t_now + phase[i])) / dt
+            else:
+                ds = (math.sin(omega * t_next + phase[i]) - math.sin(omega * t_now + phase[i])) * inv_dt
+            vx[i] = amp[i, 0] * ds
+            vy[i] = amp[i, 1] * ds
+            vz[i] = amp[i, 2] * ds
+            if not start and kind[i] == GROUP:
+                vx[i] += vc[0]
+                vy[i] += vc[1]
+                vz[i] += vc[2]
 
 
 @njit(cache=True)
@@ -301,34 +277,14 @@ def _held_kick(t_next, t_now, dt, kind, held, amp, phase, omega, mass, fx, fy, f
                vpx, vpy, vpz, lam, vc, group_mass, free_centre):
     """v_{n+1/2} of the held particles (prescribed, group) and lambda_n = m (vp - vm)/dt - F_n."""
     if free_centre:
-        s0 = 0.0
-        s1 = 0.0
-        s2 = 0.0
-        for q in range(held.shape[0]):
-            i = held[q]
-            if kind[i] == GROUP:
-                s0 += fx[i]
-                s1 += fy[i]
-                s2 += fz[i]
+        s0, s1, s2 = _group_force(kind, held, fx, fy, fz)
         vc[0] += dt * s0 / group_mass
         vc[1] += dt * s1 / group_mass
         vc[2] += dt * s2 / group_mass
+    _held_velocity(t_next, t_now, dt, kind, held, amp, phase, omega, vc, vpx, vpy, vpz, False)
     inv_dt = 1.0 / dt
     for q in range(held.shape[0]):
         i = held[q]
-        if kind[i] == FROZEN:
-            vpx[i] = 0.0
-            vpy[i] = 0.0
-            vpz[i] = 0.0
-        else:
-            ds = (math.sin(omega * t_next + phase[i]) - math.sin(omega * t_now + phase[i])) * inv_dt
-            vpx[i] = amp[i, 0] * ds
-            vpy[i] = amp[i, 1] * ds
-            vpz[i] = amp[i, 2] * ds
-            if kind[i] == GROUP:
-                vpx[i] += vc[0]
-                vpy[i] += vc[1]
-                vpz[i] += vc[2]
         lam[q, 0] = mass * (vpx[i] - vmx[i]) * inv_dt - fx[i]
         lam[q, 1] = mass * (vpy[i] - vmy[i]) * inv_dt - fy[i]
         lam[q, 2] = mass * (vpz[i] - vmz[i]) * inv_dt - fz[i]
@@ -382,6 +338,7 @@ def run(x, v0, x_rest, kind, amp, phase, omega, free_centre, mass, gamma, kt, se
     step_lo = c[C_X0]
     inv_w = 1.0 / (c[C_X1] - step_lo)
     held = np.flatnonzero(kind != FREE)
+    free = np.flatnonzero(kind == FREE)
     bath = np.flatnonzero((kind == FREE) & (gamma > 0.0))
     plain = np.flatnonzero((kind == FREE) & (gamma <= 0.0))
     moving = np.flatnonzero((kind != FREE) & (kind != FROZEN))
@@ -416,11 +373,7 @@ def run(x, v0, x_rest, kind, amp, phase, omega, free_centre, mass, gamma, kt, se
     out = np.zeros(ns, dtype=np.int8)
     hot1 = np.zeros(n)
     hot2 = np.zeros(n)
-    for k in range(counters.shape[0]):
-        counters[k] = 0
-    counters[K_FIRST_HOP] = -1
-    counters[K_STATUS] = RUNNING
-    energy[:] = 0.0
+    reset_outputs(counters, energy)
     n_mid = (n_start + n_end) // 2
     half_m = 0.5 * mass
     dtm = dt / mass
@@ -432,40 +385,19 @@ def run(x, v0, x_rest, kind, amp, phase, omega, free_centre, mass, gamma, kt, se
         vpz[i] = v0[i, 2]
     pair_pass(px, py, pz, vpx, vpy, vpz, g_off, g_base, g_lo, g_hi, mask, rt, amp_a, pint, p, step_lo, inv_w, a,
               delta, gx, gy, gz, fsx, fsy, fsz, dk, hk, out, ever_s, 0, counters, fx, fy, fz)
-    for q in range(plain.shape[0]):
-        i = plain[q]
+    for q in range(free.shape[0]):
+        i = free[q]
         vmx[i] = v0[i, 0] - 0.5 * dtm * fx[i]
         vmy[i] = v0[i, 1] - 0.5 * dtm * fy[i]
         vmz[i] = v0[i, 2] - 0.5 * dtm * fz[i]
-    for q in range(bath.shape[0]):
-        i = bath[q]
-        vmx[i] = v0[i, 0] - 0.5 * dtm * fx[i]
-        vmy[i] = v0[i, 1] - 0.5 * dtm * fy[i]
-        vmz[i] = v0[i, 2] - 0.5 * dtm * fz[i]
-    for q in range(held.shape[0]):
-        i = held[q]
-        if kind[i] == FROZEN:
-            vmx[i] = 0.0
-            vmy[i] = 0.0
-            vmz[i] = 0.0
-        else:
-            ds = (math.sin(phase[i]) - math.sin(-omega * dt + phase[i])) / dt
-            vmx[i] = amp[i, 0] * ds
-            vmy[i] = amp[i, 1] * ds
-            vmz[i] = amp[i, 2] * ds
+    _held_velocity(0.0, -dt, dt, kind, held, amp, phase, omega, vc, vmx, vmy, vmz, True)
     if free_centre:
-        s0 = 0.0
-        s1 = 0.0
-        s2 = 0.0
-        for i in range(n):
-            if kind[i] == GROUP:
-                s0 += fx[i]
-                s1 += fy[i]
-                s2 += fz[i]
+        s0, s1, s2 = _group_force(kind, held, fx, fy, fz)
         vc[0] = -0.5 * dt * s0 / group_mass
         vc[1] = -0.5 * dt * s1 / group_mass
         vc[2] = -0.5 * dt * s2 / group_mass
-        for i in range(n):
+        for q in range(held.shape[0]):
+            i = held[q]
             if kind[i] == GROUP:
                 vmx[i] += vc[0]
                 vmy[i] += vc[1]
@@ -518,25 +450,16 @@ def run(x, v0, x_rest, kind, amp, phase, omega, free_centre, mass, gamma, kt, se
                         or pz[i] < box_lo[2] or pz[i] > box_hi[2]):
                     left = True
             kin *= half_m
-            if bad:
-                status = NAN
-            elif left:
-                status = LEFT_BAR
-            elif kin > blowup_factor * (max(energy[E_START] + w_drive + w_bath, 0.0) + e_scale):
-                status = GROWTH
-            else:
-                status = _check(px, py, pz, x_rest, kind, pi, pj, a, cutoff_rest, contact_fraction, skin)
+            status = verdict(bad, left, kin, energy[E_START] + w_drive + w_bath, blowup_factor, e_scale)
+            if status == RUNNING:
+                status = neighbourhood(px, py, pz, x_rest, kind, pi, pj, a, cutoff_rest, contact_fraction, skin)
             if hrow < history.shape[0]:
                 for i in range(n):
                     x[i, 0] = px[i]
                     x[i, 1] = py[i]
                     x[i, 2] = pz[i]
-                history[hrow, H_T] = t
-                history[hrow, H_KIN] = kin
-                history[hrow, H_POT] = potential_energy(x, pi, pj, r0, c, a) if not bad else np.nan
-                history[hrow, H_DISS] = diss
-                history[hrow, H_DRIVE] = w_drive
-                history[hrow, H_BATH] = w_bath
+                pot = potential_energy(x, pi, pj, r0, c, a) if not bad else np.nan
+                record(history, hrow, t, kin, pot, diss, w_drive, w_bath)
                 hrow += 1
             if status != RUNNING:
                 break
@@ -552,13 +475,8 @@ def run(x, v0, x_rest, kind, amp, phase, omega, free_centre, mass, gamma, kt, se
                 acc[i] += ux * ux + uy * uy + uz * uz
         # --- drift to t_{n+1}
         t1 = t + dt
-        for q in range(plain.shape[0]):
-            i = plain[q]
-            px[i] += dt * vpx[i]
-            py[i] += dt * vpy[i]
-            pz[i] += dt * vpz[i]
-        for q in range(bath.shape[0]):
-            i = bath[q]
+        for q in range(free.shape[0]):
+            i = free[q]
             px[i] += dt * vpx[i]
             py[i] += dt * vpy[i]
             pz[i] += dt * vpz[i]
@@ -584,9 +502,6 @@ def run(x, v0, x_rest, kind, amp, phase, omega, free_centre, mass, gamma, kt, se
         vmz, vpz = vpz, vmz
         step += 1
 
-    counters[K_STEPS] = step
-    counters[K_STOP_STEP] = step
-    counters[K_STATUS] = DONE if status == RUNNING else status
     e1 = 0.0
     kin = 0.0
     for i in range(n):
@@ -605,12 +520,7 @@ def run(x, v0, x_rest, kind, amp, phase, omega, free_centre, mass, gamma, kt, se
         hot[2, i] = q8 * hot2[i]
         hot[0, i] = hot[1, i] + hot[2, i]
     pot = potential_energy(x, pi, pj, r0, c, a)
-    energy[E_END] = half_m * e1 + pot
-    energy[E_DISS] = diss
-    energy[E_DRIVE] = w_drive
-    energy[E_BATH] = w_bath
-    energy[E_KIN_END] = half_m * kin
-    energy[E_POT_END] = pot
+    finish(counters, energy, step, status, half_m * e1 + pot, diss, w_drive, w_bath, half_m * kin, pot)
     for k in range(npair):
         ever[k] = ever_s[slot[k]]
     return hrow
