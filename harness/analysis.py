@@ -25,6 +25,14 @@ def spacing(result: dict[str, Any]) -> float:
     return float(h)
 
 
+def scalars(result: dict[str, Any]) -> dict[str, Any]:
+    """The scalar summary of a cell, with a list of frequencies spread into f1_hz, f2_hz, ..."""
+    summary = result.get("summary") or {}
+    out = {k: v for k, v in summary.items() if isinstance(v, (int, float)) or v is None}
+    out.update({f"f{k + 1}_hz": f for k, f in enumerate(summary.get("frequencies_hz") or []) if f is not None})
+    return out
+
+
 def cells_table(results: list[dict[str, Any]]) -> pd.DataFrame:
     """One row per cell: identity, cost, status and every summary scalar."""
     rows = []
@@ -34,9 +42,7 @@ def cells_table(results: list[dict[str, Any]]) -> pd.DataFrame:
         row["h"] = spacing(r) if r.get("n") else None
         row["params"] = ", ".join(f"{k}={v}" for k, v in sorted((r.get("solver_params") or {}).items()))
         row["scene_params"] = ", ".join(f"{k}={v}" for k, v in sorted((r.get("scene_params") or {}).items()))
-        for k, v in (r.get("summary") or {}).items():
-            if isinstance(v, (int, float)) or v is None:
-                row[k] = v
+        row.update(scalars(r))
         for k, v in (r.get("work") or {}).items():
             if isinstance(v, (int, float)):
                 row[f"work.{k}"] = v
@@ -60,11 +66,14 @@ def analytic_errors(result: dict[str, Any]) -> dict[str, float]:
     return out
 
 
-def convergence(results: list[dict[str, Any]], quantities: list[str]) -> tuple[pd.DataFrame, pd.DataFrame]:
+def convergence(results: list[dict[str, Any]], quantities: list[str],
+                reference: dict[str, float] | None = None) -> tuple[pd.DataFrame, pd.DataFrame]:
     """(levels, fits): per sequence (solver + params) the values by h, and the fitted orders / GCI.
 
     With an analytic reference the fit is of the error (L2 and Linf per sample set) against h;
-    without, three-grid Richardson extrapolation with the GCI on each summary quantity.
+    with a `reference` value per quantity (e.g. an extrapolated continuum result) of the relative
+    error err.<quantity>; without either, three-grid Richardson extrapolation with the GCI on
+    each summary quantity.
     """
     ok = [r for r in results if r.get("status") == "ok"]
     rows = []
@@ -72,8 +81,12 @@ def convergence(results: list[dict[str, Any]], quantities: list[str]) -> tuple[p
         row = {"solver": r["solver"], "params": ", ".join(f"{k}={v}" for k, v in sorted(r["solver_params"].items())),
                "n": r["n"], "refine": r["refine"], "h": spacing(r), "unknowns": r["unknowns"],
                "wall_s": r["wall_s"]}
-        row.update({q: r["summary"].get(q) for q in quantities})
+        values = scalars(r)
+        row.update({q: values.get(q) for q in quantities})
         row.update(analytic_errors(r))
+        for q, ref in (reference or {}).items():
+            if values.get(q) is not None and ref:
+                row[f"err.{q}"] = abs(values[q] - ref) / abs(ref)
         rows.append(row)
     levels = pd.DataFrame(rows)
     fits = []
@@ -82,12 +95,13 @@ def convergence(results: list[dict[str, Any]], quantities: list[str]) -> tuple[p
     for (solver, params), seq in levels.groupby(["solver", "params"], sort=False):
         seq = seq.sort_values("h", ascending=False)
         h = seq["h"].to_numpy(float)
-        err_cols = [c for c in seq.columns if c.endswith((".l2", ".linf"))]
+        err_cols = [c for c in seq.columns if c.endswith((".l2", ".linf")) or c.startswith("err.")]
         for col in err_cols:
             e = seq[col].to_numpy(float)
             if len(h) >= 2 and np.all(e > 0):
                 p, _ = observed_order(h, e, finest=min(len(h), 4))
-                fits.append({"solver": solver, "params": params, "quantity": col, "reference": "analytic",
+                kind = "extrapolated" if col.startswith("err.") else "analytic"
+                fits.append({"solver": solver, "params": params, "quantity": col, "reference": kind,
                              "levels": len(h), "order": p, "finest": e[-1], "extrapolated": 0.0,
                              "gci_fine": np.nan, "kind": "error"})
         if err_cols:

@@ -56,15 +56,30 @@ def _write_vtus(results: list[dict[str, Any]], folder: Path) -> list[str]:
     return names
 
 
-def _group_tables(g: Any, res: list[dict[str, Any]], folder: Path) -> tuple[dict[str, pd.DataFrame], list[str]]:
+def _reference_values(g: Any, done: dict[str, pd.DataFrame]) -> dict[str, float] | None:
+    """Reference value per quantity from an earlier group's table (option reference_table, e.g. the
+    Richardson fits of a converged continuum sequence: its `extrapolated` column by `quantity`)."""
+    name = g.options.get("reference_table")
+    if not name:
+        return None
+    table = done.get(name)
+    if table is None or table.empty:
+        return {}
+    metric = g.options.get("reference_metric", "extrapolated")
+    rows = table.dropna(subset=[metric]) if metric in table else table.iloc[0:0]
+    return {str(q): float(v) for q, v in zip(rows["quantity"], rows[metric], strict=True)}
+
+
+def _group_tables(g: Any, res: list[dict[str, Any]], folder: Path,
+                  done: dict[str, pd.DataFrame]) -> tuple[dict[str, pd.DataFrame], list[str]]:
     """Tables and figures of one group, by its analysis and its `figures` option."""
     figs: list[str] = []
     stem = folder / g.id
     if g.analysis == "convergence":
         quantities = list(g.options.get("quantities", ["volume_mean", "bulk_median"]))
-        levels, fits = analysis.convergence(res, quantities)
+        levels, fits = analysis.convergence(res, quantities, _reference_values(g, done))
         tables = {f"{g.id}-levels": levels, f"{g.id}-fits": fits}
-        err_cols = [c for c in levels.columns if c.endswith(".linf")]
+        err_cols = [c for c in levels.columns if c.endswith(".linf") or c.startswith("err.")]
         if not levels.empty and figures.convergence(levels, err_cols or quantities, stem, g.title):
             figs.append(f"{g.id}.png")
     elif g.analysis == "timing":
@@ -104,7 +119,7 @@ def write_study_report(study: Any, results: list[dict[str, Any]], out: Path) -> 
     all_tables: dict[str, pd.DataFrame] = {}
     for g in study.groups:
         res = [r for r in results if r.get("group") == g.id]
-        tables, figs = _group_tables(g, res, folder)
+        tables, figs = _group_tables(g, res, folder, all_tables)
         tables.setdefault(f"{g.id}-cells", analysis.cells_table(res))
         skipped = [r for r in res if r.get("status") in ("skipped", "failed")]
         if skipped:

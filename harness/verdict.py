@@ -21,6 +21,7 @@ import pandas as pd
 from harness.scene import SceneError
 
 REFERENCE_KINDS = ("analytic", "extrapolated", "mesh-dependent", "same-grid", "theory", "paper")
+SENSES = ("within", "at-most", "at-least")
 AGGREGATES = {"max": np.max, "min": np.min, "median": np.median, "mean": np.mean}
 VERDICT_COLUMNS = ("study", "claim", "statement", "case", "reference", "value", "target", "error", "uncertainty",
                    "tolerance", "verdict", "note")
@@ -45,6 +46,7 @@ class Claim:
     against_table: str = ""  # default: the claim's own table
     against_metric: str = ""  # default: the claim's metric
     uncertainty: float | str = math.nan  # a number, or a column aggregated like the metric
+    sense: str = "within"  # within: |value - target| <= tol; at-most: value <= target + tol; at-least: >= target - tol
 
 
 def parse_claims(items: list[dict[str, Any]], where: str) -> list[Claim]:
@@ -62,6 +64,8 @@ def parse_claims(items: list[dict[str, Any]], where: str) -> list[Claim]:
         if item["reference"] not in REFERENCE_KINDS:
             raise SceneError(f"{at}: reference={item['reference']!r} is not allowed; allowed: "
                              f"{', '.join(REFERENCE_KINDS)}")
+        if item.get("sense", "within") not in SENSES:
+            raise SceneError(f"{at}: sense={item['sense']!r} is not allowed; allowed: {', '.join(SENSES)}")
         if item.get("aggregate", "max") not in AGGREGATES:
             raise SceneError(f"{at}: aggregate={item['aggregate']!r} is not allowed; allowed: {', '.join(AGGREGATES)}")
         tol = item["tolerance"]
@@ -123,9 +127,13 @@ def judge(study: str, claim: Claim, tables: dict[str, pd.DataFrame]) -> list[dic
             unc = _aggregate(part, claim.uncertainty, "max")
         else:
             unc = float(claim.uncertainty)
-        error = abs((abs(value) if claim.absolute else value) - target)
+        value = abs(value) if claim.absolute else value
+        error = abs(value - target)
+        ok = {"within": error <= claim.tolerance, "at-most": value <= target + claim.tolerance,
+              "at-least": value >= target - claim.tolerance}[claim.sense]
+        note = "" if claim.sense == "within" else f"{claim.sense} target"
         out.append(row | {"value": value, "target": target, "error": error, "uncertainty": unc,
-                          "verdict": "pass" if error <= claim.tolerance else "fail", "note": ""})
+                          "verdict": "pass" if ok else "fail", "note": note})
     return out
 
 

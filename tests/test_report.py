@@ -218,3 +218,14 @@ def test_verdict_target_from_another_table():
 def test_verdict_with_no_rows_is_not_applicable_even_per_case():
     v = verdicts("s", _claims(select={"solver": "nobody"}, per="n"), TABLES)
     assert v["verdict"].tolist() == ["not-applicable"] and v["case"].tolist() == [""]
+
+
+def test_verdict_one_sided_claims():
+    lower = verdicts("s", _claims(metric="bulk", select={"solver": "a"}, per="n", target=0.31, tolerance=0.0,
+                                  sense="at-least", reference="theory"), TABLES)
+    assert lower["verdict"].tolist() == ["fail", "pass"]  # 0.30 < 0.31 <= 0.32
+    upper = verdicts("s", _claims(metric="bulk", select={"solver": "a"}, per="n", target=0.31, tolerance=0.0,
+                                  sense="at-most", reference="theory"), TABLES)
+    assert upper["verdict"].tolist() == ["pass", "fail"]
+    with pytest.raises(SceneError, match="sense="):
+        _claims(sense="sideways")

@@ -256,12 +256,15 @@ class Macromolecule:
     """Solver "macromolecule": relative hotness of the seven-root particle lattice."""
 
     name = "macromolecule"
-    version = "2"
+    version = "3"
     parameters = PARAMETERS
 
     def supports(self, scene: Scene) -> tuple[bool, str]:
+        if scene.physics == frozenset({"elasticity", "modes"}):
+            return True, ""  # the lattice's eigenfrequencies, scaled to the material (mca_compare)
         if scene.physics != frozenset({"conduction"}):
-            return False, f"macromolecule does conduction only; scene needs {sorted(scene.physics)}"
+            return False, (f"macromolecule does conduction (and the modes of its lattice); scene needs "
+                           f"{sorted(scene.physics)}")
         if scene.mode != "steady":
             return False, ("hotness is a time average over a stationary state; the transient of bar-heat-faces "
                            "has no hotness counterpart")
@@ -325,6 +328,8 @@ class Macromolecule:
         if not ok:
             raise SceneError(f"macromolecule cannot solve {scene.name}: {why}")
         n = resolution.n
+        if "modes" in scene.physics:
+            return self._modes(scene, n, p, samples, t_wall)
         s = self.setup(scene, n, p)
         lat, fx = s["lat"], s["fx"]
         w_drive = 2 * np.pi * p["drive_frequency"]
@@ -382,6 +387,23 @@ class Macromolecule:
                         unknowns=3 * lat.size, wall_s=time.perf_counter() - t_wall, status=status, reason=reason,
                         quantity="relative hotness H/H_max (hottest free particle)", work=work, summary=summary,
                         diagnostics=diagnostics)
+
+    def _modes(self, scene: Scene, n: int, p: dict[str, Any], samples: dict[str, np.ndarray] | None,
+               t_wall: float) -> Solution:
+        """Eigenfrequencies of the seven-root lattice (shape p, s, unstable_fraction as given) clamped at z = 0,
+        its stiffness scaled so that its uniaxial Young's modulus is the material's (mca_compare)."""
+        from .mca_compare import macromolecule_modes
+
+        t0 = time.perf_counter()
+        m = macromolecule_modes(scene.box, n, scene.material.youngs_modulus, scene.material.density, scene.modes,
+                                model=SevenRoot(1.0, p["p"], p["s"], p["unstable_fraction"]))
+        kernel = time.perf_counter() - t0
+        return Solution(scene=scene.name, solver=self.name, params=p, resolution={"n": n, "refine": 1},
+                        samples={}, unknowns=3 * int(m["particles"]), wall_s=time.perf_counter() - t_wall,
+                        quantity="frequency (Hz)",
+                        summary={"frequencies_hz": m["frequencies_hz"], "nu_eff": m["nu_eff"],
+                                 "stiffness_A": m["A"], "kernel_s": kernel},
+                        work={"unknowns": 3 * int(m["particles"]), "kernel_s": kernel})
 
     @staticmethod
     def _constrained_values(rel: np.ndarray, fx: Fixes) -> np.ndarray:

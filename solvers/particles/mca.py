@@ -125,6 +125,8 @@ class Mca:
             else:
                 out = self._static(scene, aut, p)
         field = out.pop("field")
+        if "kernel_s" in out["work"]:  # seconds inside the time-stepping / solve kernel (issue 7: ns per pair-step)
+            out["summary"]["kernel_s"] = out["work"]["kernel_s"]
         values = {} if field is None else {k: {"points": np.asarray(v, float), "values": field[aut.node_at(v)]}
                                            for k, v in pts.items()}
         return Solution(scene=scene.name, solver=self.name, params=p,

@@ -54,15 +54,16 @@ def uniaxial_constants(k: sp.csr_matrix, pos: np.ndarray, box: Box, strain: floa
     return float(e_eff), float(-lateral / strain)
 
 
-def macromolecule_modes(box: Box, n: int, youngs: float, density: float, modes: int = 6) -> dict[str, object]:
+def macromolecule_modes(box: Box, n: int, youngs: float, density: float, modes: int = 6,
+                        model: SevenRoot | None = None) -> dict[str, object]:
     """Lowest `modes` frequencies (Hz) of the seven-root lattice scaled to (E, rho), clamped at z0."""
     lat = build_lattice(box, n, density)
-    k1 = hessian(lat.positions, lat.pairs, SevenRoot(1.0), lat.a).tocsr()
+    k1 = hessian(lat.positions, lat.pairs, model or SevenRoot(1.0), lat.a).tocsr()
     e1, nu = uniaxial_constants(k1, lat.positions, box)
     scale = youngs / e1
     held = _faces(lat.positions, box)["z0"]
     keep = np.setdiff1d(np.arange(3 * lat.size), (3 * held[:, None] + np.arange(3)).ravel())
     kff = (k1[keep][:, keep] * scale).toarray()
-    vals = sla.eigh(kff, eigvals_only=True, subset_by_index=[0, modes - 1]) / lat.mass
+    vals = sla.eigh(kff, eigvals_only=True, subset_by_index=[0, min(modes, kff.shape[0]) - 1]) / lat.mass
     return {"frequencies_hz": np.sqrt(np.clip(vals, 0, None)) / (2 * np.pi), "A": scale, "nu_eff": nu,
             "particles": lat.size}
