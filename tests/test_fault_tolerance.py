@@ -81,7 +81,13 @@ def _start(study: Path, cache: Path, out: Path, jobs: int = 1) -> subprocess.Pop
     """The console script in its own process group (Ctrl-C in a terminal signals the whole group)."""
     return subprocess.Popen([EXE, "study", str(study), "--cache", str(cache), "--out", str(out), "--json",
                              "--jobs", str(jobs)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV,
-                            start_new_session=True)
+                            start_new_session=True, preexec_fn=_default_sigint)
+
+
+def _default_sigint() -> None:
+    """Ctrl-C as in a terminal even when this test runs in the background (where SIGINT is inherited as
+    ignored and Python, rightly, then keeps ignoring it)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 def _run(study: Path, cache: Path, out: Path) -> dict:
@@ -281,7 +287,11 @@ def test_swallowed_ctrl_c_still_stops_the_study(fast_study, tmp_path, monkeypatc
 
     monkeypatch.setattr(st, "run_cell", swallowing)
     cache = Cache(tmp_path / "cache")
-    with pytest.raises(KeyboardInterrupt), remember_sigint():
-        execute(load_study(str(fast_study)), cache, progress=False)
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)  # as in a terminal, also in background
+    try:
+        with pytest.raises(KeyboardInterrupt), remember_sigint():
+            execute(load_study(str(fast_study)), cache, progress=False)
+    finally:
+        signal.signal(signal.SIGINT, previous)
     assert calls["n"] == 2 and len(list(cache.root.glob("*.json"))) == 2
     assert all(cache.load(p.stem)[1] == "hit" for p in cache.root.glob("*.json"))
