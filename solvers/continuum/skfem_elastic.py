@@ -51,11 +51,12 @@ from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.linalg import LinearOperator, cg, eigsh, splu
+from scipy.sparse.linalg import LinearOperator, eigsh
 
 from harness.scene import FaceClamp, FaceSupport, Param, Scene, SceneError
 from solvers.base import Resolution, Solution, effective_params
 from solvers.continuum.grid import StructuredGrid
+from solvers.continuum.linear_solver import SpdSolver
 
 PARAMETERS: tuple[Param, ...] = (
     Param("element", "q2", "", "Q1 (trilinear) or Q2 (triquadratic) hexahedra", choices=("q1", "q2"), kind=str),
@@ -74,53 +75,21 @@ KINDS = ("bending-x", "bending-y", "torsion", "axial")
 CLUSTER_RTOL = 1e-5  # eigenvalues closer than this (relative) are treated as one degenerate cluster
 
 
-class _LinearSolver:
-    """Solves A x = b for one SPD matrix A: SuperLU, or CG with a smoothed-aggregation AMG preconditioner."""
+def _linear_solver(a: sp.spmatrix, method: str, rtol: float, near_null: np.ndarray | None = None) -> SpdSolver:
+    """SuperLU or CG with a smoothed-aggregation AMG preconditioner on the 3x3-block matrix, `near_null`
+    (the rigid-body modes) as its near-nullspace."""
 
-    def __init__(self, a: sp.spmatrix, method: str, rtol: float, near_null: np.ndarray | None = None):
-        self.a = a.tocsr()
-        self.method = method
-        self.rtol = rtol
-        self.iterations = 0
-        self.solves = 0
-        self.worst_residual = 0.0
-        if method == "direct":
-            self.lu = splu(self.a.tocsc(), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
-                           options={"SymmetricMode": True})
-        else:
-            import pyamg
+    def amg(mat: sp.csr_matrix) -> Any:
+        import pyamg
 
-            blocked = self.a.shape[0] % 3 == 0
-            mat = self.a.tobsr(blocksize=(3, 3)) if blocked else self.a
-            # theta = 0.05: the wide Q2 stencil otherwise makes a single huge-aggregate coarse level (33
-            # iterations at 11k unknowns; 21 with it); the rigid-body modes are exact, no candidate improvement
-            self.ml = pyamg.smoothed_aggregation_solver(mat, B=near_null, symmetry="symmetric", max_coarse=500,
-                                                        strength=("symmetric", {"theta": 0.05}),
-                                                        improve_candidates=None)
-            self.prec = self.ml.aspreconditioner(cycle="V")
+        blocked = mat.shape[0] % 3 == 0
+        # theta = 0.05: the wide Q2 stencil otherwise makes a single huge-aggregate coarse level (33
+        # iterations at 11k unknowns; 21 with it); the rigid-body modes are exact, no candidate improvement
+        return pyamg.smoothed_aggregation_solver(mat.tobsr(blocksize=(3, 3)) if blocked else mat, B=near_null,
+                                                 symmetry="symmetric", max_coarse=500,
+                                                 strength=("symmetric", {"theta": 0.05}), improve_candidates=None)
 
-    def solve(self, b: np.ndarray) -> np.ndarray:
-        bnorm = float(np.linalg.norm(b))
-        if bnorm == 0.0:
-            return np.zeros_like(b)
-        self.solves += 1
-        if self.method == "direct":
-            x = self.lu.solve(b)
-        else:
-            count = [0]
-
-            def tick(_xk):
-                count[0] += 1
-
-            x, info = cg(self.a, b, rtol=self.rtol, atol=0.0, maxiter=5000, M=self.prec, callback=tick)
-            self.iterations += count[0]
-            if info != 0:
-                raise ArithmeticError(f"CG did not converge (info={info}, {count[0]} iterations)")
-        res = float(np.linalg.norm(b - self.a @ x)) / bnorm
-        self.worst_residual = max(self.worst_residual, res)
-        if self.method != "direct" and res > 10.0 * self.rtol:
-            raise ArithmeticError(f"CG stopped with true relative residual {res:.2e} > 10 * cg_rtol")
-        return x
+    return SpdSolver(a, method, rtol, amg)
 
 
 @functools.lru_cache(maxsize=16)
@@ -411,7 +380,7 @@ class SkfemElastic:
         keep = sp.diags((~is_fixed).astype(float))
         a = (keep @ stiff @ keep + sp.diags(np.where(is_fixed, d, 0.0))).tocsr()
         a.eliminate_zeros()
-        solver = _LinearSolver(a, method, p["cg_rtol"], near_null)
+        solver = _linear_solver(a, method, p["cg_rtol"], near_null)
         u = solver.solve(rhs)
         u[is_fixed] = g[is_fixed]
         return u, solver
@@ -469,7 +438,7 @@ class SkfemElastic:
         if k_solve >= free.size - 1:
             raise SceneError(f"modes={k} is out of range; allowed: integer in [1, {free.size - 4}] at this "
                              "resolution")
-        solver = _LinearSolver(kff, method, p["cg_rtol"],
+        solver = _linear_solver(kff, method, p["cg_rtol"],
                                near_null[free] if free.size % 3 == 0 else None)
         op = LinearOperator(kff.shape, matvec=solver.solve, dtype=float)
         v0 = np.random.default_rng(20261121).standard_normal(free.size)
