@@ -383,12 +383,9 @@ def run(x, v0, x_rest, kind, amp, phase, omega, free_centre, mass, gamma, kt, se
             e0 += 0.5 * mass * vm[i, d] * vp[i, d]
     energy[E_START] = e0 + potential_energy(x, pi, pj, r0, c, a)
 
-    diss = 0.0
-    w_drive = 0.0
-    w_bath = 0.0
-    hrow = 0
+    diss = w_drive = w_bath = 0.0  # energy dissipated and work done by drives and baths so far
+    hrow = step = 0
     status = RUNNING
-    step = 0
     while step < n_steps:
         t = step * dt
         # --- computes at time t_n: hotness from v_n = (v_{n-1/2} + v_{n+1/2}) / 2

@@ -316,6 +316,12 @@ def _work(idx, vx, vy, vz, lam0, lam1):
     return w
 
 
+@njit(inline="always")
+def _xyz(n):
+    """x, y and z vectors of length n, zero (structure of arrays: three separate allocations)."""
+    return np.zeros(n), np.zeros(n), np.zeros(n)
+
+
 @njit(cache=True)
 def run(x, v0, x_rest, kind, amp, phase, omega, free_centre, mass, gamma, kt, seed,
         pi, pj, g_off, g_base, g_lo, g_hi, mask, slot, pint, a, delta, dt, n_steps, n_start, n_end,
@@ -345,22 +351,12 @@ def run(x, v0, x_rest, kind, amp, phase, omega, free_centre, mass, gamma, kt, se
     group_mass = mass * np.sum(kind == GROUP)
     if group_mass == 0.0:
         free_centre = False
-    fx = np.zeros(n)
-    fy = np.zeros(n)
-    fz = np.zeros(n)
-    vmx = np.zeros(n)
-    vmy = np.zeros(n)
-    vmz = np.zeros(n)
-    vpx = np.zeros(n)
-    vpy = np.zeros(n)
-    vpz = np.zeros(n)
+    fx, fy, fz = _xyz(n)
+    vmx, vmy, vmz = _xyz(n)
+    vpx, vpy, vpz = _xyz(n)
     ns = mask.shape[0]
-    gx = np.zeros(ns)
-    gy = np.zeros(ns)
-    gz = np.zeros(ns)
-    fsx = np.zeros(ns)
-    fsy = np.zeros(ns)
-    fsz = np.zeros(ns)
+    gx, gy, gz = _xyz(ns)
+    fsx, fsy, fsz = _xyz(ns)
     dk = np.zeros(ns)
     hk = np.zeros(ns)
     ever_s = np.zeros(ns, dtype=np.int8)
@@ -403,12 +399,9 @@ def run(x, v0, x_rest, kind, amp, phase, omega, free_centre, mass, gamma, kt, se
                 vmy[i] += vc[1]
                 vmz[i] += vc[2]
 
-    diss = 0.0
-    w_drive = 0.0
-    w_bath = 0.0
-    hrow = 0
+    diss = w_drive = w_bath = 0.0  # energy dissipated and work done by drives and baths so far
+    hrow = step = 0
     status = RUNNING
-    step = 0
     while True:
         t = step * dt
         # --- kick: v_{n+1/2} from v_{n-1/2} and F_n (plain free particles: vectorisable loop)
@@ -497,9 +490,7 @@ def run(x, v0, x_rest, kind, amp, phase, omega, free_centre, mass, gamma, kt, se
         diss += dt * pair_pass(px, py, pz, vpx, vpy, vpz, g_off, g_base, g_lo, g_hi, mask, rt, amp_a, pint, p,
                                step_lo, inv_w, a, delta, gx, gy, gz, fsx, fsy, fsz, dk, hk, out, ever_s, step + 1,
                                counters, fx, fy, fz)
-        vmx, vpx = vpx, vmx
-        vmy, vpy = vpy, vmy
-        vmz, vpz = vpz, vmz
+        vmx, vmy, vmz, vpx, vpy, vpz = vpx, vpy, vpz, vmx, vmy, vmz  # v_{n+1/2} is v_{n-1/2} of the next step
         step += 1
 
     e1 = 0.0
