@@ -7,6 +7,7 @@ Each function takes tables or cached results and a path without suffix, and writ
 from __future__ import annotations
 
 import json
+import textwrap
 from pathlib import Path
 from typing import Any
 
@@ -22,8 +23,13 @@ CONTINUUM_STYLES = tuple(dict(lw=2.0, color=c, ls=ls, alpha=0.75)
                          for c, ls in (("k", "-"), ("0.45", "--"), ("0.25", ":"), ("0.6", "-.")))
 
 
+def _wrap(title: str, width: int = 90) -> str:
+    return "\n".join(textwrap.wrap(title, width))
+
+
 def _save(fig: Any, path: Path) -> bool:
-    title_room = 0.4 / fig.get_figheight() if fig._suptitle is not None else 0.0  # inches kept for the title
+    lines = fig._suptitle.get_text().count("\n") + 1 if fig._suptitle is not None else 0
+    title_room = 0.25 * (lines + 0.6) / fig.get_figheight() if lines else 0.0  # inches kept for the title
     fig.tight_layout(rect=(0.0, 0.0, 1.0, 1.0 - title_room))
     fig.savefig(path.with_suffix(".png"), dpi=110)
     fig.savefig(path.with_suffix(".svg"))
@@ -60,18 +66,25 @@ def is_particle(result: dict[str, Any]) -> bool:
     return REGISTRY.get(result.get("solver", ""), "").startswith("solvers.particles.")
 
 
-def convergence(levels: pd.DataFrame, columns: list[str], path: Path, title: str) -> bool:
-    """log-log error (or value) against h, one line per solver sequence and column."""
+def convergence(levels: pd.DataFrame, columns: list[str], path: Path, title: str,
+                fits: pd.DataFrame | None = None) -> bool:
+    """log-log error (or value) against h, one line per solver sequence and column, with the fitted order."""
+    orders = {}
+    if fits is not None and not fits.empty and "order" in fits:
+        orders = {(r.solver, r.params, r.quantity): r.order for r in fits.itertuples() if pd.notna(r.order)}
     fig, ax = plt.subplots(figsize=(6, 4))
     for (solver, params), seq in levels.groupby(["solver", "params"], sort=False):
         seq = seq.sort_values("h")
         for col in columns:
             y = pd.to_numeric(seq[col], errors="coerce").abs()
             if len(y) and (y > 0).all():
-                ax.loglog(seq["h"], y, "o-", label=f"{solver} {params} {col}".strip())
+                order = orders.get((solver, params, col))
+                slope = f" (fitted order {order:.2f})" if order is not None else ""
+                ax.loglog(seq["h"], y, "o-", label=f"{solver} {params} {col}{slope}".strip())
     ax.set_xlabel("h [m]")
-    ax.set_ylabel("error" if any(c.endswith(("l2", "linf")) for c in columns) else "|value|")
-    ax.set_title(title, fontsize=9)
+    errors = any(c.endswith(("l2", "linf")) or c.startswith("err.") for c in columns)
+    ax.set_ylabel("error (relative for err.*)" if errors else "|value|")
+    ax.set_title(_wrap(title, 80), fontsize=8)
     ax.grid(True, which="both", alpha=0.3)
     if ax.lines:
         ax.legend(fontsize=6)
@@ -85,7 +98,7 @@ def cost(df: pd.DataFrame, path: Path, title: str) -> bool:
         ax.loglog(seq["unknowns"], seq["wall_s"], "o-", label=solver)
     ax.set_xlabel("unknowns")
     ax.set_ylabel("wall time [s]")
-    ax.set_title(title, fontsize=9)
+    ax.set_title(_wrap(title, 80), fontsize=8)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend()
     return _save(fig, path)
@@ -107,7 +120,7 @@ def work_precision(df: pd.DataFrame, error: str, path: Path, title: str) -> bool
         ax.set_ylabel(error)
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=7)
-    fig.suptitle(title, fontsize=9)
+    fig.suptitle(_wrap(title, 120), fontsize=9)
     return _save(fig, path)
 
 
@@ -138,7 +151,7 @@ def edge_profiles(results: list[dict[str, Any]], path: Path, title: str) -> bool
             ax.set_ylabel("relative value")
             ax.grid(True, alpha=0.3)
         axes[row, 1].legend(fontsize=6, loc="best")
-    fig.suptitle(title, fontsize=9)
+    fig.suptitle(_wrap(title, 120), fontsize=9)
     return _save(fig, path)
 
 
@@ -163,7 +176,7 @@ def render_3d(results: list[dict[str, Any]], path: Path, title: str) -> bool:
         ax.set_box_aspect((1, 3, 1))
         ax.set_title(f"{r['solver']} n={n} ({len(vals)} particles), {r['status']}", fontsize=8)
         fig.colorbar(sc, ax=ax, shrink=0.6, label="relative hotness")
-    fig.suptitle(title, fontsize=9)
+    fig.suptitle(_wrap(title, 120), fontsize=9)
     return _save(fig, path)
 
 

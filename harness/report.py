@@ -80,7 +80,7 @@ def _group_tables(g: Any, res: list[dict[str, Any]], folder: Path,
         levels, fits = analysis.convergence(res, quantities, _reference_values(g, done))
         tables = {f"{g.id}-levels": levels, f"{g.id}-fits": fits}
         err_cols = [c for c in levels.columns if c.endswith(".linf") or c.startswith("err.")]
-        if not levels.empty and figures.convergence(levels, err_cols or quantities, stem, g.title):
+        if not levels.empty and figures.convergence(levels, err_cols or quantities, stem, g.title, fits):
             figs.append(f"{g.id}.png")
     elif g.analysis == "timing":
         df = analysis.timing(res)
