@@ -15,7 +15,6 @@ throughput, never results.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -23,16 +22,17 @@ from numba import njit, prange
 
 from harness.scene import SceneError
 
-from .neighbours import NeighbourList, build_neighbours, dist2, merge_lists
+from .neighbours import build_neighbours, dist2, merge_lists
 from .scaling import (
     DEFAULT_R_CUT,
     DEFAULT_SKIN,
     DONE,
     EXPIRED,
-    FROZEN,
     PRESCRIBED,
+    LatticeRun,
     check_range,
     drift,
+    initial_state,
     kick,
     kinetic_dt,
     pair_term,
@@ -78,7 +78,7 @@ def advance_ensemble(x, v, f, x_rest, kind, amp, scale, phase, omega, mass, dt, 
     lim2 = half_skin * half_skin
     h = 0.5 * dt / mass
     inv_dt = 1.0 / dt
-    s = 0
+    s = 0  # step loop as scaling.advance (bodies shared); kept twice: (N, K, 3) state, per-replica force pass
     while s < n_steps:
         t0 = (step0 + s) * dt
         t1 = (step0 + s + 1) * dt
@@ -111,31 +111,16 @@ def _param_vector(name: str, values: np.ndarray | float, k: int, low: float, uni
     return out
 
 
-@dataclass(eq=False)
-class EnsembleRun:
-    """K replicas of one lattice advanced together; hot (N, K) holds sum KE dt per replica."""
+@dataclass(eq=False, kw_only=True)
+class EnsembleRun(LatticeRun):
+    """K replicas of one lattice advanced together; hot (N, K) holds sum KE dt per replica.
 
-    x: np.ndarray
-    v: np.ndarray
-    f: np.ndarray
-    x_rest: np.ndarray
-    kind: np.ndarray
-    amp: np.ndarray
+    A replica that becomes non-finite or leaves the bar stops all replicas (status, reason name them)."""
+
     scale: np.ndarray
-    phase: np.ndarray
     omega: np.ndarray
     delta: np.ndarray
-    mass: float
-    a: float
-    dt: float
-    coeffs: np.ndarray
-    nl: NeighbourList
     x_ref: np.ndarray
-    hot: np.ndarray
-    r_cut: float
-    step: int = 0
-    status: str = "ok"
-    reason: str = ""
 
     @classmethod
     def start(cls, x_rest: np.ndarray, mass: float, a: float, model: SevenRoot, dt: float, delta: np.ndarray | float,
@@ -148,24 +133,15 @@ class EnsembleRun:
         Scalars broadcast; K is the longest of the three vectors (or `replicas`).  x0, v0 (N, 3) are
         the common initial state of the free particles (as in KernelRun.start).
         """
-        check_range(r_cut, skin)
-        if not (math.isfinite(dt) and dt > 0.0):
-            raise SceneError(f"dt={dt!r} is out of range; allowed: number in (0, inf) s")
+        check_range(r_cut, skin, dt)
         k = replicas or max(np.size(delta), np.size(omega), np.size(scale))
         if k < 1:
             raise SceneError(f"replicas={k!r} is out of range; allowed: integer >= 1")
         delta = _param_vector("delta", delta, k, 0.0, "N s/m")
         omega = _param_vector("omega", omega, k, 0.0, "rad/s")
         scale = _param_vector("scale", scale, k, 0.0, "")
+        x_rest, kind, amp, phase, base, vb = initial_state(x_rest, kind, amp, phase, x0, v0)
         n = x_rest.shape[0]
-        x_rest = np.ascontiguousarray(x_rest, dtype=np.float64)
-        kind = np.zeros(n, dtype=np.int8) if kind is None else np.ascontiguousarray(kind, dtype=np.int8)
-        amp = np.zeros((n, 3)) if amp is None else np.ascontiguousarray(amp, dtype=np.float64)
-        phase = np.zeros(n) if phase is None else np.ascontiguousarray(phase, dtype=np.float64)
-        base = x_rest.copy() if x0 is None else np.array(x0, dtype=np.float64)
-        base[kind == FROZEN] = x_rest[kind == FROZEN]
-        vb = np.zeros((n, 3)) if v0 is None else np.array(v0, dtype=np.float64)
-        vb[kind == FROZEN] = 0.0
         x = np.repeat(base[:, None, :], k, axis=1)
         v = np.repeat(vb[:, None, :], k, axis=1)
         drv = np.flatnonzero(kind == PRESCRIBED)
@@ -196,38 +172,19 @@ class EnsembleRun:
         self.nl.builds, self.nl.history = builds + 1, [*history, step]
         self.x_ref = self.x.copy()
 
-    def advance(self, n_steps: int) -> int:
-        """Advance all replicas n_steps (all stop if one becomes non-finite; sums kept)."""
-        done = 0
-        resume = False
-        lo = self.x_rest.min(axis=0) - self.a
-        hi = self.x_rest.max(axis=0) + self.a
-        while done < n_steps and self.status == "ok":
-            s, code = advance_ensemble(self.x, self.v, self.f, self.x_rest, self.kind, self.amp, self.scale,
-                                       self.phase, self.omega, self.mass, self.dt, self.step, n_steps - done,
-                                       self.nl.start, self.nl.index, self.x_ref, 0.5 * self.nl.skin, self.coeffs,
-                                       1.0 / self.a, self.r_cut**2, self.delta, self.hot, resume)
-            done += s
-            self.step += s
-            resume = False
-            if code == EXPIRED:
-                bad = ~np.isfinite(self.x).all(axis=(0, 2)) | ~np.isfinite(self.v).all(axis=(0, 2))
-                left = ((self.x < lo[None, None]) | (self.x > hi[None, None])).any(axis=(0, 2))
-                if bad.any() or left.any():
-                    self.status = "unstable"
-                    self.reason = (f"NaN/Inf in replicas {np.flatnonzero(bad).tolist()}, a particle more than a "
-                                   f"outside the bar in replicas {np.flatnonzero(left).tolist()} at step "
-                                   f"{self.step}; all replicas stopped there, sums kept")
-                else:
-                    self._rebuild(self.step)
-                    resume = True
-        if resume:
-            advance_ensemble(self.x, self.v, self.f, self.x_rest, self.kind, self.amp, self.scale, self.phase,
-                             self.omega, self.mass, self.dt, self.step, 1, self.nl.start, self.nl.index, self.x_ref,
-                             0.5 * self.nl.skin, self.coeffs, 1.0 / self.a, self.r_cut**2, self.delta, self.hot, True)
-            done += 1
-            self.step += 1
-        return done
+    def _steps(self, n_steps: int, resume: bool) -> tuple[int, int]:
+        return advance_ensemble(self.x, self.v, self.f, self.x_rest, self.kind, self.amp, self.scale, self.phase,
+                                self.omega, self.mass, self.dt, self.step, n_steps, self.nl.start, self.nl.index,
+                                self.x_ref, 0.5 * self.nl.skin, self.coeffs, 1.0 / self.a, self.r_cut**2, self.delta,
+                                self.hot, resume)
+
+    def _instability(self, lo: np.ndarray, hi: np.ndarray) -> str:
+        bad = ~np.isfinite(self.x).all(axis=(0, 2)) | ~np.isfinite(self.v).all(axis=(0, 2))
+        left = ((self.x < lo[None, None]) | (self.x > hi[None, None])).any(axis=(0, 2))
+        if not (bad.any() or left.any()):
+            return ""
+        return (f"NaN/Inf in replicas {np.flatnonzero(bad).tolist()}, a particle more than a outside the bar in "
+                f"replicas {np.flatnonzero(left).tolist()} at step {self.step}; all replicas stopped there, sums kept")
 
     def hotness(self) -> np.ndarray:
         """Time-mean kinetic energy per particle and replica (N, K), J."""

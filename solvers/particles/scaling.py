@@ -249,18 +249,39 @@ def _count_pairs(x, start, index, rc2):
     return out
 
 
-def check_range(r_cut: float, skin: float) -> None:
-    """SceneError unless 2 < r_cut (units of a) and 0 < skin."""
+def check_range(r_cut: float, skin: float, dt: float) -> None:
+    """SceneError unless 2 < r_cut <= 4 (units of a), 0 < skin <= 2 (units of a) and 0 < dt (s)."""
     if not (math.isfinite(r_cut) and 2.0 < r_cut <= 4.0):
         raise SceneError(f"r_cut={r_cut!r} (units of a) is out of range; allowed: number in (2, 4] (the force "
                          "ends at 2a; pairs resting at 2a must stay inside the interaction range)")
     if not (math.isfinite(skin) and 0.0 < skin <= 2.0):
         raise SceneError(f"skin={skin!r} (units of a) is out of range; allowed: number in (0, 2]")
+    if not (math.isfinite(dt) and dt > 0.0):
+        raise SceneError(f"dt={dt!r} is out of range; allowed: number in (0, inf) s")
 
 
-@dataclass(eq=False)
-class KernelRun:
-    """State of one run of the large-N kernel (positions, velocities, forces, list, fixes, sums)."""
+def initial_state(x_rest: np.ndarray, kind: np.ndarray | None, amp: np.ndarray | None, phase: np.ndarray | None,
+                  x0: np.ndarray | None, v0: np.ndarray | None) -> tuple[np.ndarray, ...]:
+    """(x_rest, kind, amp, phase, x, v): rest positions and fixes as contiguous arrays (defaults: every
+    particle FREE, no drive) and the initial state of the undriven particles (x0 default x_rest, v0
+    default 0; FROZEN ones at rest).  Driven particles are placed by the caller (single run or replicas)."""
+    n = x_rest.shape[0]
+    x_rest = np.ascontiguousarray(x_rest, dtype=np.float64)
+    kind = np.zeros(n, dtype=np.int8) if kind is None else np.ascontiguousarray(kind, dtype=np.int8)
+    amp = np.zeros((n, 3)) if amp is None else np.ascontiguousarray(amp, dtype=np.float64)
+    phase = np.zeros(n) if phase is None else np.ascontiguousarray(phase, dtype=np.float64)
+    x = x_rest.copy() if x0 is None else np.array(x0, dtype=np.float64)
+    x[kind == FROZEN] = x_rest[kind == FROZEN]
+    v = np.zeros((n, 3)) if v0 is None else np.array(v0, dtype=np.float64)
+    v[kind == FROZEN] = 0.0
+    return x_rest, kind, amp, phase, x, v
+
+
+@dataclass(eq=False, kw_only=True)
+class LatticeRun:
+    """State shared by the runs of the large-N kernels (single run, ensemble) and their step driver:
+    `advance` calls the subclass's kernel until the list expires, checks the state, rebuilds the
+    list and resumes at the force pass."""
 
     x: np.ndarray
     v: np.ndarray
@@ -269,19 +290,61 @@ class KernelRun:
     kind: np.ndarray
     amp: np.ndarray
     phase: np.ndarray
-    omega: float
     mass: float
     a: float
     dt: float
     coeffs: np.ndarray
-    delta: float
     nl: NeighbourList
     hot: np.ndarray
     r_cut: float
-    force_pass: str = "slabs"
     step: int = 0
     status: str = "ok"
     reason: str = ""
+
+    def _steps(self, n_steps: int, resume: bool) -> tuple[int, int]:
+        """Run the numba kernel from self.step: (steps completed, DONE or EXPIRED)."""
+        raise NotImplementedError
+
+    def _instability(self, lo: np.ndarray, hi: np.ndarray) -> str:
+        """Why the state is unstable (non-finite, or a particle outside [lo, hi]); "" if it is not."""
+        raise NotImplementedError
+
+    def _rebuild(self, step: int) -> None:
+        raise NotImplementedError
+
+    def advance(self, n_steps: int) -> int:
+        """Advance n_steps (fewer if the run becomes unstable: status, reason set, sums kept); rebuilds the
+        list on demand."""
+        done = 0
+        resume = False
+        lo = self.x_rest.min(axis=0) - self.a
+        hi = self.x_rest.max(axis=0) + self.a
+        while done < n_steps and self.status == "ok":
+            s, code = self._steps(n_steps - done, resume)
+            done += s
+            self.step += s
+            resume = False
+            if code == EXPIRED:
+                reason = self._instability(lo, hi)
+                if reason:
+                    self.status, self.reason = "unstable", reason
+                else:
+                    self._rebuild(self.step)
+                    resume = True
+        if resume:  # stopped between drift and forces: finish the step
+            self._steps(1, True)
+            done += 1
+            self.step += 1
+        return done
+
+
+@dataclass(eq=False, kw_only=True)
+class KernelRun(LatticeRun):
+    """State of one run of the large-N kernel (positions, velocities, forces, list, fixes, sums)."""
+
+    omega: float
+    delta: float
+    force_pass: str = "slabs"
 
     @classmethod
     def start(cls, x_rest: np.ndarray, mass: float, a: float, model: SevenRoot, delta: float, dt: float,
@@ -290,24 +353,15 @@ class KernelRun:
               r_cut: float = DEFAULT_R_CUT, skin: float = DEFAULT_SKIN, hotness: bool = False,
               force_pass: str = "slabs") -> KernelRun:
         """Set up a run at t = 0: list built on x0 (default x_rest), forces F(x0, v0) computed."""
-        check_range(r_cut, skin)
+        check_range(r_cut, skin, dt)
         if force_pass not in FORCE_PASSES:
             raise SceneError(f"force_pass={force_pass!r} is not allowed; allowed: {', '.join(FORCE_PASSES)}")
-        if not (math.isfinite(dt) and dt > 0.0):
-            raise SceneError(f"dt={dt!r} is out of range; allowed: number in (0, inf) s")
         if not (math.isfinite(delta) and delta >= 0.0):
             raise SceneError(f"delta={delta!r} is out of range; allowed: number in [0, inf) N s/m")
+        x_rest, kind, amp, phase, x, v = initial_state(x_rest, kind, amp, phase, x0, v0)
         n = x_rest.shape[0]
-        x_rest = np.ascontiguousarray(x_rest, dtype=np.float64)
-        kind = np.zeros(n, dtype=np.int8) if kind is None else np.ascontiguousarray(kind, dtype=np.int8)
-        amp = np.zeros((n, 3)) if amp is None else np.ascontiguousarray(amp, dtype=np.float64)
-        phase = np.zeros(n) if phase is None else np.ascontiguousarray(phase, dtype=np.float64)
-        x = x_rest.copy() if x0 is None else np.array(x0, dtype=np.float64)
         drv = kind == PRESCRIBED
         x[drv] = x_rest[drv] + amp[drv] * np.sin(phase[drv])[:, None]
-        x[kind == FROZEN] = x_rest[kind == FROZEN]
-        v = np.zeros((n, 3)) if v0 is None else np.array(v0, dtype=np.float64)
-        v[kind == FROZEN] = 0.0
         v[drv] = amp[drv] * (omega * np.cos(phase[drv]))[:, None]
         nl = build_neighbours(x, r_cut * a, skin * a)
         run = cls(x=x, v=v, f=np.zeros((n, 3)), x_rest=x_rest, kind=kind, amp=amp, phase=phase, omega=float(omega),
@@ -331,36 +385,20 @@ class KernelRun:
     def size(self) -> int:
         return int(self.x.shape[0])
 
-    def advance(self, n_steps: int) -> int:
-        """Advance n_steps (fewer if the run becomes unstable); rebuilds the list on demand."""
-        done = 0
-        resume = False
-        lo = self.x_rest.min(axis=0) - self.a
-        hi = self.x_rest.max(axis=0) + self.a
-        while done < n_steps and self.status == "ok":
-            s, code = advance(self.x, self.v, self.f, self.x_rest, self.kind, self.amp, self.phase, self.omega,
-                              self.mass, self.dt, self.step, n_steps - done, self.nl.start, self.nl.index,
-                              self.nl.x_ref, 0.5 * self.nl.skin, self.coeffs, 1.0 / self.a, self.r_cut**2,
-                              self.delta, self.hot, resume, self.block)
-            done += s
-            self.step += s
-            resume = False
-            if code == EXPIRED:
-                if not np.isfinite(self.x).all() or not np.isfinite(self.v).all():
-                    self.status, self.reason = "unstable", f"NaN/Inf in the state at step {self.step}; sums kept"
-                elif (self.x < lo).any() or (self.x > hi).any():
-                    self.status, self.reason = "unstable", (f"a particle left the bar's neighbourhood (more than a "
-                                                            f"outside) at step {self.step}; sums kept")
-                else:
-                    self.nl.rebuild(self.x, self.step)
-                    resume = True
-        if resume:  # stopped between drift and forces: finish the step
-            advance(self.x, self.v, self.f, self.x_rest, self.kind, self.amp, self.phase, self.omega, self.mass,
-                    self.dt, self.step, 1, self.nl.start, self.nl.index, self.nl.x_ref, 0.5 * self.nl.skin,
-                    self.coeffs, 1.0 / self.a, self.r_cut**2, self.delta, self.hot, True, self.block)
-            done += 1
-            self.step += 1
-        return done
+    def _steps(self, n_steps: int, resume: bool) -> tuple[int, int]:
+        return advance(self.x, self.v, self.f, self.x_rest, self.kind, self.amp, self.phase, self.omega, self.mass,
+                       self.dt, self.step, n_steps, self.nl.start, self.nl.index, self.nl.x_ref, 0.5 * self.nl.skin,
+                       self.coeffs, 1.0 / self.a, self.r_cut**2, self.delta, self.hot, resume, self.block)
+
+    def _instability(self, lo: np.ndarray, hi: np.ndarray) -> str:
+        if not np.isfinite(self.x).all() or not np.isfinite(self.v).all():
+            return f"NaN/Inf in the state at step {self.step}; sums kept"
+        if (self.x < lo).any() or (self.x > hi).any():
+            return f"a particle left the bar's neighbourhood (more than a outside) at step {self.step}; sums kept"
+        return ""
+
+    def _rebuild(self, step: int) -> None:
+        self.nl.rebuild(self.x, step)
 
     def pair_count(self) -> int:
         """Interacting pairs (i < j, r < r_cut) at the current positions."""
