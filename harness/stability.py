@@ -54,10 +54,15 @@ THEORY = {
 }
 
 
+HEAT_STEPS = 20_000  # a mode amplified by 1 + 1e-3 per step grows e^20 times: bisection to 1e-3 resolves it
+
 THEORY["mca"] = ("velocity Verlet: undamped, stable for omega_max dt < 2; MCA sets dt = cfl * 2 / omega_G with "
                  "omega_G >= omega_max a Gershgorin bound, so every cfl <= 1 is stable (the guarantee) and the "
                  "undamped limit lies at cfl = omega_G / omega_max >= 1; viscous damping lowers it (single mode: "
-                 "sqrt(1+zeta^2) - zeta).  Probed through the public `cfl` parameter; dt_theory = dt at cfl = 1")
+                 "sqrt(1+zeta^2) - zeta).  Probed through the public `cfl` parameter; dt_theory = dt at cfl = 1.  "
+                 "Heat (transient): forward Euler, stable iff dt <= 2 / lambda_max(C^-1 L); dt_theory = the "
+                 "Gershgorin step min C_i / sum_j G_ij, which guarantees it (ratio 1); the exact limit is reported "
+                 "as the linear-discrete limit")
 
 
 class ProbeUnavailable(LookupError):
@@ -186,14 +191,13 @@ class McaProbe:
         from solvers import get_solver
 
         self.solver = get_solver("mca")
-        self.version = f"{self.solver.version}+probe1"
+        self.version = f"{self.solver.version}+probe2"
         self.parameters = self.solver.parameters
 
     def supports(self, scene: Scene) -> tuple[bool, str]:
         ok, why = self.solver.supports(scene)
-        if ok and "elasticity" not in scene.physics:
-            return False, ("mca heat transfer is explicit with heat_cfl <= 1 by its declared range: no dt above its "
-                           "limit can be set, nothing to probe")
+        if ok and "elasticity" not in scene.physics and scene.mode != "transient":
+            return False, "steady mca heat is a direct solve: no time stepping, no stability probe needed"
         if ok and "modes" in scene.physics:
             return False, "bar-modes is an eigenproblem: no time stepping"
         return ok, why
@@ -201,15 +205,58 @@ class McaProbe:
     def prepare(self, scene: Scene, n: int, params: dict[str, Any]) -> dict[str, Any]:
         from solvers.base import Resolution, effective_params
 
-        if "cfl" in params:
-            raise SceneError("cfl is not allowed in a stability cell; allowed: set dt_ratio (the probe sets cfl)")
+        if "cfl" in params or "heat_cfl" in params:
+            raise SceneError("cfl and heat_cfl are not allowed in a stability cell; allowed: set dt_ratio (the probe "
+                             "sets the step)")
         effective_params(self.solver, params)
+        if "elasticity" not in scene.physics:
+            return self._prepare_heat(scene, n)
         return {"p": params, "scene": scene, "resolution": Resolution(n), "omega_max": math.nan,
                 "zeta": math.nan, "dt_theory": math.nan, "safety_theory": 1.0,
                 "solver_dt_limit": math.nan, "scene_hash": scene.content_hash(), "n": n}
 
+    def _prepare_heat(self, scene: Scene, n: int) -> dict[str, Any]:
+        """Explicit heat transfer (forward Euler on the automata): the solver's own arrays; dt_theory is its
+        Gershgorin step, guaranteed stable; the exact limit comes from the generalised eigenproblem."""
+        from solvers.particles import mca_heat
+        from solvers.particles.mca_lattice import bar_automata
+
+        aut = bar_automata(scene.box, n, scene.material.density)
+        held, values = self.solver._held(scene, aut)
+        mat = scene.material
+        cap = mat.density * mat.heat_capacity * aut.volume
+        g = mca_heat.conductances(aut, mat.conductivity)
+        dt_g = mca_heat.stable_step(aut, cap, g, held == 0)
+        return {"p": {}, "heat": (aut, held, values, cap, g), "omega_max": math.nan, "zeta": 0.0,
+                "dt_theory": dt_g, "safety_theory": 1.0, "solver_dt_limit": dt_g,
+                "scene_hash": scene.content_hash(), "n": n, "t_max": scene.t_max}
+
+    def _run_heat(self, prep: dict[str, Any], ratio: float) -> dict[str, Any]:
+        """HEAT_STEPS forward-Euler steps at dt = ratio * dt_G; unstable when the temperature leaves
+        [-1, 2] t_max (the exact field stays in [0, 1] t_max) or is not finite."""
+        from solvers.particles import mca_heat
+
+        aut, held, values, cap, g = prep["heat"]
+        dt = ratio * prep["dt_theory"]
+        # a seeded 1e-9 t_max perturbation of the free automata excites every mode: symmetric data alone
+        # never reach the antisymmetric top mode, and the measured limit would be that of the symmetric modes
+        noise = np.random.default_rng(0).standard_normal(aut.size) * 1e-9 * prep["t_max"] * (held == 0)
+        temp = mca_heat.explicit_run(values.astype(float) + noise, cap, aut.pairs[:, 0].copy(),
+                                     aut.pairs[:, 1].copy(), g, held.astype(np.int64), dt, HEAT_STEPS)
+        rel = temp / prep["t_max"]
+        finite = bool(np.all(np.isfinite(rel)))
+        blown = not finite or float(np.max(np.abs(rel - 0.5))) > 1.5
+        status, reason = ("unstable", "temperature left [-1, 2] t_max (or not finite)") if blown else ("ok", "")
+        return {"status": status, "reason": reason, "dt": dt, "dt_ratio": ratio, "safety": ratio,
+                "steps": HEAT_STEPS, "steps_planned": HEAT_STEPS, "stopped_at_step": HEAT_STEPS if blown else -1,
+                "kernel_status": reason or "completed", "hops": 0, "stationarity": math.nan,
+                "max_displacement_over_a": math.nan, "outside_over_a": math.nan,
+                "kinetic_end_over_supplied": math.nan, "blown": blown, "undetected": False}
+
     def run(self, prep: dict[str, Any], ratio: float) -> dict[str, Any]:
-        """One solve at cfl = ratio (the public parameter caps it at 10)."""
+        """One solve at cfl = ratio (the public parameter caps it at 10); heat: forward Euler at ratio * dt_G."""
+        if "heat" in prep:
+            return self._run_heat(prep, ratio)
         sol = self.solver.solve(prep["scene"], prep["resolution"], cfl=min(ratio, 10.0), **prep["p"])
         finite = all(np.all(np.isfinite(np.asarray(v["values"], dtype=float))) for v in sol.samples.values())
         steps = int(sol.summary.get("steps", sol.work.get("time_steps", 0)) or 0)
@@ -222,7 +269,23 @@ class McaProbe:
                 "blown": blown or sol.status == "unstable", "undetected": blown}
 
     def linear_limit(self, prep: dict[str, Any], tol: float = 1e-5) -> float:
-        return math.nan  # the MCA's Hessian is not public: no linear-discrete limit here
+        """Heat: the exact forward-Euler limit 2 / lambda_max(C^-1 L) over the free automata, in units of
+        dt_G.  Mechanics: nan (the MCA's Hessian is not public)."""
+        if "heat" not in prep:
+            return math.nan
+        import scipy.linalg as sla
+
+        aut, held, _, cap, g = prep["heat"]
+        n = aut.size
+        lap = np.zeros((n, n))
+        i, j = aut.pairs[:, 0], aut.pairs[:, 1]
+        np.add.at(lap, (i, j), -g)
+        np.add.at(lap, (j, i), -g)
+        np.add.at(lap, (i, i), g)
+        np.add.at(lap, (j, j), g)
+        free = np.flatnonzero(held == 0)
+        lam = sla.eigh(lap[np.ix_(free, free)], np.diag(cap[free]), eigvals_only=True)[-1]
+        return float(2.0 / lam / prep["dt_theory"])
 
 
 PROBES: dict[str, type] = {"macromolecule": MacromoleculeProbe, "mca": McaProbe}

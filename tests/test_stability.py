@@ -148,3 +148,18 @@ def test_mca_limit_respects_its_gershgorin_guarantee() -> None:
     above = probe.run(prep, 2.0)
     assert above["status"] == "unstable" and "step" in above["reason"]
     assert not probe.supports(make_scene("bar-heat-faces"))[0]
+
+
+def test_mca_heat_limit_is_the_exact_forward_euler_limit() -> None:
+    """Forward Euler on the automata: the bisected limit equals 2 / lambda_max(C^-1 L) (a linear scheme, so
+    to the bisection resolution) and is at least the Gershgorin step the solver uses (ratio 1)."""
+    from harness.stability import get_probe, measure_limit
+
+    probe = get_probe("mca")
+    scene = make_scene("bar-heat-faces", mode="transient", t_end=1.0, dt=0.005)
+    assert probe.supports(scene) == (True, "")
+    prep = probe.prepare(scene, 3, {})
+    exact = probe.linear_limit(prep)
+    lim = measure_limit(probe, prep, 0.5, 3.0, 1e-3)
+    assert lim["verdict"] == "bisected" and exact >= 1.0
+    assert abs(lim["measured_ratio"] - exact) <= 2e-3
