@@ -217,8 +217,12 @@ def _parallel(cells: list[Cell], todo: list[int], jobs: int, scheduler: str | No
             for fut in as_completed(futures):
                 yield fut.result()
         return
+    import warnings
+
     from joblib import Parallel, delayed
 
+    # loky replaces a worker whose memory grew (numba, FiPy caches) and says so; the cell is rerun, nothing lost
+    warnings.filterwarnings("ignore", message="A worker stopped while some jobs", category=UserWarning)
     yield from Parallel(n_jobs=jobs, return_as="generator_unordered")(delayed(_indexed)(i, cells[i]) for i in todo)
 
 
