@@ -277,6 +277,25 @@ def potential_energy(vol, r0, area, linked, tau, rr, theta, fp):
     return u
 
 
+@njit(inline="always")
+def _first_half(u, load, damp, m, inv_m, dt):
+    """First half step of a free degree of freedom (velocity u, force or moment load, mass or inertia
+    m): the exact damping factor, then half a kick.  Returns the new velocity and the energy damped.
+    Scalars in and out: array arguments to an inlined helper cost reference counting in this loop
+    (3-5x slower `advance`, measured)."""
+    un = u * damp
+    return un + 0.5 * dt * load * inv_m, 0.5 * m * (u * u - un * un)
+
+
+@njit(inline="always")
+def _second_half(u, load, damp, m, inv_m, dt):
+    """Second half step of a free degree of freedom: half a kick, then the exact damping factor.
+    Returns the new velocity and the energy damped."""
+    uh = u + 0.5 * dt * load * inv_m
+    un = uh * damp
+    return un, 0.5 * m * (uh * uh - un * un)
+
+
 @njit(cache=True)
 def advance(x, v, phi, w, f, mom, dx, dphi, x0, xref, mass, inertia, vol, fixm, fixv, group,
             pi, pj, r0, area, linked, sig, tau, rprev, theta, dmg, kappa, alpha, savg, seq,
@@ -312,18 +331,16 @@ def advance(x, v, phi, w, f, mom, dx, dphi, x0, xref, mass, inertia, vol, fixm, 
                 if fixm[i, c] == 1:
                     v[i, c] = fixv[i, c] * drive
                 else:
-                    vn = v[i, c] * damp
-                    diss += 0.5 * mass[i] * (v[i, c] * v[i, c] - vn * vn)
-                    v[i, c] = vn + 0.5 * dt * f[i, c] * inv_m[i]
+                    v[i, c], e = _first_half(v[i, c], f[i, c], damp, mass[i], inv_m[i], dt)
+                    diss += e
                 dx[i, c] = dt * v[i, c]
                 x[i, c] += dx[i, c]
                 if rot == 1:
                     if fixm[i, 3 + c] == 1:
                         w[i, c] = fixv[i, 3 + c] * drive
                     else:
-                        wn = w[i, c] * damp
-                        diss += 0.5 * inertia[i] * (w[i, c] * w[i, c] - wn * wn)
-                        w[i, c] = wn + 0.5 * dt * mom[i, c] * inv_j[i]
+                        w[i, c], e = _first_half(w[i, c], mom[i, c], damp, inertia[i], inv_j[i], dt)
+                        diss += e
                     dphi[i, c] = dt * w[i, c]
                     phi[i, c] += dphi[i, c]
         fp[F_T] = t + dt
@@ -335,17 +352,13 @@ def advance(x, v, phi, w, f, mom, dx, dphi, x0, xref, mass, inertia, vol, fixm, 
         for i in range(n_aut):
             for c in range(3):
                 if fixm[i, c] == 0:
-                    vh = v[i, c] + 0.5 * dt * f[i, c] * inv_m[i]
-                    vn = vh * damp
-                    diss += 0.5 * mass[i] * (vh * vh - vn * vn)
-                    v[i, c] = vn
+                    v[i, c], e = _second_half(v[i, c], f[i, c], damp, mass[i], inv_m[i], dt)
+                    diss += e
                 ke += 0.5 * mass[i] * v[i, c] * v[i, c]
                 if rot == 1:
                     if fixm[i, 3 + c] == 0:
-                        wh = w[i, c] + 0.5 * dt * mom[i, c] * inv_j[i]
-                        wn = wh * damp
-                        diss += 0.5 * inertia[i] * (wh * wh - wn * wn)
-                        w[i, c] = wn
+                        w[i, c], e = _second_half(w[i, c], mom[i, c], damp, inertia[i], inv_j[i], dt)
+                        diss += e
                     kerot += 0.5 * inertia[i] * w[i, c] * w[i, c]
             dd = (x[i, 0] - xref[i, 0]) ** 2 + (x[i, 1] - xref[i, 1]) ** 2 + (x[i, 2] - xref[i, 2]) ** 2
             if dd > skin2:
