@@ -25,7 +25,10 @@ def remember_sigint() -> Iterator[None]:
     os.environ[STUDY_PID] = str(os.getpid())  # inherited by the worker processes started from here on
     if threading.current_thread() is not threading.main_thread() or \
             signal.getsignal(signal.SIGINT) is not signal.default_int_handler:
-        yield  # SIGINT ignored or handled by someone else (e.g. a test runner): leave it alone
+        try:
+            yield  # SIGINT ignored or handled by someone else (e.g. a test runner): leave it alone
+        finally:
+            INTERRUPTED.clear()
         return
 
     def handler(signum, frame):  # noqa: ARG001 - the signal-handler signature
@@ -37,6 +40,7 @@ def remember_sigint() -> Iterator[None]:
         yield
     finally:
         signal.signal(signal.SIGINT, previous)
+        INTERRUPTED.clear()  # the interrupt is handled by whoever catches it; later studies start clean
 
 
 def check_interrupted() -> None:

@@ -252,6 +252,7 @@ def execute(study: Study, cache: Cache, dry_run: bool = False, jobs: int = 1, pr
     todo = []
     for i, key in enumerate(keys):
         entry, state = cache.load(key)
+        entry = as_cell(entry, cells[i])
         if state.startswith("corrupt"):
             counts["corrupt"] += 1
             tqdm.write(f"cache entry {key} ({cells[i].describe()}) is {state}; recomputing")
@@ -269,13 +270,26 @@ def execute(study: Study, cache: Cache, dry_run: bool = False, jobs: int = 1, pr
     bar = tqdm(total=len(cells), initial=counts["cached"], desc=study.name, unit="cell", disable=not progress,
                dynamic_ncols=True)
 
+    first: dict[str, int] = {}
+    same: dict[int, list[int]] = {}  # cells of other groups with the same key: solved once, shared
+    for i in todo:
+        if keys[i] in first:
+            same[first[keys[i]]].append(i)
+        else:
+            first[keys[i]] = i
+            same[i] = []
+    todo = [i for i in todo if first[keys[i]] == i]
+
     def finish(i: int, res: dict[str, Any]) -> None:
         res["cache_key"] = keys[i]
         cache.store(keys[i], res)
         results[i] = res
         counts["failed" if res.get("status") == "failed" else "done"] += 1
+        for j in same[i]:
+            results[j] = as_cell(res, cells[j])
+            counts["cached"] += 1
         bar.set_postfix(done=counts["done"], cached=counts["cached"], failed=counts["failed"])
-        bar.update(1)
+        bar.update(1 + len(same[i]))
         check_interrupted()  # a Ctrl-C that a library swallowed stops the study here, this cell stored
 
     free = [i for i in todo if not cells[i].serial]
@@ -302,8 +316,18 @@ def execute(study: Study, cache: Cache, dry_run: bool = False, jobs: int = 1, pr
 def cached_results(study: Study, cache: Cache) -> list[dict[str, Any]]:
     """The results of a study's cells that are in the cache (corrupt or missing ones left out)."""
     cells = [c for g in study.groups for c in g.cells]
-    entries = (cache.load(cell_key(cell_identity(c)[0]))[0] for c in cells)
+    entries = (as_cell(cache.load(cell_key(cell_identity(c)[0]))[0], c) for c in cells)
     return [e for e in entries if e is not None]
+
+
+def as_cell(entry: dict[str, Any] | None, cell: Cell) -> dict[str, Any] | None:
+    """A cached result seen as the result of `cell`: the same solve may have been cached by another group
+    or study (same content key), so the identity fields are the cell's own, not those of its first run."""
+    if entry is None:
+        return None
+    return entry | {"group": cell.group, "scene": cell.scene, "solver": cell.solver, "n": cell.n,
+                    "refine": cell.refine, "scene_params": dict(cell.scene_params),
+                    "solver_params": dict(cell.solver_params)}
 
 
 def run_study_cli(args: argparse.Namespace) -> int:

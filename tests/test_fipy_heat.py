@@ -121,9 +121,14 @@ def test_patch_convergence_cut_vs_fraction_vs_staircase():
         assert abs(vm_m - ref) > 5 * err_cut, (mode, vm_m, ref, err_cut)
 
 
-def test_patch_staircase_needs_a_cell():
-    with pytest.raises(SceneError, match="patch"):
-        SOLVER.solve(make_scene("bar-heat-patch"), Resolution(2, 4), patch="staircase")
+def test_patch_staircase_without_a_centre_inside_holds_the_corner_cell():
+    """rho = 1 mm and no cell centre within it (n = 3 lattice itself): the corner nodes' cells are held, as the
+    particle solvers hold the corner node; the hot corner's cell reads exactly 1."""
+    sol = SOLVER.solve(make_scene("bar-heat-patch"), Resolution(3), patch="staircase")
+    assert sol.diagnostics["patch_at_centre_cell"] == 3
+    nodes = sol.samples["nodes"]
+    hot = np.argmin(np.linalg.norm(nodes["points"] - np.array([0.0, 0.01, 0.0]), axis=1))
+    assert nodes["values"][hot] == 1.0 and 0.2 < sol.summary["bulk_median"] < 0.4
 
 
 def test_paper_bulk_trend_to_one_third():

@@ -133,3 +133,16 @@ def test_timing_groups_run_serially_after_warm_up(tmp_path, monkeypatch):
     assert calls[-3:] == [("cost", 2, True), ("cost", 2, True), ("cost", 3, True)]
     timed = [r for r in results if r["group"] == "cost"]
     assert all(r["timing"] == "serial after warm-up" for r in timed)
+
+
+def test_a_cell_cached_by_another_group_belongs_to_this_group(tmp_path):
+    """Two groups (or studies) with the same solve share one cache entry; each sees it as its own cell."""
+    path = tmp_path / "twice.toml"
+    path.write_text(STUDY + '[[group]]\nid = "again"\nanalysis = "table"\nscene = "bar-heat-faces"\n'
+                    'solvers = ["fipy"]\nn = [2, 3]\n')
+    study = load_study(str(path))
+    results, counts = execute(study, Cache(tmp_path / "c"), progress=False)
+    assert counts["done"] == 5 and counts["cached"] == 2  # the faces cells are computed once
+    again = [r for r in results if r["group"] == "again"]
+    faces = [r for r in results if r["group"] == "faces"]
+    assert [r["n"] for r in again] == [2, 3] and [r["summary"] for r in again] == [r["summary"] for r in faces]

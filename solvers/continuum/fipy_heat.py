@@ -28,7 +28,8 @@ How constraints reach the equations (all of it FiPy's discretisation):
     "staircase" at the same grid and monotone under refinement (tests).  When no cell centre lies
     within rho (coarse grids, e.g. the paper's n = 2..4 at refine 1) that patch falls back to
     "fraction" (diagnostics["patch_fallback_to_fraction"]);
-  * "staircase": cells whose centre lies within rho are fixed (as above); an error if none is;
+  * "staircase": cells whose centre lies within rho are fixed (as above); if none is, the cell that
+    contains the patch centre (the corner node's cell, as the particle solvers hold the corner node);
   * "fraction" (default): f = volume fraction of the cell inside the sphere (8^3 sub-samples per
     cell, vectorised).  f = 1 cells are fixed; partially covered cells get the penalty
     B_c = f / (1 - f) * D_c / V_c, D_c the cell's conduction diagonal, so their row reads
@@ -226,7 +227,7 @@ class FipyHeat:
     """FiPy cell-centred finite volumes on the node-centred dual grid of the refined lattice."""
 
     name = "fipy"
-    version = "1.3"
+    version = "1.4"
     parameters = (
         Param("patch", "cut", "", "patch constraint: cut (fixed cells + Shortley-Weller faces), volume-fraction "
               "weighted penalty, or staircase", choices=("cut", "fraction", "staircase"), kind=str),
@@ -273,11 +274,10 @@ class FipyHeat:
                           + (cen[2][None, None, :] - c.centre[2]) ** 2)
                     inside = d2 <= c.radius ** 2
                     if not inside.any():
-                        if patch_mode == "staircase":
-                            raise SceneError(f"patch='staircase': no cell centre lies within rho={c.radius:g} m of "
-                                             f"{c.centre} at this resolution; allowed: a finer grid or patch='cut' "
-                                             "or 'fraction'")
-                        inside = None  # cut: too coarse for a fixed cell; this patch falls back to fraction
+                        if patch_mode == "staircase":  # the point limit: the cell holding the corner node
+                            inside[_cell_of(edges, c.centre)] = True
+                        else:
+                            inside = None  # cut: too coarse for a fixed cell; this patch falls back to fraction
                         fallback.append(ic)
                 if inside is not None:
                     fixed |= inside
@@ -456,7 +456,8 @@ class FipyHeat:
             summary=heat_summary(nodes_vals, volume_mean),
             diagnostics={"linear_method": method, "free_unknowns": nfree, "fixed_cells": int(fixed.sum()),
                          "partial_cells": int(np.count_nonzero((sysd["B"] > 0) & free)), "cut_faces": sysd["ncut"],
-                         "patch_fallback_to_fraction": len(sysd["fallback"]),
+                         "patch_fallback_to_fraction": len(sysd["fallback"]) if p["patch"] == "cut" else 0,
+                         "patch_at_centre_cell": len(sysd["fallback"]) if p["patch"] == "staircase" else 0,
                          "cells_per_axis": list(sysd["shape"]),
                          "fixed_max_dev": float(np.max(np.abs(T[fixed] - tfix[fixed])) / t_max) if fixed.any()
                          else 0.0},
