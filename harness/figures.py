@@ -29,7 +29,7 @@ def _wrap(title: str, width: int = 90) -> str:
 
 def _save(fig: Any, path: Path) -> bool:
     lines = fig._suptitle.get_text().count("\n") + 1 if fig._suptitle is not None else 0
-    title_room = 0.25 * (lines + 0.6) / fig.get_figheight() if lines else 0.0  # inches kept for the title
+    title_room = (0.17 * lines + 0.08) / fig.get_figheight() if lines else 0.0  # inches kept for the title
     fig.tight_layout(rect=(0.0, 0.0, 1.0, 1.0 - title_room))
     fig.savefig(path.with_suffix(".png"), dpi=110)
     fig.savefig(path.with_suffix(".svg"))
@@ -163,9 +163,11 @@ def render_3d(results: list[dict[str, Any]], path: Path, title: str) -> bool:
         first.setdefault(r["n"], r)
     if not first:
         return False
-    fig = plt.figure(figsize=(4 * len(first), 4.2))
+    cols = min(3, len(first))
+    rows = -(-len(first) // cols)
+    fig = plt.figure(figsize=(4.2 * cols, 4.0 * rows + 0.4))
     for k, (n, r) in enumerate(sorted(first.items())):
-        ax = fig.add_subplot(1, len(first), k + 1, projection="3d")
+        ax = fig.add_subplot(rows, cols, k + 1, projection="3d")
         pts = np.asarray(r["samples"]["nodes"]["points"], float) * 1e3
         vals = np.asarray(r["samples"]["nodes"]["values"], float)
         sc = ax.scatter(pts[:, 0], pts[:, 2], pts[:, 1], c=vals, cmap="inferno", s=40, vmin=0.0,
