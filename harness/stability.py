@@ -224,9 +224,7 @@ class McaProbe:
         aut = bar_automata(scene.box, n, scene.material.density)
         held, values = self.solver._held(scene, aut)
         mat = scene.material
-        cap = mat.density * mat.heat_capacity * aut.volume
-        g = mca_heat.conductances(aut, mat.conductivity)
-        dt_g = mca_heat.stable_step(aut, cap, g, held == 0)
+        cap, g, dt_g = mca_heat.explicit_system(aut, mat.conductivity, mat.density * mat.heat_capacity, held)
         return {"p": {}, "heat": (aut, held, values, cap, g), "omega_max": math.nan, "zeta": 0.0,
                 "dt_theory": dt_g, "safety_theory": 1.0, "solver_dt_limit": dt_g,
                 "scene_hash": scene.content_hash(), "n": n, "t_max": scene.t_max}
@@ -275,16 +273,12 @@ class McaProbe:
             return math.nan
         import scipy.linalg as sla
 
+        from solvers.particles import mca_heat
+
         aut, held, _, cap, g = prep["heat"]
-        n = aut.size
-        lap = np.zeros((n, n))
-        i, j = aut.pairs[:, 0], aut.pairs[:, 1]
-        np.add.at(lap, (i, j), -g)
-        np.add.at(lap, (j, i), -g)
-        np.add.at(lap, (i, i), g)
-        np.add.at(lap, (j, j), g)
         free = np.flatnonzero(held == 0)
-        lam = sla.eigh(lap[np.ix_(free, free)], np.diag(cap[free]), eigvals_only=True)[-1]
+        lap = mca_heat.laplacian(aut, g)[free][:, free].toarray()
+        lam = sla.eigh(lap, np.diag(cap[free]), eigvals_only=True)[-1]
         return float(2.0 / lam / prep["dt_theory"])
 
 

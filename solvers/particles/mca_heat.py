@@ -50,13 +50,27 @@ def explicit_run(temp, cap, pi, pj, g, held, dt, nsteps):
     return temp
 
 
+def explicit_system(aut: Automata, conductivity: float, rho_c: float, held: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray, float]:
+    """(heat capacities C_i, conductances G_p, Gershgorin step) of the explicit scheme."""
+    cap = rho_c * aut.volume
+    g = conductances(aut, conductivity)
+    return cap, g, stable_step(aut, cap, g, held == 0)
+
+
+def laplacian(aut: Automata, g: np.ndarray) -> sp.csr_matrix:
+    """L with (L T)_i = sum_j G_ij (T_i - T_j) over the linked pairs."""
+    pi, pj = aut.pairs[:, 0], aut.pairs[:, 1]
+    n = aut.size
+    return sp.coo_matrix((np.concatenate([g, g, -g, -g]), (np.concatenate([pi, pj, pi, pj]),
+                                                           np.concatenate([pi, pj, pj, pi]))), shape=(n, n)).tocsr()
+
+
 def transient(aut: Automata, conductivity: float, rho_c: float, temp0: np.ndarray, held: np.ndarray, t_end: float,
               cfl: float) -> tuple[np.ndarray, float, int]:
     """Temperatures at t_end from temp0 (held automata keep theirs); returns (T, dt, steps)."""
-    cap = rho_c * aut.volume
-    g = conductances(aut, conductivity)
-    free = held == 0
-    dt_max = cfl * stable_step(aut, cap, g, free)
+    cap, g, dt_g = explicit_system(aut, conductivity, rho_c, held)
+    dt_max = cfl * dt_g
     steps = max(1, math.ceil(t_end / dt_max * (1 - 1e-12)))
     dt = t_end / steps
     temp = explicit_run(temp0.astype(float).copy(), cap, aut.pairs[:, 0].copy(), aut.pairs[:, 1].copy(), g,
@@ -66,11 +80,8 @@ def transient(aut: Automata, conductivity: float, rho_c: float, temp0: np.ndarra
 
 def steady(aut: Automata, conductivity: float, values: np.ndarray, held: np.ndarray) -> np.ndarray:
     """Steady state of the same scheme: sum_j G_ij (T_j - T_i) = 0 on the free automata."""
-    g = conductances(aut, conductivity)
-    pi, pj = aut.pairs[:, 0], aut.pairs[:, 1]
+    lap = laplacian(aut, conductances(aut, conductivity))
     n = aut.size
-    lap = sp.coo_matrix((np.concatenate([g, g, -g, -g]), (np.concatenate([pi, pj, pi, pj]),
-                                                          np.concatenate([pi, pj, pj, pi]))), shape=(n, n)).tocsr()
     free = np.flatnonzero(held == 0)
     fixed = np.flatnonzero(held != 0)
     temp = np.zeros(n)
