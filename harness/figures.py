@@ -28,7 +28,8 @@ def _wrap(title: str, width: int = 90) -> str:
 
 
 def _save(fig: Any, path: Path) -> bool:
-    lines = fig._suptitle.get_text().count("\n") + 1 if fig._suptitle is not None else 0
+    title = fig.get_suptitle()
+    lines = title.count("\n") + 1 if title else 0
     title_room = (0.17 * lines + 0.08) / fig.get_figheight() if lines else 0.0  # inches kept for the title
     fig.tight_layout(rect=(0.0, 0.0, 1.0, 1.0 - title_room))
     fig.savefig(path.with_suffix(".png"), dpi=110)

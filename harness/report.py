@@ -51,8 +51,8 @@ def _write_vtus(results: list[dict[str, Any]], folder: Path) -> list[str]:
             continue
         values = np.asarray(nodes["values"], dtype=float)
         name = (r.get("quantity") or "value").replace("/", "_over_")
-        write_vtu(folder / "vtu" / _vtu_name(r), np.asarray(nodes["points"], dtype=float), {name: values})
         names.append(f"vtu/{_vtu_name(r)}")
+        write_vtu(folder / names[-1], np.asarray(nodes["points"], dtype=float), {name: values})
     return names
 
 
@@ -70,9 +70,9 @@ def _reference_values(g: Any, done: dict[str, pd.DataFrame]) -> dict[str, float]
     return {str(q): float(v) for q, v in zip(rows["quantity"], rows[metric], strict=True)}
 
 
-def _group_tables(g: Any, res: list[dict[str, Any]], folder: Path,
+def _group_tables(g: Any, res: list[dict[str, Any]], cells: pd.DataFrame, folder: Path,
                   done: dict[str, pd.DataFrame]) -> tuple[dict[str, pd.DataFrame], list[str]]:
-    """Tables and figures of one group, by its analysis and its `figures` option."""
+    """Tables and figures of one group (its cells table given), by its analysis and its `figures` option."""
     figs: list[str] = []
     stem = folder / g.id
     if g.analysis == "convergence":
@@ -99,7 +99,8 @@ def _group_tables(g: Any, res: list[dict[str, Any]], folder: Path,
         tables, more = report_tables(res, folder, g.id, g.title)
         figs += more
     else:
-        tables = {f"{g.id}-cells": analysis.cells_table(res)}
+        tables = {}
+    tables.setdefault(f"{g.id}-cells", cells)
     for kind in g.options.get("figures", []):
         draw = {"edge-profiles": figures.edge_profiles, "render-3d": figures.render_3d}.get(kind)
         if draw is None:
@@ -114,13 +115,12 @@ def write_study_report(study: Any, results: list[dict[str, Any]], out: Path) -> 
     folder = out / study.name
     folder.mkdir(parents=True, exist_ok=True)
     manifest: dict[str, Any] = {"name": study.name, "title": study.title, "sections": [], "verdicts": None}
-    cells = analysis.cells_table(results)
-    cells.to_csv(folder / "cells.csv", index=False)
     all_tables: dict[str, pd.DataFrame] = {}
+    group_cells = []
     for g in study.groups:
         res = [r for r in results if r.get("group") == g.id]
-        tables, figs = _group_tables(g, res, folder, all_tables)
-        tables.setdefault(f"{g.id}-cells", analysis.cells_table(res))
+        group_cells.append(analysis.cells_table(res))
+        tables, figs = _group_tables(g, res, group_cells[-1], folder, all_tables)
         skipped = [r for r in res if r.get("status") in ("skipped", "failed")]
         if skipped:
             tables[f"{g.id}-skipped"] = pd.DataFrame(
@@ -135,6 +135,7 @@ def write_study_report(study: Any, results: list[dict[str, Any]], out: Path) -> 
             section["vtu"] = _write_vtus(res, folder)
         all_tables.update(tables)
         manifest["sections"].append(section)
+    pd.concat(group_cells, ignore_index=True).to_csv(folder / "cells.csv", index=False)
     if study.claims:
         _write_table(verdict.verdicts(study.name, study.claims, all_tables), folder / "verdicts")
         manifest["verdicts"] = "verdicts.csv"

@@ -329,7 +329,7 @@ class Macromolecule:
             raise SceneError(f"macromolecule cannot solve {scene.name}: {why}")
         n = resolution.n
         if "modes" in scene.physics:
-            return self._modes(scene, n, p, samples, t_wall)
+            return self._modes(scene, n, p, t_wall)
         s = self.setup(scene, n, p)
         lat, fx = s["lat"], s["fx"]
         w_drive = 2 * np.pi * p["drive_frequency"]
@@ -388,8 +388,7 @@ class Macromolecule:
                         quantity="relative hotness H/H_max (hottest free particle)", work=work, summary=summary,
                         diagnostics=diagnostics)
 
-    def _modes(self, scene: Scene, n: int, p: dict[str, Any], samples: dict[str, np.ndarray] | None,
-               t_wall: float) -> Solution:
+    def _modes(self, scene: Scene, n: int, p: dict[str, Any], t_wall: float) -> Solution:
         """Eigenfrequencies of the seven-root lattice (shape p, s, unstable_fraction as given) clamped at z = 0,
         its stiffness scaled so that its uniaxial Young's modulus is the material's (mca_compare)."""
         from .mca_compare import macromolecule_modes
