@@ -116,9 +116,8 @@ def judge(study: str, claim: Claim, tables: dict[str, pd.DataFrame]) -> list[dic
             ref = others if matched else others[others[claim.per] == case]
             target = _aggregate(ref, claim.against_metric or claim.metric, claim.aggregate)
         if not (math.isfinite(value) and math.isfinite(target)):
-            picked = _rows(df, claim.select) if case is None else part
-            reasons = sorted(set(str(r) for r in picked.get("reason", pd.Series(dtype=str)).dropna() if r))
-            statuses = sorted(set(picked.get("status", pd.Series(dtype=str)).dropna()))
+            reasons = sorted(set(str(r) for r in part.get("reason", pd.Series(dtype=str)).dropna() if r))
+            statuses = sorted(set(part.get("status", pd.Series(dtype=str)).dropna()))
             note = f"no finite {claim.metric} in the selected rows"
             note += f" (status {', '.join(statuses)}: {reasons[0]})" if reasons else ""
             out.append(row | {"verdict": "not-applicable", "note": note})
