@@ -15,22 +15,27 @@ What differs is only how the work is laid out:
 - one loop per group computes the conservative force, the radial damping, the per-slot
   dissipation term and the hop flag.  Dissipation over n -> n+1 is
   1/2 dt sum_k (G_k^n . (v_j - v_i)_{n+1/2} + delta rdot_k^2), with G_k^n the slot's damping
-  force vector from the previous pass (streamed, not scattered), summed in 8 fixed partial sums;
+  force from the previous pass, kept as one scalar q = g/r per slot (G^n . dv = q d_n . dv and
+  d_n = d_{n+1} - dt dv_{n+1/2}, exact to rounding), summed in 8 fixed partial sums;
 - the seven-root product as a depth-3 tree of the root factors: no pow, exact near the roots.
   Horner in powers of x cancels catastrophically near the roots (6e-7 relative error of the force
   at x = sqrt3 + 1e-4, where the lattice lives), so it is not used; Horner about each pair's own
   root is accurate but needs per-shell coefficients and a 7-deep multiply-add chain.  The
   envelope (a/r)^2 is (a * (1/r))^2 (other exponents: pow, a scalar loop);
 - the STEP is branch-free (clamped), so 2a pairs that cross 2a cost no branch mispredictions;
-- hop detection stays exact in every pass (a vectorised count of changed flags; the per-slot
-  bookkeeping runs only when one changed); NaN, box, energy-growth and neighbourhood checks run
-  every `check_every` steps, as in the reference kernel;
-- plain free, held and bath particles are handled through index lists (no per-particle branches).
+- hop detection stays exact in every pass: the group loop counts slots whose flag differs from
+  the stored one (an integer reduction, vectorised), and the group's bookkeeping runs only then;
+  NaN, box, energy-growth and neighbourhood checks run every `check_every` steps, as in the
+  reference kernel; the potential energy they record is `potential`, the reference's 12-point
+  Gauss-Legendre rule vectorised over the stencil slots (3x faster than the pair-list loop);
+- kick and drift run over all particles in one contiguous loop; held and bath particles are then
+  overwritten by their own updates (index lists, no per-particle branches).
 
 Measured (tests/bench/test_bench_macromolecule.py, CPU time, N = 160, damping on, machine shared
-with other jobs): ~9-10 ns per pair-step for the whole kernel against ~17 for the reference
-kernel (ratio 1.7-1.8 in one run); the pair pass alone 7.4 ns per listed pair.  The 3 ns target
-is not reached.
+with other jobs): ~8 ns per pair-step for the whole kernel against ~16 for the reference kernel
+(ratio ~2 in one run).  The 3 ns target is not reached: on this CPU (Zen 4, AVX-512) the group
+loop with no dissipation bookkeeping and no hop flags, i.e. forces alone, already costs ~2.9 ns
+per listed pair (2.3 ns per slot; 29 % of the slots are masked lattice-edge slots at N = 160).
 """
 
 from __future__ import annotations
@@ -39,7 +44,7 @@ import math
 
 import llvmlite.binding as llvm
 import numpy as np
-from numba import njit
+from numba import literal_unroll, njit
 
 from .integrate import (
     E_START,
@@ -53,12 +58,11 @@ from .integrate import (
     finish,
     hop_out,
     neighbourhood,
-    potential_energy,
     record,
     reset_outputs,
     verdict,
 )
-from .seven_root import C_A, C_P, C_ROOTS, C_X0, C_X1
+from .seven_root import _GL_W, _GL_X, C_A, C_P, C_ROOTS, C_X0, C_X1, energy_x
 
 __all__ = ["pair_pass", "run", "stencil"]
 
@@ -92,9 +96,15 @@ def stencil(pairs: np.ndarray, shell: np.ndarray, n: int, basins: np.ndarray) ->
 
 
 @njit(inline="always")
-def _group(px, py, pz, vx, vy, vz, o, base, lo, hi, mask, rt, amp_a, p, step_lo, inv_w, a, delta,
-           gx, gy, gz, fsx, fsy, fsz, dk, hk, square):
-    """One stencil group: per-slot force vectors, dissipation terms and hop flags in one loop.
+def _group(px, py, pz, vx, vy, vz, o, base, lo, hi, mask, rt, amp_a, p, step_lo, inv_w, a, delta, dt,
+           qk, fsx, fsy, fsz, dk, out, square):
+    """One stencil group: per-slot force vectors and dissipation terms in one loop; returns how
+    many slots changed their hop flag (in or out of the root interval) against `out`.
+
+    The damping force of the previous pass, G = g e, is kept as one scalar per slot, q = g / r:
+    its work G . dv_{n+1/2} is q (d_n . dv), and d_n = d_{n+1} - dt dv_{n+1/2} because every
+    particle moved by dt v_{n+1/2} (free ones drift so, held ones have v_{n+1/2} defined as their
+    displacement over dt): exact to rounding, one stream per slot instead of three.
 
     Inlined at Numba IR level into `_group_p2` and `_group_any`, each passing `square` as a
     constant, so each compiled loop holds only its own envelope: (a * (1/r))^2, vectorised, or
@@ -109,6 +119,7 @@ def _group(px, py, pz, vx, vy, vz, o, base, lo, hi, mask, rt, amp_a, p, step_lo,
     r4 = rt[4]
     r5 = rt[5]
     r6 = rt[6]
+    changed = 0
     for i in range(px.shape[0] - o):
         s = np.uint64(base + i)
         iu = np.uint64(i)
@@ -140,31 +151,32 @@ def _group(px, py, pz, vx, vy, vz, o, base, lo, hi, mask, rt, amp_a, p, step_lo,
         dvz = vz[j] - vz[iu]
         rdot = dvx * ex + dvy * ey + dvz * ez
         g = delta * rdot * m
-        dk[s] = gx[s] * dvx + gy[s] * dvy + gz[s] * dvz + g * rdot
-        gx[s] = g * ex
-        gy[s] = g * ey
-        gz[s] = g * ez
+        back = (dx * dvx + dy * dvy + dz * dvz) - dt * (dvx * dvx + dvy * dvy + dvz * dvz)
+        dk[s] = qk[s] * back + g * rdot
+        qk[s] = g * ir
         f += g
         fsx[s] = f * ex
         fsy[s] = f * ey
         fsz[s] = f * ez
-        hk[s] = m if (x < lo) | (x >= hi) else 0.0
+        flag = np.int8(1) if ((x < lo) | (x >= hi)) & (m != 0.0) else np.int8(0)
+        changed += flag != out[s]
+    return changed
 
 
 @njit(cache=True, boundscheck=False, error_model="numpy")
-def _group_p2(px, py, pz, vx, vy, vz, o, base, lo, hi, mask, rt, amp_a, p, step_lo, inv_w, a, delta,
-              gx, gy, gz, fsx, fsy, fsz, dk, hk):
+def _group_p2(px, py, pz, vx, vy, vz, o, base, lo, hi, mask, rt, amp_a, p, step_lo, inv_w, a, delta, dt,
+              qk, fsx, fsy, fsz, dk, out):
     """`_group` for the default envelope (a/r)^2 (the vectorised loop)."""
-    _group(px, py, pz, vx, vy, vz, o, base, lo, hi, mask, rt, amp_a, p, step_lo, inv_w, a, delta,
-           gx, gy, gz, fsx, fsy, fsz, dk, hk, True)
+    return _group(px, py, pz, vx, vy, vz, o, base, lo, hi, mask, rt, amp_a, p, step_lo, inv_w, a, delta, dt,
+                  qk, fsx, fsy, fsz, dk, out, True)
 
 
 @njit(cache=True, boundscheck=False, error_model="numpy")
-def _group_any(px, py, pz, vx, vy, vz, o, base, lo, hi, mask, rt, amp_a, p, step_lo, inv_w, a, delta,
-               gx, gy, gz, fsx, fsy, fsz, dk, hk):
+def _group_any(px, py, pz, vx, vy, vz, o, base, lo, hi, mask, rt, amp_a, p, step_lo, inv_w, a, delta, dt,
+              qk, fsx, fsy, fsz, dk, out):
     """`_group` for any envelope exponent p (x^-p through pow: correct, not vectorised)."""
-    _group(px, py, pz, vx, vy, vz, o, base, lo, hi, mask, rt, amp_a, p, step_lo, inv_w, a, delta,
-           gx, gy, gz, fsx, fsy, fsz, dk, hk, False)
+    return _group(px, py, pz, vx, vy, vz, o, base, lo, hi, mask, rt, amp_a, p, step_lo, inv_w, a, delta, dt,
+                  qk, fsx, fsy, fsz, dk, out, False)
 
 
 @njit(cache=True, boundscheck=False)
@@ -185,14 +197,148 @@ def _scatter(o, base, fsx, fsy, fsz, fx, fy, fz):
         fz[j] -= fsz[s]
 
 
+# Gauss-Legendre nodes of `seven_root.energy_x` as (node, weight) pairs about the midpoint: a tuple of
+# constants that numba unrolls, so that the slot loop of `_energy` vectorises
+_GL_PAIRS = tuple((float(x), float(w)) for x, w in zip(_GL_X[6:], _GL_W[6:], strict=True))
+
+
+@njit(inline="always")
+def _force_x(x, r0, r1, r2, r3, r4, r5, r6, amp_a, p, square):
+    """Conservative force below the STEP start (no STEP factor): product tree times envelope."""
+    prod = (((x - r0) * (x - r1)) * ((x - r2) * (x - r3))) * (((x - r4) * (x - r5)) * ((x - r6) * amp_a))
+    if square:
+        ix = 1.0 / x
+        return prod * (ix * ix)
+    return prod * x ** (-p)
+
+
+@njit(inline="always")
+def _energy(px, py, pz, o, base, mask, r0s, rt, amp_a, p, step_lo, a, es, square):
+    """Per-slot potential energy U(r) - U(r0) of one group (over a), 12-point Gauss-Legendre.
+
+    The same rule as `seven_root.energy_x` (same nodes on [x0, x]), vectorised over the slots: a
+    slot whose x or x0 lies beyond the STEP start (where energy_x splits the interval) gets 0 here
+    and is counted; the caller evaluates those few with energy_x itself."""
+    inv_a = 1.0 / a
+    r0 = rt[0]
+    r1 = rt[1]
+    r2 = rt[2]
+    r3 = rt[3]
+    r4 = rt[4]
+    r5 = rt[5]
+    r6 = rt[6]
+    beyond = 0
+    for i in range(px.shape[0] - o):
+        s = np.uint64(base + i)
+        iu = np.uint64(i)
+        j = np.uint64(i + o)
+        m = mask[s]
+        dx = px[j] - px[iu]
+        dy = py[j] - py[iu]
+        dz = pz[j] - pz[iu]
+        x = math.sqrt(dx * dx + dy * dy + dz * dz) * inv_a
+        x0 = r0s[s] * inv_a
+        inside = (x <= step_lo) & (x0 <= step_lo)
+        half = 0.5 * (x - x0)
+        mid = 0.5 * (x + x0)
+        acc = 0.0
+        for k in literal_unroll(_GL_PAIRS):  # the 12 nodes as 6 symmetric pairs, unrolled
+            xa = mid + half * k[0]
+            xb = mid - half * k[0]
+            acc += k[1] * (_force_x(xa, r0, r1, r2, r3, r4, r5, r6, amp_a, p, square)
+                           + _force_x(xb, r0, r1, r2, r3, r4, r5, r6, amp_a, p, square))
+        es[s] = acc * half * m if inside else 0.0
+        beyond += 1 if (m != 0.0) & (not inside) else 0
+    return beyond
+
+
+@njit(cache=True, boundscheck=False, error_model="numpy")
+def _energy_p2(px, py, pz, o, base, mask, r0s, rt, amp_a, p, step_lo, a, es):
+    """`_energy` for the default envelope (a/r)^2 (the vectorised loop)."""
+    return _energy(px, py, pz, o, base, mask, r0s, rt, amp_a, p, step_lo, a, es, True)
+
+
+@njit(cache=True, boundscheck=False, error_model="numpy")
+def _energy_any(px, py, pz, o, base, mask, r0s, rt, amp_a, p, step_lo, a, es):
+    """`_energy` for any envelope exponent p."""
+    return _energy(px, py, pz, o, base, mask, r0s, rt, amp_a, p, step_lo, a, es, False)
+
+
+@njit(cache=True, boundscheck=False)
+def potential(px, py, pz, g_off, g_base, mask, r0s, c, pint, a, es):
+    """U(x) - U(x_rest) summed over the listed pairs (J): `integrate.potential_energy` on the stencil."""
+    rt = c[C_ROOTS:C_ROOTS + 7]
+    inv_a = 1.0 / a
+    for g in range(g_off.shape[0]):
+        o = g_off[g]
+        base = g_base[g]
+        if pint == 2:
+            beyond = _energy_p2(px, py, pz, o, base, mask, r0s, rt, c[C_A], c[C_P], c[C_X0], a, es)
+        else:
+            beyond = _energy_any(px, py, pz, o, base, mask, r0s, rt, c[C_A], c[C_P], c[C_X0], a, es)
+        if beyond == 0:
+            continue
+        for i in range(px.shape[0] - o):
+            s = base + i
+            if mask[s] == 0.0:
+                continue
+            j = i + o
+            dx = px[j] - px[i]
+            dy = py[j] - py[i]
+            dz = pz[j] - pz[i]
+            x = math.sqrt(dx * dx + dy * dy + dz * dz) * inv_a
+            x0 = r0s[s] * inv_a
+            if x > c[C_X0] or x0 > c[C_X0]:
+                es[s] = energy_x(x0, x, c)
+    return a * _sum8(es)
+
+
+@njit(cache=True, boundscheck=False)
+def _hops(px, py, pz, o, base, lo, hi, mask, a, out, ever, step, counters):
+    """Hop bookkeeping of one group whose flags changed (rare): the flags again, slot by slot."""
+    inv_a = 1.0 / a
+    for i in range(px.shape[0] - o):
+        s = base + i
+        if mask[s] == 0.0:
+            continue
+        j = i + o
+        dx = px[j] - px[i]
+        dy = py[j] - py[i]
+        dz = pz[j] - pz[i]
+        x = math.sqrt(dx * dx + dy * dy + dz * dz) * inv_a
+        if (x < lo) | (x >= hi):
+            hop_out(s, out, ever, step, counters)
+        elif out[s] != 0:
+            out[s] = 0
+
+
+@njit(cache=True, boundscheck=False)
+def _sum8(v):
+    """Sum in 8 fixed partial sums (one SIMD register): deterministic, and not a serial chain."""
+    s0 = s1 = s2 = s3 = s4 = s5 = s6 = s7 = 0.0
+    m = v.shape[0] - v.shape[0] % 8
+    for k in range(0, m, 8):
+        s0 += v[k]
+        s1 += v[k + 1]
+        s2 += v[k + 2]
+        s3 += v[k + 3]
+        s4 += v[k + 4]
+        s5 += v[k + 5]
+        s6 += v[k + 6]
+        s7 += v[k + 7]
+    for k in range(m, v.shape[0]):
+        s0 += v[k]
+    return ((s0 + s1) + (s2 + s3)) + ((s4 + s5) + (s6 + s7))
+
+
 @njit(cache=True, boundscheck=False)
 def pair_pass(px, py, pz, vx, vy, vz, g_off, g_base, g_lo, g_hi, mask, rt, amp_a, pint, p, step_lo, inv_w, a,
-              delta, gx, gy, gz, fsx, fsy, fsz, dk, hk, out, ever, step, counters, fx, fy, fz):
+              delta, dt, qk, fsx, fsy, fsz, dk, out, ever, step, counters, fx, fy, fz):
     """Forces at the current positions (damping with the given velocities) into fx, fy, fz.
 
     Returns 1/2 sum_k (G_k^prev . dv_k + delta rdot_k^2) (times dt: dissipation over the interval
-    ending here; summed in 8 fixed partial sums, so deterministic); g* hold each slot's damping
-    force vector for the next pass.  Hop flags are exact: every slot, every pass."""
+    ending here; summed in 8 fixed partial sums, so deterministic); qk holds each slot's damping
+    force over distance for the next pass.  Hop flags are exact: every slot, every pass."""
     n = px.shape[0]
     for i in range(n):
         fx[i] = 0.0
@@ -200,33 +346,15 @@ def pair_pass(px, py, pz, vx, vy, vz, g_off, g_base, g_lo, g_hi, mask, rt, amp_a
         fz[i] = 0.0
     for g in range(g_off.shape[0]):
         if pint == 2:
-            _group_p2(px, py, pz, vx, vy, vz, g_off[g], g_base[g], g_lo[g], g_hi[g], mask, rt, amp_a, p, step_lo,
-                      inv_w, a, delta, gx, gy, gz, fsx, fsy, fsz, dk, hk)
+            changed = _group_p2(px, py, pz, vx, vy, vz, g_off[g], g_base[g], g_lo[g], g_hi[g], mask, rt, amp_a, p,
+                                step_lo, inv_w, a, delta, dt, qk, fsx, fsy, fsz, dk, out)
         else:
-            _group_any(px, py, pz, vx, vy, vz, g_off[g], g_base[g], g_lo[g], g_hi[g], mask, rt, amp_a, p, step_lo,
-                       inv_w, a, delta, gx, gy, gz, fsx, fsy, fsz, dk, hk)
+            changed = _group_any(px, py, pz, vx, vy, vz, g_off[g], g_base[g], g_lo[g], g_hi[g], mask, rt, amp_a, p,
+                                 step_lo, inv_w, a, delta, dt, qk, fsx, fsy, fsz, dk, out)
+        if changed != 0:
+            _hops(px, py, pz, g_off[g], g_base[g], g_lo[g], g_hi[g], mask, a, out, ever, step, counters)
         _scatter(g_off[g], g_base[g], fsx, fsy, fsz, fx, fy, fz)
-    ns = dk.shape[0]
-    acc = np.zeros(8)
-    for k0 in range(0, ns - 7, 8):
-        for q in range(8):
-            acc[q] += dk[k0 + q]
-    diss = 0.0
-    for k in range(ns - ns % 8, ns):
-        diss += dk[k]
-    for q in range(8):
-        diss += acc[q]
-    changed = 0
-    for k in range(ns):  # vectorised count; the per-slot bookkeeping below runs only on a change
-        changed += (hk[k] != 0.0) != (out[k] != 0)
-    if changed == 0:
-        return 0.5 * diss
-    for k in range(ns):
-        if hk[k] != 0.0:
-            hop_out(k, out, ever, step, counters)
-        elif out[k] != 0:
-            out[k] = 0
-    return 0.5 * diss
+    return 0.5 * _sum8(dk)
 
 
 @njit(inline="always")
@@ -346,7 +474,6 @@ def run(x, v0, x_rest, kind, amp, phase, omega, free_centre, mass, gamma, kt, se
     held = np.flatnonzero(kind != FREE)
     free = np.flatnonzero(kind == FREE)
     bath = np.flatnonzero((kind == FREE) & (gamma > 0.0))
-    plain = np.flatnonzero((kind == FREE) & (gamma <= 0.0))
     moving = np.flatnonzero((kind != FREE) & (kind != FROZEN))
     group_mass = mass * np.sum(kind == GROUP)
     if group_mass == 0.0:
@@ -355,10 +482,13 @@ def run(x, v0, x_rest, kind, amp, phase, omega, free_centre, mass, gamma, kt, se
     vmx, vmy, vmz = _xyz(n)
     vpx, vpy, vpz = _xyz(n)
     ns = mask.shape[0]
-    gx, gy, gz = _xyz(ns)
+    qk = np.zeros(ns)
+    es = np.zeros(ns)
+    r0s = np.zeros(ns)
+    for k in range(npair):
+        r0s[slot[k]] = r0[k]
     fsx, fsy, fsz = _xyz(ns)
     dk = np.zeros(ns)
-    hk = np.zeros(ns)
     ever_s = np.zeros(ns, dtype=np.int8)
     lh0 = np.zeros((held.shape[0], 3))
     lh1 = np.zeros((held.shape[0], 3))
@@ -380,7 +510,7 @@ def run(x, v0, x_rest, kind, amp, phase, omega, free_centre, mass, gamma, kt, se
         vpy[i] = v0[i, 1]
         vpz[i] = v0[i, 2]
     pair_pass(px, py, pz, vpx, vpy, vpz, g_off, g_base, g_lo, g_hi, mask, rt, amp_a, pint, p, step_lo, inv_w, a,
-              delta, gx, gy, gz, fsx, fsy, fsz, dk, hk, out, ever_s, 0, counters, fx, fy, fz)
+              delta, dt, qk, fsx, fsy, fsz, dk, out, ever_s, 0, counters, fx, fy, fz)
     for q in range(free.shape[0]):
         i = free[q]
         vmx[i] = v0[i, 0] - 0.5 * dtm * fx[i]
@@ -404,9 +534,9 @@ def run(x, v0, x_rest, kind, amp, phase, omega, free_centre, mass, gamma, kt, se
     status = RUNNING
     while True:
         t = step * dt
-        # --- kick: v_{n+1/2} from v_{n-1/2} and F_n (plain free particles: vectorisable loop)
-        for q in range(plain.shape[0]):
-            i = plain[q]
+        # --- kick: v_{n+1/2} from v_{n-1/2} and F_n, over all particles (one contiguous, vectorised
+        # loop); held and bath particles are then overwritten by their own kicks
+        for i in range(n):
             vpx[i] = vmx[i] + dtm * fx[i]
             vpy[i] = vmy[i] + dtm * fy[i]
             vpz[i] = vmz[i] + dtm * fz[i]
@@ -417,7 +547,7 @@ def run(x, v0, x_rest, kind, amp, phase, omega, free_centre, mass, gamma, kt, se
             e0 = 0.0
             for i in range(n):
                 e0 += vmx[i] * vpx[i] + vmy[i] * vpy[i] + vmz[i] * vpz[i]
-            energy[E_START] = half_m * e0 + potential_energy(x, pi, pj, r0, c, a)
+            energy[E_START] = half_m * e0 + potential(px, py, pz, g_off, g_base, mask, r0s, c, pint, a, es)
         else:
             # drive and bath work over n-1 -> n with v_{n-1/2}
             w_drive += 0.5 * dt * _work(held, vmx, vmy, vmz, lh0, lh1)
@@ -447,11 +577,7 @@ def run(x, v0, x_rest, kind, amp, phase, omega, free_centre, mass, gamma, kt, se
             if status == RUNNING:
                 status = neighbourhood(px, py, pz, x_rest, kind, pi, pj, a, cutoff_rest, contact_fraction, skin)
             if hrow < history.shape[0]:
-                for i in range(n):
-                    x[i, 0] = px[i]
-                    x[i, 1] = py[i]
-                    x[i, 2] = pz[i]
-                pot = potential_energy(x, pi, pj, r0, c, a) if not bad else np.nan
+                pot = potential(px, py, pz, g_off, g_base, mask, r0s, c, pint, a, es) if not bad else np.nan
                 record(history, hrow, t, kin, pot, diss, w_drive, w_bath)
                 hrow += 1
             if status != RUNNING:
@@ -468,8 +594,7 @@ def run(x, v0, x_rest, kind, amp, phase, omega, free_centre, mass, gamma, kt, se
                 acc[i] += ux * ux + uy * uy + uz * uz
         # --- drift to t_{n+1}
         t1 = t + dt
-        for q in range(free.shape[0]):
-            i = free[q]
+        for i in range(n):  # all particles: frozen ones have v = 0, moving ones are set below
             px[i] += dt * vpx[i]
             py[i] += dt * vpy[i]
             pz[i] += dt * vpz[i]
@@ -488,7 +613,7 @@ def run(x, v0, x_rest, kind, amp, phase, omega, free_centre, mass, gamma, kt, se
                 pz[i] += cpos[2]
         # --- forces at t_{n+1} with damping from v_{n+1/2}; dissipation over n -> n+1
         diss += dt * pair_pass(px, py, pz, vpx, vpy, vpz, g_off, g_base, g_lo, g_hi, mask, rt, amp_a, pint, p,
-                               step_lo, inv_w, a, delta, gx, gy, gz, fsx, fsy, fsz, dk, hk, out, ever_s, step + 1,
+                               step_lo, inv_w, a, delta, dt, qk, fsx, fsy, fsz, dk, out, ever_s, step + 1,
                                counters, fx, fy, fz)
         vmx, vmy, vmz, vpx, vpy, vpz = vpx, vpy, vpz, vmx, vmy, vmz  # v_{n+1/2} is v_{n-1/2} of the next step
         step += 1
@@ -510,7 +635,7 @@ def run(x, v0, x_rest, kind, amp, phase, omega, free_centre, mass, gamma, kt, se
         hot[1, i] = q8 * hot1[i]
         hot[2, i] = q8 * hot2[i]
         hot[0, i] = hot[1, i] + hot[2, i]
-    pot = potential_energy(x, pi, pj, r0, c, a)
+    pot = potential(px, py, pz, g_off, g_base, mask, r0s, c, pint, a, es)
     finish(counters, energy, step, status, half_m * e1 + pot, diss, w_drive, w_bath, half_m * kin, pot)
     for k in range(npair):
         ever[k] = ever_s[slot[k]]
