@@ -41,7 +41,6 @@ from .modal import (
     free_dofs,
     hessian,
     modal_basis,
-    top_frequency,
 )
 from .seven_root import SevenRoot
 
@@ -281,13 +280,13 @@ class Macromolecule:
         fx = make_fixes(scene, lat, p, omega_top=1.0)
         dofs = free_dofs(~fx.held)
         K0 = hessian(lat.positions, lat.pairs, SevenRoot(1.0, p["p"], p["s"], p["unstable_fraction"]), lat.a)
-        w0 = top_frequency(K0, lat.mass, dofs)
+        omega0, phi, method = modal_basis(K0, lat.mass, dofs)  # at A = 1; K = A K0 has the same shapes
+        w0 = float(omega0[-1])
         A = p["stiffness"] if p["stiffness"] is not None else (2 * np.pi * p["f_top"] / w0) ** 2
         model = SevenRoot(A, p["p"], p["s"], p["unstable_fraction"])
-        K = K0 * A
         w_top = w0 * math.sqrt(A)
         fx = make_fixes(scene, lat, p, omega_top=w_top)
-        basis = modal_basis(K, lat.mass, dofs)
+        basis = (omega0 * math.sqrt(A), phi, method)
         C1 = damping_matrix(lat.positions, lat.pairs, 1.0)
         if p["delta"] is not None and p["damping_ratio"] is not None:
             raise SceneError("delta and damping_ratio are exclusive; give one (damping_ratio defaults to "

@@ -17,6 +17,7 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+from scipy.optimize import brentq
 
 from .seven_root import SevenRoot, force_slope_array
 
@@ -166,10 +167,12 @@ def discrete_stability_limit(basis: tuple[np.ndarray, np.ndarray, str], C: sp.cs
         amp = np.block([[2 * eye - dt * Cr - dt * dt * w2, -eye + dt * Cr], [eye, np.zeros((m, m))]])
         return float(np.abs(sla.eigvals(amp)).max())
 
-    lo, hi = 0.0, 1.0
-    if rho(hi) <= 1 + tol:
-        return hi
-    for _ in range(30):
-        mid = 0.5 * (lo + hi)
-        lo, hi = (lo, mid) if rho(mid) > 1 + tol else (mid, hi)
-    return lo
+    if rho(1.0) <= 1 + tol:
+        return 1.0
+    # Brent's method on rho - 1 - tol to 1e-9 in h: ~10 eigenvalue solves instead of a 30-step
+    # bisection.  Bracketed from h = 1e-3, not 0: at dt = 0 the step matrix is defective (double
+    # eigenvalue 1) and its computed spectral radius can exceed 1 by more than tol
+    lo = 1e-3
+    if rho(lo) > 1 + tol:
+        raise ArithmeticError(f"the linearised step is unstable already at omega_max dt / 2 = {lo:g}")
+    return float(brentq(lambda h: rho(h) - 1.0 - tol, lo, 1.0, xtol=1e-9))
