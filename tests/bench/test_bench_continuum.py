@@ -4,7 +4,9 @@ Sizes: the refined lattice of n = 4 at refine 5 / 10 / 20, i.e. 11 776 / 87 451 
 solvers (skfem: grid nodes; FiPy: the node-centred dual cells, one per node).  Scene bar-heat-faces (plain
 grid) for both; bar-heat-patch for skfem at the largest size (the warped conforming-patch band goes through
 scikit-fem's general assembly).  One side-by-side pair measures the assembly speed-up at ~87 000 nodes:
-scikit-fem's general assembly of the same Q1 matrix against the tensor-product assembly.
+scikit-fem's general assembly of the same Q1 matrix against the tensor-product assembly.  Another measures the
+FiPy solve with the fast set-up of solvers/continuum/fipy_fast.py against FiPy's plain Grid3D / DiffusionTerm
+set-up (the same matrix bit for bit) at 87 451 and 673 501 cells, rounds interleaved, ratio in extra_info.
 
 Timed by pytest-benchmark (`pcverify bench --tests tests/bench/test_bench_continuum.py`); a small solve
 warms imports and the numba cache outside the timing.  extra_info carries the work counters (unknowns,
@@ -14,6 +16,8 @@ iterations) and where the time went (assembly_s, solve_s, of the last round).  U
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 import pytest
 
@@ -21,6 +25,7 @@ from harness.catalogue import make_scene
 from solvers import get_solver
 from solvers.base import Resolution
 from solvers.continuum.assembly import assemble_q1
+from solvers.continuum.fipy_heat import FipyHeat
 from solvers.continuum.grid import StructuredGrid
 
 SIZES = {5: 11_776, 10: 87_451, 20: 673_501}  # refine of n = 4 -> unknowns
@@ -47,6 +52,53 @@ def _case(benchmark, solver_name: str, scene_name: str, refine: int, rounds: int
 @pytest.mark.parametrize("solver_name", ["skfem", "fipy"])
 def test_bench_steady_faces(benchmark, solver_name: str, refine: int) -> None:
     _case(benchmark, solver_name, "bar-heat-faces", refine, rounds=3 if refine < LARGE else 3)
+
+
+class _StockFipy(FipyHeat):
+    """FipyHeat with FiPy's plain Grid3D / DiffusionTerm set-up (the same matrix, bit for bit: tests/test_fipy_fast)."""
+
+    def _assemble(self, *args, **kwargs):
+        return super()._assemble(*args, stock=True, **kwargs)
+
+
+@pytest.mark.parametrize("refine", [10, 20])
+def test_bench_fipy_setup_stock_vs_fast(benchmark, refine: int) -> None:
+    """The FiPy steady solve with the fast set-up (timed) against the plain FiPy set-up, rounds interleaved.
+
+    The plain solve runs in each round's untimed setup (perf_counter), so both see the same machine load;
+    extra_info: best-of-3 of each, their ratio, and each one's assembly / solve split (best round).
+    """
+    if benchmark.disabled and refine >= LARGE:
+        pytest.skip("~673 000 unknowns: run only when benchmarking (pcverify bench)")
+    scene, res = make_scene("bar-heat-faces"), Resolution(4, refine)
+    fast, stock = FipyHeat(), _StockFipy()
+    fast.solve(scene, Resolution(4, 3))  # warm-up outside the timing
+    stock_runs: list[tuple[float, object]] = []
+
+    def setup():
+        t0 = time.perf_counter()
+        sol = stock.solve(scene, res)
+        stock_runs.append((time.perf_counter() - t0, sol))
+
+    fast_runs: list[tuple[float, object]] = []
+
+    def run():
+        t0 = time.perf_counter()
+        sol = fast.solve(scene, res)
+        fast_runs.append((time.perf_counter() - t0, sol))
+        return sol
+
+    benchmark.pedantic(run, setup=setup, rounds=3, iterations=1)
+    (t_stock, s_stock), (t_fast, s_fast) = min(stock_runs, key=lambda r: r[0]), min(fast_runs, key=lambda r: r[0])
+    benchmark.extra_info.update(
+        solver="fipy", scene="bar-heat-faces", n=4, refine=refine, unknowns=s_fast.unknowns,
+        stock_best_s=t_stock, fast_best_s=t_fast, ratio_stock_over_fast=t_stock / t_fast,
+        stock_assembly_s=s_stock.work["assembly_s"], stock_solve_s=s_stock.work["solve_s"],
+        fast_assembly_s=s_fast.work["assembly_s"], fast_solve_s=s_fast.work["solve_s"],
+    )
+    assert s_fast.unknowns == s_stock.unknowns == SIZES[refine]
+    for name, smp in s_stock.samples.items():  # the same matrix and AMG seed: the same field
+        assert np.array_equal(s_fast.samples[name]["values"], smp["values"]), name
 
 
 def test_bench_skfem_steady_patch_large(benchmark) -> None:
