@@ -251,14 +251,16 @@ def test_energy_balance_residual_is_anharmonic_integration_error() -> None:
                                            ("bar-heat-paper", 2, {"drive_sharing": "symmetric"}),
                                            ("bar-heat-paper", 3, {"p": 3.0, "drive_amplitude": 0.02}),
                                            ("bar-heat-faces", 2, {"seed": 4, "drive_amplitude": 0.02})])
-def test_fast_kernel_equals_reference(scene: str, n: int, given: dict) -> None:
-    """kernel.run (stencil layout, vectorised pass, product tree, branch-free STEP) and the plain
-    integrate.run give the same run to rounding: relative hotness within 1e-10, energies within
-    1e-10 of the largest, identical step and hop counters (0.5 s, no hops: the runs are not chaotic,
-    so rounding differences of 1e-16 cannot grow beyond that).  n = 2 has stencil offsets shared by
-    two shells; p = 3 takes the non-vectorised envelope; the faces run uses the Langevin bath."""
+@pytest.mark.parametrize("kernel", ["fast", "fastmath"])
+def test_fast_kernel_equals_reference(scene: str, n: int, given: dict, kernel: str) -> None:
+    """kernel.run (stencil layout, vectorised pass, product tree, branch-free STEP), exact or with
+    its pair loop under FASTMATH (FMA, approximate reciprocals), and the plain integrate.run give
+    the same run to rounding: relative hotness within 1e-10, energies within 1e-10 of the largest,
+    identical step and hop counters (0.5 s, no hops: the runs are not chaotic, so rounding
+    differences of 1e-16 cannot grow beyond that).  n = 2 has stencil offsets shared by two shells;
+    p = 3 takes the non-vectorised envelope; the faces run uses the Langevin bath."""
     sc = make_scene(scene)
-    fast = SOLVER.solve(sc, Resolution(n), t_end=0.5, kernel="fast", **given)
+    fast = SOLVER.solve(sc, Resolution(n), t_end=0.5, kernel=kernel, **given)
     ref = SOLVER.solve(sc, Resolution(n), t_end=0.5, kernel="reference", **given)
     for k in ("steps", "hops", "pair_steps"):
         assert fast.summary[k] == ref.summary[k]

@@ -172,6 +172,20 @@ def _group_p2(px, py, pz, vx, vy, vz, o, base, lo, hi, mask, rt, amp_a, p, step_
                   qk, fsx, fsy, fsz, dk, out, True)
 
 
+# The fastmath variant: FMA contraction, reciprocal and function approximations, no signed zeros.
+# Not nnan/ninf: blow-ups are detected through NaN and inf, which those flags would let LLVM assume
+# away.  Used only by kernel "fastmath"; tests hold it to the exact kernel's results to 1e-10.
+FASTMATH = {"contract", "arcp", "afn", "nsz"}
+
+
+@njit(cache=True, boundscheck=False, error_model="numpy", fastmath=FASTMATH)
+def _group_p2_fm(px, py, pz, vx, vy, vz, o, base, lo, hi, mask, rt, amp_a, p, step_lo, inv_w, a, delta, dt,
+                 qk, fsx, fsy, fsz, dk, out):
+    """`_group_p2` compiled with the FASTMATH flags."""
+    return _group(px, py, pz, vx, vy, vz, o, base, lo, hi, mask, rt, amp_a, p, step_lo, inv_w, a, delta, dt,
+                  qk, fsx, fsy, fsz, dk, out, True)
+
+
 @njit(cache=True, boundscheck=False, error_model="numpy")
 def _group_any(px, py, pz, vx, vy, vz, o, base, lo, hi, mask, rt, amp_a, p, step_lo, inv_w, a, delta, dt,
               qk, fsx, fsy, fsz, dk, out):
@@ -334,7 +348,7 @@ def _sum8(v):
 
 @njit(cache=True, boundscheck=False)
 def pair_pass(px, py, pz, vx, vy, vz, g_off, g_base, g_lo, g_hi, mask, rt, amp_a, pint, p, step_lo, inv_w, a,
-              delta, dt, qk, fsx, fsy, fsz, dk, out, ever, step, counters, fx, fy, fz):
+              delta, dt, qk, fsx, fsy, fsz, dk, out, ever, step, counters, fx, fy, fz, fm):
     """Forces at the current positions (damping with the given velocities) into fx, fy, fz.
 
     Returns 1/2 sum_k (G_k^prev . dv_k + delta rdot_k^2) (times dt: dissipation over the interval
@@ -346,7 +360,10 @@ def pair_pass(px, py, pz, vx, vy, vz, g_off, g_base, g_lo, g_hi, mask, rt, amp_a
         fy[i] = 0.0
         fz[i] = 0.0
     for g in range(g_off.shape[0]):
-        if pint == 2:
+        if pint == 2 and fm:
+            changed = _group_p2_fm(px, py, pz, vx, vy, vz, g_off[g], g_base[g], g_lo[g], g_hi[g], mask, rt, amp_a,
+                                   p, step_lo, inv_w, a, delta, dt, qk, fsx, fsy, fsz, dk, out)
+        elif pint == 2:
             changed = _group_p2(px, py, pz, vx, vy, vz, g_off[g], g_base[g], g_lo[g], g_hi[g], mask, rt, amp_a, p,
                                 step_lo, inv_w, a, delta, dt, qk, fsx, fsy, fsz, dk, out)
         else:
@@ -455,9 +472,10 @@ def _xyz(n):
 def run(x, v0, x_rest, kind, amp, phase, omega, free_centre, mass, gamma, kt, seed,
         pi, pj, g_off, g_base, g_lo, g_hi, mask, slot, pint, a, delta, dt, n_steps, n_start, n_end,
         check_every, blowup_factor, e_scale, box_lo, box_hi, contact_fraction, cutoff_rest, skin, c,
-        r0, hot, energy, counters, history, ever):
+        r0, hot, energy, counters, history, ever, fm):
     """Integrate n_steps from t = 0; same outputs and stopping rules as `integrate.run`.
 
+    fm: the pair loop compiled with FASTMATH (envelope p = 2 only; other p use the exact loop).
     c = model.coeffs() (roots, A, p, STEP start); pint = p if p is a small integer else -1.
     x (N, 3) is overwritten with the final positions.
     """
@@ -511,7 +529,7 @@ def run(x, v0, x_rest, kind, amp, phase, omega, free_centre, mass, gamma, kt, se
         vpy[i] = v0[i, 1]
         vpz[i] = v0[i, 2]
     pair_pass(px, py, pz, vpx, vpy, vpz, g_off, g_base, g_lo, g_hi, mask, rt, amp_a, pint, p, step_lo, inv_w, a,
-              delta, dt, qk, fsx, fsy, fsz, dk, out, ever_s, 0, counters, fx, fy, fz)
+              delta, dt, qk, fsx, fsy, fsz, dk, out, ever_s, 0, counters, fx, fy, fz, fm)
     for q in range(free.shape[0]):
         i = free[q]
         vmx[i] = v0[i, 0] - 0.5 * dtm * fx[i]
@@ -615,7 +633,7 @@ def run(x, v0, x_rest, kind, amp, phase, omega, free_centre, mass, gamma, kt, se
         # --- forces at t_{n+1} with damping from v_{n+1/2}; dissipation over n -> n+1
         diss += dt * pair_pass(px, py, pz, vpx, vpy, vpz, g_off, g_base, g_lo, g_hi, mask, rt, amp_a, pint, p,
                                step_lo, inv_w, a, delta, dt, qk, fsx, fsy, fsz, dk, out, ever_s, step + 1,
-                               counters, fx, fy, fz)
+                               counters, fx, fy, fz, fm)
         vmx, vmy, vmz, vpx, vpy, vpz = vpx, vpy, vpz, vmx, vmy, vmz  # v_{n+1/2} is v_{n-1/2} of the next step
         step += 1
 

@@ -73,8 +73,9 @@ PARAMETERS: tuple[Param, ...] = (
           kind=str),
     Param("face_drive_direction", "y", "", "bar-heat-faces, hot_face=driven: direction of the face drive (z: "
           "normal to the face, longitudinal)", choices=("x", "y", "z"), kind=str),
-    Param("kernel", "fast", "", "time-stepping kernel: fast (kernel.py) or the plain reference (integrate.py); "
-          "the same scheme, equal to rounding", choices=("fast", "reference"), kind=str),
+    Param("kernel", "fast", "", "time-stepping kernel: fast (kernel.py), fastmath (its pair loop with FMA and "
+          "approximate reciprocals) or the plain reference (integrate.py); the same scheme, equal to rounding",
+          choices=("fast", "fastmath", "reference"), kind=str),
     Param("hot_face", "langevin", "", "bar-heat-faces: z=0 face thermostatted or kinematically driven",
           choices=("langevin", "driven"), kind=str),
     Param("far_face", "absorbing", "", "bar-heat-faces: z=L face viscous (0 K bath) or frozen",
@@ -196,8 +197,9 @@ def simulate(lat: Lattice, model: SevenRoot, fx: Fixes, delta: float, dt: float,
              contact_fraction: float = 0.5, check_every: int | None = None, kernel: str = "fast") -> RunResult:
     """Run the kernel from rest (or from velocities v0) and return averaged hotness and diagnostics.
 
-    kernel "fast" (`kernel.run`, the default) or "reference" (`integrate.run`, the plain one): the
-    same scheme, equal to rounding."""
+    kernel "fast" (`kernel.run`, the default), "fastmath" (the same with its pair loop compiled with
+    `kernel.FASTMATH`) or "reference" (`integrate.run`, the plain one): the same scheme, equal to
+    rounding."""
     N = lat.size
     n_steps = int(round(t_end / dt))
     n_start = min(int(round(t_start / dt)), n_steps)
@@ -227,16 +229,16 @@ def simulate(lat: Lattice, model: SevenRoot, fx: Fixes, delta: float, dt: float,
                       fx.kt, seed, pi, pj, lat.r0, lo, hi, model.coeffs(), lat.a, delta, dt, n_steps, n_start,
                       n_steps, check, blowup_factor, e_scale, box_lo, box_hi, contact_fraction, cutoff, skin, hot,
                       energy, counters, history, ever)
-    elif kernel == "fast":
+    elif kernel in ("fast", "fastmath"):
         pint = int(model.p) if float(model.p).is_integer() and 0 <= model.p <= 64 else -1
         g_off, g_base, g_lo, g_hi, mask, slot = fk.stencil(lat.pairs, lat.shell, N, basins)
         t0, c0 = time.perf_counter(), time.process_time()
         rows = fk.run(x, v, lat.positions, fx.kind, fx.amp, fx.phase, omega, fx.free_centre, lat.mass, fx.gamma,
                       fx.kt, seed, pi, pj, g_off, g_base, g_lo, g_hi, mask, slot, pint, lat.a, delta, dt, n_steps,
                       n_start, n_steps, check, blowup_factor, e_scale, box_lo, box_hi, contact_fraction, cutoff, skin,
-                      model.coeffs(), lat.r0, hot, energy, counters, history, ever)
+                      model.coeffs(), lat.r0, hot, energy, counters, history, ever, kernel == "fastmath")
     else:
-        raise SceneError(f"kernel={kernel!r} is not allowed; allowed: fast, reference")
+        raise SceneError(f"kernel={kernel!r} is not allowed; allowed: fast, fastmath, reference")
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     steps = np.maximum(counters[[ig.K_HOT_STEPS, ig.K_HALF1, ig.K_HALF2]], 1) * dt
     return RunResult(hot / steps[:, None], energy, counters, history[:rows], ever, x, wall, int(counters[ig.K_STEPS]),

@@ -38,7 +38,7 @@ def _run(s, w, kernel: str):
 
 
 @pytest.mark.benchmark(timer=time.process_time)
-@pytest.mark.parametrize("kernel", ["fast", "reference"])
+@pytest.mark.parametrize("kernel", ["fast", "fastmath", "reference"])
 def test_bench_kernel(benchmark, kernel: str) -> None:
     """2000 steps of the kernel alone at N = 160, damping on."""
     s, w = _kernel_case()
@@ -54,10 +54,13 @@ def test_bench_kernel(benchmark, kernel: str) -> None:
 
 @pytest.mark.benchmark(timer=time.process_time)
 def test_bench_kernel_ratio(benchmark) -> None:
-    """fast vs reference kernel in one test: best-of-5 CPU time of each, interleaved; ratio in extra_info."""
+    """fast, fastmath and reference kernels in one test: best-of-5 CPU time of each, interleaved.
+
+    extra_info: ns per pair-step of each, the fast/reference speed-up, the fastmath/fast speed-up
+    and the largest relative hotness difference of fastmath from the exact fast kernel."""
     s, w = _kernel_case()
     pairs = len(s["lat"].pairs)
-    best = {"fast": np.inf, "reference": np.inf}
+    best = {"fast": np.inf, "fastmath": np.inf, "reference": np.inf}
     runs = {}
     for k in best:
         _run(s, w, k)
@@ -68,11 +71,15 @@ def test_bench_kernel_ratio(benchmark) -> None:
             best[k] = min(best[k], time.process_time() - t0)
     benchmark.pedantic(_run, args=(s, w, "fast"), rounds=1, iterations=1)
     ns = {k: 1e9 * v / (pairs * KERNEL_STEPS) for k, v in best.items()}
+    h = {k: r.hot[0] for k, r in runs.items()}
+    fastmath_dev = float(np.max(np.abs(h["fastmath"] - h["fast"])) / h["fast"].max())
     benchmark.extra_info.update(ns_per_pair_step_fast=ns["fast"], ns_per_pair_step_reference=ns["reference"],
-                                speedup=best["reference"] / best["fast"], particles=s["lat"].size, pairs=pairs)
-    # both kernels integrate the same run: equal to rounding
-    hf, hr = runs["fast"].hot[0], runs["reference"].hot[0]
-    assert np.max(np.abs(hf - hr)) <= 1e-10 * hr.max()
+                                ns_per_pair_step_fastmath=ns["fastmath"], speedup=best["reference"] / best["fast"],
+                                fastmath_speedup=best["fast"] / best["fastmath"],
+                                fastmath_max_rel_hotness_dev=fastmath_dev, particles=s["lat"].size, pairs=pairs)
+    # all three integrate the same run: equal to rounding
+    for k in ("fast", "fastmath"):
+        assert np.max(np.abs(h[k] - h["reference"])) <= 1e-10 * h["reference"].max()
 
 
 @pytest.mark.parametrize("n", [2, 3, 4])
