@@ -257,7 +257,7 @@ class Macromolecule:
     """Solver "macromolecule": relative hotness of the seven-root particle lattice."""
 
     name = "macromolecule"
-    version = "3"
+    version = "4"
     parameters = PARAMETERS
 
     def supports(self, scene: Scene) -> tuple[bool, str]:
