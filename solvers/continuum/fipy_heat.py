@@ -62,6 +62,7 @@ PointTemperature report its value.
 
 from __future__ import annotations
 
+import gc
 import os
 import time
 from typing import Any
@@ -330,24 +331,18 @@ class FipyHeat:
         kf[np.flatnonzero(cut)] = k / np.clip(theta, 1e-3, 1.0)
         return kf, int(cut.sum())
 
-    def _assemble(self, scene, edges, hs, p, stock: bool = False):
-        """FiPy mesh + DiffusionTerm(k) with face constraints -> K (SPD), f; plus penalty diagonal.
+    def _fipy_system(self, scene, edges, patch_mode, fixed_f, pid_f, stock):
+        """FiPy mesh + DiffusionTerm(k) with the face constraints -> K (SPD), f, cell volumes, cut faces, fixed faces.
 
-        stock=True builds with plain `fipy.Grid3D` / `fipy.DiffusionTerm`: the reference for the subclasses of
-        fipy_fast, which give the same K and f bit for bit, ~3x faster (tests/test_fipy_fast.py, benchmark).
+        Returns plain arrays only: no FiPy object outlives this call (see `_assemble`).
         """
         fp = _fipy()
-        t0 = time.perf_counter()
-        shape = tuple(len(e) - 1 for e in edges)
         dxyz = [np.diff(e) for e in edges]
         if stock:
             mesh, term = fp.Grid3D(dx=dxyz[0], dy=dxyz[1], dz=dxyz[2]), fp.DiffusionTerm
         else:
             mesh, term = tensor_grid3d(*dxyz), diffusion_term
         k = scene.material.conductivity
-        fixed, tfix, frac, pid, point_cells, fallback = self._fixed_cells(scene, edges, shape, p["patch"])
-        to_flat = lambda a: np.asarray(a).transpose(2, 1, 0).ravel()  # noqa: E731  FiPy: x fastest
-        fixed_f, tfix_f, frac_f, pid_f = to_flat(fixed), to_flat(tfix), to_flat(frac), to_flat(pid)
         T = fp.CellVariable(mesh=mesh, value=scene.initial_temperature)
         fixed_faces = {}
         for c in scene.constraints:
@@ -356,14 +351,39 @@ class FipyHeat:
                 fixed_faces[c.face] = c.value
         ncut = 0
         coeff: Any = k
-        if p["patch"] == "cut" and (pid_f >= 0).any():
+        if patch_mode == "cut" and (pid_f >= 0).any():
             kf, ncut = self._cut_coefficients(scene, mesh, fixed_f, pid_f, k)
             coeff = fp.FaceVariable(mesh=mesh, value=kf)
-        eq = term(coeff=coeff)
-        solver = eq._prepareLinearSystem(T, None, (), None)
+        solver = term(coeff=coeff)._prepareLinearSystem(T, None, (), None)
         K = -sp.csr_matrix(solver.matrix.matrix)
         f = -np.asarray(solver.RHSvector, dtype=float).copy()
-        vol = np.asarray(mesh.cellVolumes, dtype=float)
+        vol = np.array(mesh.cellVolumes, dtype=float)
+        return K, f, vol, ncut, fixed_faces
+
+    def _assemble(self, scene, edges, hs, p, stock: bool = False):
+        """FiPy's K (SPD) and f for the scene (`_fipy_system`), plus the penalty diagonal of fixed cells.
+
+        stock=True builds with plain `fipy.Grid3D` / `fipy.DiffusionTerm`: the reference for the subclasses of
+        fipy_fast, which give the same K and f bit for bit, faster (tests/test_fipy_fast.py, benchmark).
+        FiPy's mesh and variables reference each other, so their arrays (~GB at 673 501 cells) are freed only by
+        Python's cyclic collector, whenever it next runs: measured inside the next solve, which then took
+        7.0-8.6 s instead of 4.8-5.9 s.  So the FiPy set-up runs with the collector paused (all its objects stay
+        in the youngest generation) and one collection of that generation (~ms) frees them as it returns.
+        """
+        t0 = time.perf_counter()
+        shape = tuple(len(e) - 1 for e in edges)
+        k = scene.material.conductivity
+        fixed, tfix, frac, pid, point_cells, fallback = self._fixed_cells(scene, edges, shape, p["patch"])
+        to_flat = lambda a: np.asarray(a).transpose(2, 1, 0).ravel()  # noqa: E731  FiPy: x fastest
+        fixed_f, tfix_f, frac_f, pid_f = to_flat(fixed), to_flat(tfix), to_flat(frac), to_flat(pid)
+        enabled = gc.isenabled()
+        gc.disable()
+        try:
+            K, f, vol, ncut, fixed_faces = self._fipy_system(scene, edges, p["patch"], fixed_f, pid_f, stock)
+        finally:
+            if enabled:
+                gc.enable()
+        gc.collect(0)
         # penalty source (FiPy's ImplicitSourceTerm: S_P V_P on the diagonal, S_P V_P T_fix on the right)
         B = np.zeros(K.shape[0])
         B[fixed_f] = p["penalty"] * k / min(hs) ** 2
@@ -371,7 +391,7 @@ class FipyHeat:
         B[part] = frac_f[part] / (1.0 - frac_f[part]) * K.diagonal()[part] / vol[part]
         K = (K + sp.diags(B * vol)).tocsr()
         f = f + B * vol * tfix_f
-        return dict(mesh=mesh, K=K, f=f, vol=vol, shape=shape, fixed=fixed_f, tfix=tfix_f, B=B, ncut=ncut,
+        return dict(K=K, f=f, vol=vol, shape=shape, fixed=fixed_f, tfix=tfix_f, B=B, ncut=ncut,
                     fixed_faces=fixed_faces, point_cells=point_cells, fallback=fallback,
                     assembly_s=time.perf_counter() - t0)
 
@@ -404,9 +424,13 @@ class FipyHeat:
         if method == "auto":
             method = "direct" if nfree <= p["amg_threshold"] else "amg"
         t_solve = time.perf_counter()
-        Kff, Kfc = split_free(K, free)
         # cell adjacency graph for AMG aggregation; FiPy numbers cells x fastest, grid_graph z fastest
-        graph = split_free(grid_graph(sysd["shape"][::-1]), free)[0] if method == "amg" else None
+        graph = grid_graph(sysd["shape"][::-1]) if method == "amg" else None
+        if fixed.any():
+            Kff, Kfc = split_free(K, free)
+            graph = split_free(graph, free)[0] if graph is not None else None
+        else:  # face constraints act through FiPy's face values: K is already the free block (no copies)
+            Kff, Kfc = K, sp.csr_matrix((K.shape[0], 0))
         T = np.full(K.shape[0], float(scene.initial_temperature))
         T[fixed] = tfix[fixed]
         tc = tfix[fixed]
