@@ -1,10 +1,13 @@
 """Ensemble runs: K replicas in one kernel equal K single runs, bit for bit.
 
-The single runs use the gather force pass, which the ensemble kernel shares.
+The ensemble and the single runs share one kernel (`scaling.advance`; a single run is K = 1).
 Why bit-identical (not just round-off): each replica performs the single kernel's operations in
-the same order (same pair term, rows in ascending j, pairs beyond r_cut skipped rather than added
-as zeros, drive amplitude amp * scale formed the same way), and numba compiles without fastmath,
-so no reassociation or contraction can differ.  Small lattice (n = 3: 63 particles).
+the same order (same pair term, tiles and slab blocks counted in particles, the same group slots,
+residual rows in ascending j with pairs beyond r_cut skipped rather than added as zeros, drive
+amplitude amp * scale formed the same way), and numba compiles without fastmath, so no
+reassociation or contraction can differ; vectorised and scalar lanes round alike.  Small lattice
+(n = 3: 63 particles, one tile) and n = 8 (1408 particles: three tiles and three slab blocks, so
+the tile and block partition of the flat replica index is exercised too).
 """
 
 from __future__ import annotations
@@ -14,7 +17,7 @@ import pytest
 
 from harness.scene import SceneError
 from solvers.particles.ensemble import EnsembleRun
-from solvers.particles.scaling import FROZEN, PRESCRIBED, KernelRun, bench_lattice, omega_bound
+from solvers.particles.scaling import FROZEN, PRESCRIBED, TILE, KernelRun, bench_lattice, omega_bound
 from solvers.particles.seven_root import SevenRoot
 
 MODEL = SevenRoot(1.0)
@@ -33,33 +36,54 @@ def _fixes():
     return kind, amp
 
 
-def _single(delta, omega, scale, steps, skin=0.1):
+def _single(delta, omega, scale, steps, skin=0.1, force_pass="slabs", groups=True):
     kind, amp = _fixes()
     run = KernelRun.start(X, M, A, MODEL, delta, DT, kind=kind, amp=amp * scale, omega=omega, hotness=True,
-                          skin=skin, force_pass="gather")
+                          skin=skin, force_pass=force_pass, groups=groups)
     run.advance(steps)
     return run
 
 
-@pytest.mark.parametrize("skin", [0.1, 0.01])
-def test_replicas_bit_identical_to_single_runs(skin):
+@pytest.mark.parametrize(("skin", "force_pass", "groups"), [(0.1, "slabs", True), (0.01, "slabs", True),
+                                                           (0.1, "gather", True), (0.01, "slabs", False)])
+def test_replicas_bit_identical_to_single_runs(skin, force_pass, groups):
     """Damping, drive amplitude and frequency all differ between replicas; skin 0.01a forces rebuilds
-    (the ensemble's shared union list then differs from each single run's own list)."""
+    (the ensemble's shared union list then differs from each single run's own list); without groups
+    every pair is in the residual list (the union's extra pairs must change no bit)."""
     deltas = np.array([0.005, 0.02, 0.05]) * M * W
     omegas = np.array([0.25, 0.4, 0.55]) * W
     scales = np.array([1.0, 0.5, 1.5])
     kind, amp = _fixes()
-    ens = EnsembleRun.start(X, M, A, MODEL, DT, deltas, omegas, scales, kind=kind, amp=amp, skin=skin)
+    ens = EnsembleRun.start(X, M, A, MODEL, DT, deltas, omegas, scales, kind=kind, amp=amp, skin=skin,
+                            force_pass=force_pass, groups=groups)
     ens.advance(600)
     assert ens.status == "ok" and ens.step == 600
     if skin == 0.01:
         assert ens.nl.builds > 1
     for k in range(3):
-        single = _single(deltas[k], omegas[k], scales[k], 600, skin=skin)
+        single = _single(deltas[k], omegas[k], scales[k], 600, skin=skin, force_pass=force_pass, groups=groups)
         assert single.status == "ok"
         assert np.array_equal(ens.x[:, k], single.x)
         assert np.array_equal(ens.v[:, k], single.v)
         assert np.array_equal(ens.f[:, k], single.f)
+        assert np.array_equal(ens.hot[:, k], single.hot)
+
+
+@pytest.mark.parametrize("force_pass", ["slabs", "gather"])
+def test_replicas_bit_identical_across_tiles_and_blocks(force_pass):
+    """n = 8: N = 1408 > 2 TILE, slab blocks of width TILE: replica k of K = 4 (flat tiles of 4 TILE
+    slots) against its single run (tiles of TILE), 150 steps of a free lattice started from noise."""
+    x, a, m = bench_lattice(8)
+    assert len(x) > 2 * TILE
+    w = omega_bound(MODEL, a, m)
+    x0 = x + 0.003 * a * np.random.default_rng(8).standard_normal(x.shape)
+    deltas = np.array([0.0, 0.01, 0.02, 0.04]) * m * w
+    ens = EnsembleRun.start(x, m, a, MODEL, 0.2 / w, deltas, 0.0, x0=x0, force_pass=force_pass)
+    ens.advance(150)
+    for k in range(4):
+        single = KernelRun.start(x, m, a, MODEL, deltas[k], 0.2 / w, x0=x0, hotness=True, force_pass=force_pass)
+        single.advance(150)
+        assert np.array_equal(ens.x[:, k], single.x) and np.array_equal(ens.v[:, k], single.v)
         assert np.array_equal(ens.hot[:, k], single.hot)
 
 

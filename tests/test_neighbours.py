@@ -1,12 +1,14 @@
 """Verlet lists (cell list, skin, rebuild on demand) and the large-N gather kernel.
 
-Small lattices only (n = 3, 4: 63 and 160 particles).  What is asserted:
-- the list holds exactly the pairs a k-d tree finds within r_cut + skin, rows ascending;
+Small lattices only (n = 3 ... 8: 63 to 1408 particles).  What is asserted:
+- the list holds exactly the pairs a k-d tree finds within r_cut + skin, rows ascending, with and
+  without offset groups (the lattice's 16 offsets; none in random order);
 - rebuild on demand: not below skin/2 of displacement, yes above; a run that moves particles
   by more than skin/2 rebuilds and still holds every pair within r_cut (brute force);
 - the gather force pass equals the fixed-pair-list force (lattice pairs, numpy scatter) to
   round-off, and the run equals the solver's fixed-pair-list kernel to round-off;
-- the force pass and the run are bit-identical for 1 and 2 threads and between repeats;
+- the force pass and the run are bit-identical for 1 and 2 threads and between repeats (n = 8:
+  several tiles and slab blocks), with groups and with the residual list only;
 - velocity Verlet: energy error second order in dt; blow-up is reported as "unstable".
 """
 
@@ -21,17 +23,17 @@ from harness.scene import Box, SceneError
 from solvers.particles import macromolecule as mm
 from solvers.particles.lattice import build_lattice
 from solvers.particles.modal import free_dofs, hessian, top_frequency
-from solvers.particles.neighbours import build_neighbours
+from solvers.particles.neighbours import build_neighbours, stencil_offsets
 from solvers.particles.scaling import (
     FROZEN,
     PRESCRIBED,
+    TILE,
     KernelRun,
     bench_lattice,
-    gather_forces,
-    list_reach,
     omega_bound,
+    pair_forces,
     rows_from_benchmark_json,
-    slab_forces,
+    slab_block,
 )
 from solvers.particles.seven_root import SevenRoot, force_array
 
@@ -59,16 +61,38 @@ def _numpy_fixed_pair_forces(lat, x, v, delta):
     return f
 
 
-def test_list_equals_kdtree_pairs():
-    _, a, _, x = _perturbed(4, amp=0.05)
-    nl = build_neighbours(x, 2.1 * a, 0.1 * a)
+@pytest.mark.parametrize("groups", [False, True])
+def test_list_equals_kdtree_pairs(groups):
+    """Residual rows plus the group slots within the radius at build are exactly the k-d tree's pairs;
+    with the lattice's groups, the residual holds only pairs of other offsets (0.05a noise brings a
+    few sqrt(5) a pairs inside 2.2a)."""
+    x_rest, a, _, x = _perturbed(4, amp=0.05)
+    offsets = stencil_offsets(x_rest, 2.2 * a) if groups else None
+    nl = build_neighbours(x, 2.1 * a, 0.1 * a, offsets)
     ref = cKDTree(x).query_pairs(2.2 * a, output_type="ndarray")
     ref = {tuple(p) for p in np.sort(ref, axis=1)}
     assert {tuple(p) for p in nl.pairs()} == ref
     rows = np.split(nl.index, nl.start[1:-1])
     assert all(np.all(np.diff(r) > 0) for r in rows)  # ascending, no duplicates
-    assert nl.entries == 2 * len(ref)
     assert nl.index.dtype == np.int32
+    i = np.repeat(np.arange(nl.size), np.diff(nl.start))
+    assert not np.isin(np.abs(nl.index - i), nl.offsets).any()
+    if groups:  # residual: only pairs that are not lattice neighbours at rest (sqrt(5) a and beyond)
+        assert len(nl.offsets) == 16 and nl.entries > 0
+        assert np.linalg.norm(x_rest[nl.index] - x_rest[i], axis=1).min() > 2.2 * a
+    else:
+        assert nl.entries == 2 * len(ref)
+
+
+def test_stencil_offsets_are_the_lattice_offsets():
+    """Lattice order (x slowest, z fastest): the 16 half-shell offsets di ny nz + dj nz + dk with
+    0 < di^2 + dj^2 + dk^2 <= 4; a shuffled order has none."""
+    x, a, _ = bench_lattice(5)
+    ny, nz = 5, 13
+    want = sorted({abs(di * ny * nz + dj * nz + dk) for di in range(-2, 3) for dj in range(-2, 3)
+                   for dk in range(-2, 3) if 0 < di * di + dj * dj + dk * dk <= 4})
+    assert stencil_offsets(x, 2.2 * a).tolist() == want and len(want) == 16
+    assert stencil_offsets(x[np.random.default_rng(0).permutation(len(x))], 2.2 * a).size == 0
 
 
 def test_rest_lattice_list_is_the_solver_pair_list():
@@ -103,20 +127,20 @@ def test_run_rebuilds_and_list_stays_complete():
     assert run.status == "ok" and run.nl.builds > 1
     need = {tuple(p) for p in cKDTree(run.x).query_pairs(run.r_cut, output_type="ndarray")}
     assert need <= {tuple(p) for p in run.nl.pairs()}
-    fresh = build_neighbours(run.x, 2.1 * a, 0.3 * a)
-    f = np.empty_like(run.f)
-    gather_forces(run.x, run.v, fresh.start, fresh.index, run.coeffs, 1 / a, run.r_cut**2, run.delta, f)
-    f_run = np.empty_like(run.f)
-    gather_forces(run.x, run.v, run.nl.start, run.nl.index, run.coeffs, 1 / a, run.r_cut**2, run.delta, f_run)
-    assert np.array_equal(f, f_run)  # same interacting pairs in the same (ascending) order: bit-identical
+    fresh = build_neighbours(run.x, 2.1 * a, 0.3 * a, run.nl.offsets)
+    f = pair_forces(run.x, run.v, fresh, MODEL, a, run.delta)
+    f_run = pair_forces(run.x, run.v, run.nl, MODEL, a, run.delta)
+    assert fresh.entries > run.nl.entries  # the wider list holds more residual pairs, all beyond r_cut
+    assert np.array_equal(f, f_run)  # same interacting pairs in the same order: bit-identical
 
 
 @pytest.mark.parametrize("shuffle", [False, True])
 def test_force_passes_equal_fixed_pair_list_forces(shuffle):
-    """Gather and slab passes against the fixed pair list (numpy scatter): per-pair terms are
-    identical, only the summation order differs, so relative 1e-13 bounds the round-off of ~32
-    terms of mixed sign (observed ~4e-15).  n = 5 in lattice order gives several slab blocks;
-    a shuffled order makes the reach ~N: one block, the serial fallback."""
+    """Gather and slab passes against the fixed pair list (numpy scatter, `seven_root.force_x`): the
+    pair terms differ in rounding only (root-factor product tree against a running product) and the
+    summation order differs, so relative 1e-13 bounds the round-off of ~32 terms of mixed sign
+    (observed ~4e-15).  n = 5 in lattice order: the 16 offset groups; a shuffled order has no
+    groups: every pair in the residual rows."""
     lat = build_lattice(Box(), 5, 2800.0)
     x, a, m = bench_lattice(5)
     _, _, _, xp = _perturbed(5)
@@ -125,14 +149,11 @@ def test_force_passes_equal_fixed_pair_list_forces(shuffle):
     delta = 0.02 * m * w
     order = np.random.default_rng(4).permutation(len(x)) if shuffle else np.arange(len(x))
     xs, vs = xp[order], v[order]
-    nl = build_neighbours(xs, 2.1 * a, 0.1 * a)
-    block = list_reach(nl.start, nl.index)
-    assert (len(x) // block >= 2) != shuffle
+    nl = build_neighbours(xs, 2.1 * a, 0.1 * a, stencil_offsets(x[order], 2.2 * a))
+    assert (len(nl.offsets) == 16) != shuffle
     ref = _numpy_fixed_pair_forces(lat, xp, v, delta)[order]
-    for force_pass in (gather_forces, slab_forces):
-        f = np.empty_like(xs)
-        args = (block,) if force_pass is slab_forces else ()
-        force_pass(xs, vs, nl.start, nl.index, MODEL.coeffs(), 1 / a, (2.1 * a) ** 2, delta, f, *args)
+    for force_pass in ("gather", "slabs"):
+        f = pair_forces(xs, vs, nl, MODEL, a, delta, force_pass=force_pass)
         assert np.abs(f - ref).max() <= 1e-13 * np.abs(ref).max()
 
 
@@ -163,22 +184,24 @@ def test_run_equals_solver_fixed_pair_kernel(zeta, force_pass):
     assert np.abs(run.x - ref.x).max() <= 1e-11 * a
 
 
-@pytest.mark.parametrize("force_pass", ["slabs", "gather"])
-def test_thread_count_independent_and_deterministic(force_pass):
-    """Gather: each particle sums its own row in row order; slabs: block width and order fixed by the
-    list.  Either way 1 and 2 threads must give the same bits (n = 5: several slab blocks)."""
+@pytest.mark.parametrize(("force_pass", "groups"), [("slabs", True), ("gather", True), ("slabs", False)])
+def test_thread_count_independent_and_deterministic(force_pass, groups):
+    """Tiles, slab blocks and row order are fixed by N and the list, never by the thread count: 1 and
+    2 threads must give the same bits (n = 8: three tiles and three slab blocks; 0.02a noise with the
+    default skin rebuilds the list and leaves residual pairs; without groups all pairs are residual)."""
     if numba.config.NUMBA_NUM_THREADS < 2:
         pytest.skip("numba has a single thread here: nothing to compare")
-    x, a, m = bench_lattice(5)
-    _, _, _, x0 = _perturbed(5)
+    x, a, m = bench_lattice(8)
+    _, _, _, x0 = _perturbed(8)
     w = omega_bound(MODEL, a, m)
     results = []
     for threads in (1, 2, 2, 1):
         numba.set_num_threads(threads)
         try:
             run = KernelRun.start(x, m, a, MODEL, 0.02 * m * w, 0.2 / w, x0=x0, hotness=True,
-                                  force_pass=force_pass)
-            run.advance(200)
+                                  force_pass=force_pass, groups=groups)
+            run.advance(100)
+            assert len(x) > 2 * TILE and (len(x) // slab_block(run.nl) >= 2 or not groups)
         finally:
             numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
         results.append((run.x.copy(), run.v.copy(), run.hot.copy(), run.potential_energy()))

@@ -1,16 +1,24 @@
 """Neighbour lists for large lattices: a cell list builds a Verlet list with a skin, rebuilt on demand.
 
-The list is "full" (each pair appears in both rows) so that a force pass can gather: particle i
-sums the forces of its own row and writes only its own slot, with no write races and a fixed
-summation order whatever the thread count.  Row i holds every j != i with |x_j - x_i| < radius
-at build time, radius = r_cut + skin, in ascending j (a canonical order: two lists holding the
-same pairs are equal array for array, however the cells fell).  Indices are int32 (4 bytes per
-entry, 32 entries per particle on the seven-root lattice), row offsets int64.
+A list has two parts:
+
+- offset groups (a lattice stencil): index offsets o > 0 such that the pairs (i, i + o) of every
+  slot i = 0 .. N - o - 1 are evaluated, whatever their distance (a force pass zeroes those beyond
+  r_cut).  For a lattice in lattice order the 16 half-shell offsets hold every interacting pair, so
+  a force pass runs over contiguous data (vectorisable) and the list costs no memory per particle.
+  The offsets are chosen once (`stencil_offsets`, from the rest lattice) and never change;
+- a residual CSR list: row i holds every j != i with |x_j - x_i| < radius = r_cut + skin at build
+  time and |j - i| not a group offset, in ascending j (canonical: two lists holding the same pairs
+  are equal array for array).  Empty for a vibrating lattice in lattice order; everything for a
+  list built without groups (e.g. particles in random order).  "Full" (each pair in both rows) so
+  that a force pass can gather: particle i writes only its own slot, no write races, a fixed order.
+
+Indices are int32 (4 bytes per residual entry), row offsets int64.
 
 Rebuild on demand: while no particle has moved more than skin/2 since the build, no pair that
 was beyond the radius can have come within r_cut (two particles close in by at most skin), so
-the list still holds every interacting pair.  `NeighbourList.update` rebuilds when that bound
-is passed and counts the builds.
+groups plus residual still hold every interacting pair.  `NeighbourList.update` rebuilds when that
+bound is passed and counts the builds.
 """
 
 from __future__ import annotations
@@ -120,6 +128,24 @@ def _build(x, radius):
     return start, index
 
 
+@njit(cache=True, error_model="numpy")  # serial: once per build
+def _drop_offsets(start, index, offsets):
+    """The CSR list without the entries whose |j - i| is one of `offsets` (rows stay ascending)."""
+    n = start.shape[0] - 1
+    keep = np.ones(index.shape[0], dtype=np.bool_)
+    out_start = np.zeros(n + 1, dtype=np.int64)
+    for i in range(n):
+        m = 0
+        for p in range(start[i], start[i + 1]):
+            o = abs(np.int64(index[p]) - i)
+            for g in range(offsets.shape[0]):
+                if o == offsets[g]:
+                    keep[p] = False
+            m += keep[p]
+        out_start[i + 1] = out_start[i] + m
+    return out_start, index[keep]
+
+
 @njit(cache=True, error_model="numpy")  # serial: called once per rebuild check outside the kernels
 def moved_beyond(x, x_ref, limit):
     """Number of particles displaced more than `limit` from x_ref (non-finite positions count too)."""
@@ -134,13 +160,15 @@ def moved_beyond(x, x_ref, limit):
 
 @dataclass(eq=False)
 class NeighbourList:
-    """Full Verlet list in CSR form: row i = index[start[i]:start[i+1]] (ascending j)."""
+    """Offset groups plus a full residual Verlet list in CSR form: row i = index[start[i]:start[i+1]]
+    (ascending j, offsets |j - i| of the groups left out)."""
 
     start: np.ndarray
     index: np.ndarray
     x_ref: np.ndarray
     r_cut: float
     skin: float
+    offsets: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     builds: int = 1
     history: list[int] = field(default_factory=list)  # step of each rebuild after the first
 
@@ -154,12 +182,18 @@ class NeighbourList:
 
     @property
     def entries(self) -> int:
+        """Entries of the residual list (each residual pair twice)."""
         return int(self.index.shape[0])
 
     @property
+    def reach(self) -> int:
+        """Largest group offset (0 without groups)."""
+        return int(self.offsets.max()) if self.offsets.size else 0
+
+    @property
     def nbytes(self) -> int:
-        """Memory held by the list (offsets, indices and the reference positions)."""
-        return int(self.start.nbytes + self.index.nbytes + self.x_ref.nbytes)
+        """Memory held by the list (groups, residual offsets and indices, the reference positions)."""
+        return int(self.offsets.nbytes + self.start.nbytes + self.index.nbytes + self.x_ref.nbytes)
 
     def expired(self, x: np.ndarray) -> bool:
         """True once some particle has moved more than skin/2 since the build."""
@@ -167,7 +201,7 @@ class NeighbourList:
 
     def rebuild(self, x: np.ndarray, step: int = -1) -> None:
         """Build again from positions x."""
-        self.start, self.index = _build(np.ascontiguousarray(x, dtype=np.float64), self.radius)
+        self.start, self.index = _residual(np.ascontiguousarray(x, dtype=np.float64), self.radius, self.offsets)
         self.x_ref = np.array(x, dtype=np.float64, copy=True)
         self.builds += 1
         self.history.append(step)
@@ -180,15 +214,41 @@ class NeighbourList:
         return False
 
     def pairs(self) -> np.ndarray:
-        """(P, 2) unique pairs i < j of the list (for checks and tests; not used by kernels)."""
+        """(P, 2) unique pairs i < j within the radius at build (residual entries and group slots; rows
+        ascending).  For checks and tests; not used by kernels."""
         i = np.repeat(np.arange(self.size, dtype=np.int64), np.diff(self.start))
         j = self.index.astype(np.int64)
         keep = i < j
-        return np.stack([i[keep], j[keep]], axis=1)
+        parts = [np.stack([i[keep], j[keep]], axis=1)]
+        for o in self.offsets:
+            lo = np.arange(self.size - o, dtype=np.int64)
+            near = np.einsum("ij,ij->i", self.x_ref[lo + o] - self.x_ref[lo], self.x_ref[lo + o] - self.x_ref[lo])
+            lo = lo[near < self.radius**2]
+            parts.append(np.stack([lo, lo + o], axis=1))
+        out = np.concatenate(parts)
+        return out[np.lexsort((out[:, 1], out[:, 0]))]
 
 
-def build_neighbours(x: np.ndarray, r_cut: float, skin: float) -> NeighbourList:
-    """Verlet list of positions x (N, 3) for interaction range r_cut and skin (same length unit)."""
+def _residual(x: np.ndarray, radius: float, offsets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    start, index = _build(x, radius)
+    return _drop_offsets(start, index, offsets) if offsets.size else (start, index)
+
+
+def stencil_offsets(x: np.ndarray, radius: float, min_fill: float = 0.25, min_pairs: int = 16) -> np.ndarray:
+    """Offsets o > 0 (ascending int64) whose slots (i, i + o) are pairs within `radius` for at least
+    min_fill of the N - o slots and at least min_pairs times: the groups of a list over particles in
+    lattice order (none in random order, where a large o with a few slots could pass the fill test
+    by chance).  Called on the rest lattice, so the groups never depend on the motion."""
+    start, index = _build(np.ascontiguousarray(x, dtype=np.float64), float(radius))
+    n = start.shape[0] - 1
+    off = index.astype(np.int64) - np.repeat(np.arange(n, dtype=np.int64), np.diff(start))
+    cand, count = np.unique(off[off > 0], return_counts=True)
+    return cand[(count >= min_fill * (n - cand)) & (count >= min_pairs)].astype(np.int64)
+
+
+def build_neighbours(x: np.ndarray, r_cut: float, skin: float, offsets: np.ndarray | None = None) -> NeighbourList:
+    """Verlet list of positions x (N, 3) for interaction range r_cut and skin (same length unit), with
+    the offset groups `offsets` (default none: every pair in the residual CSR list)."""
     x = np.ascontiguousarray(x, dtype=np.float64)
     if x.ndim != 2 or x.shape[1] != 3 or x.shape[0] < 1:
         raise SceneError(f"positions of shape {x.shape} are not allowed; allowed: (N, 3) with N >= 1")
@@ -200,16 +260,22 @@ def build_neighbours(x: np.ndarray, r_cut: float, skin: float) -> NeighbourList:
         raise SceneError(f"skin={skin!r} is out of range; allowed: number in (0, inf)")
     if not np.isfinite(x).all():
         raise SceneError("positions contain NaN or Inf; allowed: finite numbers")
-    start, index = _build(x, r_cut + skin)
-    return NeighbourList(start=start, index=index, x_ref=x.copy(), r_cut=float(r_cut), skin=float(skin))
+    offsets = np.zeros(0, dtype=np.int64) if offsets is None else np.ascontiguousarray(offsets, dtype=np.int64)
+    if offsets.size and not (offsets.min() > 0 and offsets.max() < x.shape[0] and np.all(np.diff(offsets) > 0)):
+        raise SceneError(f"offsets={offsets.tolist()!r} are not allowed; allowed: ascending integers in [1, N)")
+    start, index = _residual(x, r_cut + skin, offsets)
+    return NeighbourList(start=start, index=index, x_ref=x.copy(), r_cut=float(r_cut), skin=float(skin),
+                         offsets=offsets)
 
 
 def merge_lists(lists: list[NeighbourList]) -> NeighbourList:
-    """Union of lists over the same particles (rows ascending); x_ref and radius of the first.
+    """Union of lists over the same particles and groups (rows ascending); x_ref and radius of the first.
 
     Used by ensembles: replicas share one list that holds every pair any replica needs.
     """
     first = lists[0]
+    if any(not np.array_equal(nl.offsets, first.offsets) for nl in lists):
+        raise ValueError("lists with different offset groups cannot be merged")
     n = first.size
     keys = np.unique(np.concatenate([
         np.repeat(np.arange(n, dtype=np.int64), np.diff(nl.start)) * n + nl.index.astype(np.int64) for nl in lists
@@ -217,4 +283,4 @@ def merge_lists(lists: list[NeighbourList]) -> NeighbourList:
     start = np.zeros(n + 1, dtype=np.int64)
     np.cumsum(np.bincount(keys // n, minlength=n), out=start[1:])
     return NeighbourList(start=start, index=(keys % n).astype(np.int32), x_ref=first.x_ref.copy(),
-                         r_cut=first.r_cut, skin=first.skin, builds=first.builds)
+                         r_cut=first.r_cut, skin=first.skin, offsets=first.offsets, builds=first.builds)

@@ -1,4 +1,5 @@
-"""Large-N kernel of the macromolecule model: Verlet list, race-free force passes, prange over particles.
+"""Large-N kernel of the macromolecule model: Verlet list with offset groups, race-free force passes,
+prange over particles, K replicas in one kernel.
 
 The same model as the solver's fixed-pair-list kernel (seven-root pair force F(r) plus radial
 damping delta * rdot, F > 0 attraction), for lattices up to ~10^6 particles on a few cores:
@@ -8,20 +9,27 @@ damping delta * rdot, F > 0 attraction), for lattices up to ~10^6 particles on a
   (default 2.1 a) the interacting set of a vibrating lattice is exactly the fixed list's
   (all pairs with r0 <= 2a: the force vanishes at 2a, the damping acts out to r_cut, as in
   LAMMPS' dpd/ext cutoff);
-- two force passes, both free of write races and bit-identical for any number of threads:
-  "gather": particle i sums its own row and writes f[i] only (each pair evaluated twice);
-  "slabs" (default): each pair evaluated once (half rows, j > i) and its term added to both
-  particles.  Particles are cut into index blocks at least as wide as the largest j - i of the
-  list, so a block writes only into itself and the next block; blocks of one colour (even,
-  then odd) run in parallel.  Block width and summation order depend on the list only, never
-  on the thread count;
+- the list's offset groups (the 16 lattice offsets o = j - i, chosen from the rest lattice) are
+  evaluated as contiguous loops over all slots (i, i + o), zeroed beyond r_cut: structure of
+  arrays, unsigned indices, a branch-free pair term (kernel.py's root-factor product tree and
+  clamped STEP), so LLVM vectorises them (zmm on AVX-512).  Residual pairs (other offsets: lattice
+  defects, particles out of lattice order) are summed per row (gather) after the groups;
+- two group passes, both free of write races and bit-identical for any number of threads:
+  "slabs" (default): each pair evaluated once and its term added to both particles; particles are
+  cut into index blocks at least as wide as the largest offset, so a block writes only into itself
+  and the next block; blocks of one colour (even, then odd) run in parallel.  "gather": each pair
+  evaluated twice, particle i writes f[i] only.  Block width, tiles and summation order depend on
+  N and the offsets only, never on the thread count;
+- replicas (ensemble.py): state (3, N, K), replica innermost, so the flat index i * K + k is a
+  lattice with offsets o * K and the same loops run over all replicas at once; every replica does
+  the operations of its single run (K = 1) in the same order: bit-identical to it;
 - time stepping is velocity Verlet (LAMMPS fix nve): half kick, drift, forces, half kick.  The
   damping in F_{n+1} uses v_{n+1/2}, the velocities at force time (LAMMPS' dpd does the same;
   it is the half-step predictor of the solver's kernel, see integrate.py);
 - fixes: FREE, FROZEN (held at rest), PRESCRIBED (x = x_rest + amp sin(omega t + phase)).
 
 Work counter: a pair-step is one interacting pair (i < j, r < r_cut) advanced one step (the
-gather evaluates each twice, the slab pass once).
+gather evaluates each twice, the slab pass once; group slots beyond r_cut are work not counted).
 """
 
 from __future__ import annotations
@@ -31,222 +39,336 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
+import llvmlite.binding as llvm
 import numpy as np
 from numba import njit, prange
 
 from harness.scene import Box, SceneError, lattice_points, lattice_spacing
 
-from .neighbours import NeighbourList, build_neighbours, dist2
-from .seven_root import SevenRoot, energy_x, force_x, shell_stiffness
+from .neighbours import NeighbourList, build_neighbours, stencil_offsets
+from .seven_root import C_A, C_P, C_PINT, C_ROOTS, C_X0, C_X1, SevenRoot, energy_x, shell_stiffness
 
 FREE, FROZEN, PRESCRIBED = 0, 1, 2
 DONE, EXPIRED = 0, 1
 DEFAULT_R_CUT = 2.1  # in units of a: above the 2a shell, below the sqrt(5) a shell
-DEFAULT_SKIN = 0.1  # in units of a: list radius 2.2 a < sqrt(5) a keeps 32 entries per bulk particle
+DEFAULT_SKIN = 0.1  # in units of a: list radius 2.2 a < sqrt(5) a: at rest exactly the 16 lattice offsets
 FORCE_PASSES = ("slabs", "gather")
+TILE = 512  # particles per tile of the group loops: the tile's data and slot terms stay in L1/L2
+
+# As in kernel.py: the group loop reads 6 arrays in two ranges and writes 3; LLVM's default limit on
+# runtime alias checks would keep it scalar.  Only changes which loops vectorise, never a result (no
+# fastmath, no floating-point reductions in the vectorised loops).
+llvm.set_option("", "-vectorize-memory-check-threshold=4096")
+
+
+def pair_params(coeffs: np.ndarray, a: float, r_cut: float) -> tuple[tuple[float, ...], bool]:
+    """Scalars of the pair term (7 roots, A, STEP start, 1/STEP width, 1/a, a, p, r_cut^2) and whether
+    the envelope is (a/r)^2 (the vectorised square; otherwise x^-p through pow)."""
+    c = coeffs
+    prm = (*(float(r) for r in c[C_ROOTS:C_ROOTS + 7]), float(c[C_A]), float(c[C_X0]), 1.0 / (c[C_X1] - c[C_X0]),
+           1.0 / a, float(a), float(c[C_P]), float(r_cut) ** 2)
+    return prm, bool(c[C_PINT] == 2.0)
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def pair_term(dx, dy, dz, dvx, dvy, dvz, r2, c, inv_a, delta):
-    """Force on i from j (conservative + radial damping), given d = x_j - x_i, dv = v_j - v_i."""
-    r = math.sqrt(r2)
+def pair_term(dx, dy, dz, dvx, dvy, dvz, prm, delta, square):
+    """Force on i from j (seven-root F + delta * rdot; 0 from r_cut on), d = x_j - x_i, dv = v_j - v_i.
+
+    Branch-free, as kernel.py's `_group`: root factors multiplied as a depth-3 tree (A folded in),
+    clamped STEP (0 from 2a on), envelope (a/r)^2 as (a * (1/r))^2 if square, else (r/a)^-p."""
+    r0, r1, r2, r3, r4, r5, r6, amp_a, step_lo, inv_w, inv_a, a, p, rc2 = prm
+    rr = dx * dx + dy * dy + dz * dz
+    r = math.sqrt(rr)
     ir = 1.0 / r
     ex = dx * ir
     ey = dy * ir
     ez = dz * ir
-    g = force_x(r * inv_a, c)
-    if delta != 0.0:
-        g += delta * (dvx * ex + dvy * ey + dvz * ez)
+    x = r * inv_a
+    prod = (((x - r0) * (x - r1)) * ((x - r2) * (x - r3))) * (((x - r4) * (x - r5)) * ((x - r6) * amp_a))
+    if square:
+        ix = a * ir
+        env = ix * ix
+    else:
+        env = x ** (-p)
+    d = (x - step_lo) * inv_w
+    d = d if d > 0.0 else 0.0
+    d = d if d < 1.0 else 1.0
+    g = prod * env * (1.0 - d * d * (3.0 - 2.0 * d)) + delta * (dvx * ex + dvy * ey + dvz * ez)
+    g = g if rr < rc2 else 0.0
     return g * ex, g * ey, g * ez
 
 
-@njit(cache=True, inline="always", error_model="numpy")
-def row_sum(x, v, start, index, i, c, inv_a, rc2, delta, f, half):
-    """Sum of row i's pair terms (pairs with r^2 < rc2).  half: only j > i, and each term is also
-    subtracted from f[j] (Newton's third law; the slab pass).  One body for both force passes."""
-    xi = x[i, 0]
-    yi = x[i, 1]
-    zi = x[i, 2]
-    vxi = v[i, 0]
-    vyi = v[i, 1]
-    vzi = v[i, 2]
-    fx = 0.0
-    fy = 0.0
-    fz = 0.0
-    for p in range(start[i], start[i + 1]):
-        j = index[p]
-        if half and j < i:
-            continue
-        dx = x[j, 0] - xi
-        dy = x[j, 1] - yi
-        dz = x[j, 2] - zi
-        r2 = dx * dx + dy * dy + dz * dz
-        if r2 >= rc2:
-            continue
-        tx, ty, tz = pair_term(dx, dy, dz, v[j, 0] - vxi, v[j, 1] - vyi, v[j, 2] - vzi, r2, c, inv_a, delta)
-        fx += tx
-        fy += ty
-        fz += tz
-        if half:
-            f[j, 0] -= tx
-            f[j, 1] -= ty
-            f[j, 2] -= tz
-    return fx, fy, fz
+@njit(inline="always")
+def _slots(xs, vs, fs, s0, s1, o, buf, dl, prm, square):
+    """f[:, s] += pair term of slot s (pair (s, s + o) of the flat index) for s in [s0, s1), kept in
+    buf[:, s - s0]: one contiguous loop, no call and no branch in its body, so LLVM vectorises it.
+    Indices are unsigned (no numba wrap-around code); o < 0 (gather) is fine while s + o >= 0."""
+    x = xs[0]
+    y = xs[1]
+    z = xs[2]
+    vx = vs[0]
+    vy = vs[1]
+    vz = vs[2]
+    fx = fs[0]
+    fy = fs[1]
+    fz = fs[2]
+    bx = buf[0]
+    by = buf[1]
+    bz = buf[2]
+    for s in range(s0, s1):
+        i = np.uint64(s)
+        j = np.uint64(s + o)
+        q = np.uint64(s - s0)
+        tx, ty, tz = pair_term(x[j] - x[i], y[j] - y[i], z[j] - z[i], vx[j] - vx[i], vy[j] - vy[i], vz[j] - vz[i],
+                               prm, dl[q], square)
+        fx[i] += tx
+        fy[i] += ty
+        fz[i] += tz
+        bx[q] = tx
+        by[q] = ty
+        bz[q] = tz
 
 
-@njit(cache=True, parallel=True, error_model="numpy")
-def gather_forces(x, v, start, index, c, inv_a, rc2, delta, f):
-    """f[i] = sum over row i of the pair terms (pairs with r^2 < rc2); overwrites f."""
-    for i in prange(x.shape[0]):
-        f[i, 0], f[i, 1], f[i, 2] = row_sum(x, v, start, index, i, c, inv_a, rc2, delta, f, False)
+@njit(inline="always")
+def _subtract(fs, buf, s0, s1, o):
+    """f[:, s + o] -= buf[:, s - s0] for s in [s0, s1): the other particle's share (contiguous loops)."""
+    for d in range(3):
+        f = fs[d]
+        b = buf[d]
+        for s in range(s0, s1):
+            f[np.uint64(s + o)] -= b[np.uint64(s - s0)]
 
 
-@njit(cache=True, parallel=True, error_model="numpy")
-def slab_forces(x, v, start, index, c, inv_a, rc2, delta, f, block):
-    """f = sum of pair terms, each pair (j > i) evaluated once; two-colour index blocks of width
-    `block` >= the list's largest j - i (see `list_reach`), so no two threads write one slot."""
-    n = x.shape[0]
-    for i in prange(n):
-        f[i, 0] = 0.0
-        f[i, 1] = 0.0
-        f[i, 2] = 0.0
-    nb = (n + block - 1) // block
-    for colour in range(2):
-        for q in prange((nb - colour + 1) // 2):
-            b = 2 * q + colour
-            for i in range(b * block, min((b + 1) * block, n)):
-                fx, fy, fz = row_sum(x, v, start, index, i, c, inv_a, rc2, delta, f, True)
-                f[i, 0] += fx
-                f[i, 1] += fy
-                f[i, 2] += fz
+@njit(inline="always")
+def _tile(xs, vs, fs, t0, t1, n, nk, offsets, buf, dl, prm, newton, square):
+    """The group pairs of particles [t0, t1) (all K = nk replicas): with newton, pairs (i, i + o), each
+    once, added to i and subtracted from i + o; without, (i, i + o) and (i, i - o), each pair twice,
+    i writes only its own slot.  Loops inlined (numba IR): no call per group."""
+    for g in range(offsets.shape[0]):
+        o = offsets[g]
+        e = min(t1, n - o)
+        if e > t0:
+            _slots(xs, vs, fs, t0 * nk, e * nk, o * nk, buf, dl, prm, square)
+            if newton:
+                _subtract(fs, buf, t0 * nk, e * nk, o * nk)
+        b = max(t0, o)
+        if not newton and t1 > b:
+            _slots(xs, vs, fs, b * nk, t1 * nk, -o * nk, buf, dl, prm, square)
+
+
+@njit(cache=True, boundscheck=False, error_model="numpy")
+def _tile_p2(xs, vs, fs, t0, t1, n, nk, offsets, buf, dl, prm, newton):
+    """`_tile` with the envelope (a/r)^2 (the vectorised loops)."""
+    _tile(xs, vs, fs, t0, t1, n, nk, offsets, buf, dl, prm, newton, True)
+
+
+@njit(cache=True, boundscheck=False, error_model="numpy")
+def _tile_any(xs, vs, fs, t0, t1, n, nk, offsets, buf, dl, prm, newton):
+    """`_tile` with the envelope (r/a)^-p through pow (any p; correct, slower)."""
+    _tile(xs, vs, fs, t0, t1, n, nk, offsets, buf, dl, prm, newton, False)
 
 
 @njit(cache=True, error_model="numpy")
-def list_reach(start, index):
-    """Largest j - i over the list (rows ascending): the smallest valid slab block width (>= 1)."""
-    reach = 1
-    for i in range(start.shape[0] - 1):
-        if start[i + 1] > start[i]:
-            reach = max(reach, index[start[i + 1] - 1] - i)
-    return reach
-
-
-@njit(cache=True, error_model="numpy")
-def _forces(x, v, start, index, c, inv_a, rc2, delta, f, block):
-    if block > 0:
-        slab_forces(x, v, start, index, c, inv_a, rc2, delta, f, block)
+def _tile_pass(xs, vs, fs, t0, t1, n, nk, offsets, buf, dl, prm, square, newton):
+    if square:
+        _tile_p2(xs, vs, fs, t0, t1, n, nk, offsets, buf, dl, prm, newton)
     else:
-        gather_forces(x, v, start, index, c, inv_a, rc2, delta, f)
+        _tile_any(xs, vs, fs, t0, t1, n, nk, offsets, buf, dl, prm, newton)
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def _residual_rows(xs, vs, fs, start, index, nk, delta, prm, square):
+    """f[:, i, k] += sum of row i of the residual list (full rows, ascending j), replica k; pairs at or
+    beyond r_cut skipped (not added as zeros: extra pairs of a merged list change no bit)."""
+    rc2 = prm[13]
+    for i in prange(start.shape[0] - 1):
+        for k in range(nk):
+            si = i * nk + k
+            fx = 0.0
+            fy = 0.0
+            fz = 0.0
+            for p in range(start[i], start[i + 1]):
+                sj = index[p] * nk + k
+                dx = xs[0, sj] - xs[0, si]
+                dy = xs[1, sj] - xs[1, si]
+                dz = xs[2, sj] - xs[2, si]
+                if dx * dx + dy * dy + dz * dz < rc2:
+                    tx, ty, tz = pair_term(dx, dy, dz, vs[0, sj] - vs[0, si], vs[1, sj] - vs[1, si],
+                                           vs[2, sj] - vs[2, si], prm, delta[k], square)
+                    fx += tx
+                    fy += ty
+                    fz += tz
+            fs[0, si] += fx
+            fs[1, si] += fy
+            fs[2, si] += fz
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def forces(xs, vs, fs, offsets, block, start, index, delta, prm, square):
+    """fs = pair forces; state (3, N * K), replica innermost (flat index i * K + k), K = len(delta).
+
+    Group pairs first, in tiles of TILE particles: block > 0, slabs: each pair once, blocks of width
+    `block` (>= the largest offset) in two colours, so a block writes only into itself and the next;
+    block = 0, gather: each pair twice, every tile on its own.  Then the residual rows (gather).
+    The order of every sum is fixed by N, the offsets, block and TILE: independent of the thread
+    count, and the same for each replica as for its single run (K = 1)."""
+    nk = delta.shape[0]
+    n = xs.shape[1] // nk
+    for s in prange(xs.shape[1]):
+        fs[0, s] = 0.0
+        fs[1, s] = 0.0
+        fs[2, s] = 0.0
+    dl = np.empty(TILE * nk)  # damping of slot q of a tile (tiles start at multiples of K)
+    for q in range(TILE * nk):
+        dl[q] = delta[q % nk]
+    if block > 0:
+        nb = (n + block - 1) // block
+        for colour in range(2):
+            for q in prange((nb - colour + 1) // 2):
+                b = 2 * q + colour
+                buf = np.empty((3, TILE * nk))
+                for t0 in range(b * block, min((b + 1) * block, n), TILE):
+                    _tile_pass(xs, vs, fs, t0, min(t0 + TILE, (b + 1) * block, n), n, nk, offsets, buf, dl, prm,
+                               square, True)
+    else:
+        for t in prange((n + TILE - 1) // TILE):
+            buf = np.empty((3, TILE * nk))
+            _tile_pass(xs, vs, fs, t * TILE, min((t + 1) * TILE, n), n, nk, offsets, buf, dl, prm, square, False)
+    if index.shape[0] > 0:
+        _residual_rows(xs, vs, fs, start, index, nk, delta, prm, square)
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def drift(x, v, f, x_rest, amp, at, i, kd, scale, omega, phase, t0, t1, h, dt, inv_dt):
-    """First half of a velocity-Verlet step of particle i, state row `at` ((i,) or (i, k)): half kick
-    and drift (FREE), the drive over [t0, t1] with amplitude amp[i] * scale (PRESCRIBED) or rest
-    (FROZEN).  Shared by the single run (scale 1.0: amp * 1.0 is amp exactly) and the ensemble.
-    Index tuples, not row views: a view costs a reference count per particle in the hot loop."""
-    if kd == FREE:
-        for d in range(3):
-            v[at + (d,)] += h * f[at + (d,)]
-            x[at + (d,)] += dt * v[at + (d,)]
-    elif kd == PRESCRIBED:
+def _hold(xs, vs, x_rest, amp, s, i, kd, scale, omega, phase, t0, t1, inv_dt):
+    """Slot s of held particle i after the drift: the drive over [t0, t1] with amplitude amp[i] * scale
+    (PRESCRIBED) or rest (FROZEN: x_rest, v = 0).  Single runs pass scale 1.0 (amp * 1.0 is amp)."""
+    if kd == PRESCRIBED:
         s0 = math.sin(omega * t0 + phase)
         s1 = math.sin(omega * t1 + phase)
         for d in range(3):
             ak = amp[i, d] * scale
-            v[at + (d,)] = ak * (s1 - s0) * inv_dt
-            x[at + (d,)] = x_rest[i, d] + ak * s1
+            vs[d, s] = ak * (s1 - s0) * inv_dt
+            xs[d, s] = x_rest[i, d] + ak * s1
     else:
         for d in range(3):
-            v[at + (d,)] = 0.0
+            vs[d, s] = 0.0
+            xs[d, s] = x_rest[i, d]
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def kick(v, f, amp, at, i, kd, scale, omega, phase, t1, h):
-    """Second half of the step of particle i (row `at`): half kick (FREE) or the drive's velocity at t1."""
-    if kd == FREE:
-        for d in range(3):
-            v[at + (d,)] += h * f[at + (d,)]
-    elif kd == PRESCRIBED:
+def _hold_velocity(vs, amp, s, i, kd, scale, omega, phase, t1):
+    """Slot s of held particle i after the kick: the drive's velocity at t1 (PRESCRIBED) or 0 (FROZEN)."""
+    if kd == PRESCRIBED:
         cs = math.cos(omega * t1 + phase)
         for d in range(3):
-            v[at + (d,)] = amp[i, d] * scale * omega * cs
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def kinetic_dt(v, at, mass, dt):
-    """KE dt of row `at` of v: its step's share of the time integral of the kinetic energy."""
-    return 0.5 * mass * (v[at + (0,)] * v[at + (0,)] + v[at + (1,)] * v[at + (1,)] + v[at + (2,)] * v[at + (2,)]) * dt
+            vs[d, s] = amp[i, d] * scale * omega * cs
+    else:
+        for d in range(3):
+            vs[d, s] = 0.0
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def advance(x, v, f, x_rest, kind, amp, phase, omega, mass, dt, step0, n_steps, start, index, x_ref, half_skin,
-            c, inv_a, rc2, delta, hot, resume, block):
-    """Velocity-Verlet steps from step0 until n_steps are done or the list expires.
+def advance(xs, vs, fs, x_rest, kind, held, amp, phase, scale, omega, delta, mass, dt, step0, n_steps, offsets,
+            block, start, index, x_ref, half_skin, prm, square, hot, resume):
+    """Velocity-Verlet steps of K replicas (K = len(scale); state (3, N * K), x_ref (N * K, 3)) from
+    step0 until n_steps are done or the list expires.
 
-    Returns (steps completed, status).  On EXPIRED the step in progress has been drifted (x at
-    t_{n+1}, v = v_{n+1/2}) but has no forces yet: rebuild the list and call again with
-    resume=True, which starts at the force pass.  hot (N,) accumulates KE_i dt (if len N).
-    block > 0: slab force pass of that block width; 0: gather.
+    Half kick and drift run over every slot as if it were free (contiguous, vectorised loops); the
+    held particles (indices `held`, few) are then set to their drive or rest.  Returns (steps
+    completed, status).  On EXPIRED the step in progress has been drifted (x at t_{n+1}, v =
+    v_{n+1/2}) but has no forces yet: rebuild the list and call again with resume=True, which starts
+    at the force pass.  hot (N * K) accumulates KE dt (if not empty).
     """
-    n = x.shape[0]
+    nk = scale.shape[0]
+    nf = xs.shape[1]
+    x, y, z = xs[0], xs[1], xs[2]
+    vx, vy, vz = vs[0], vs[1], vs[2]
+    fx, fy, fz = fs[0], fs[1], fs[2]
     lim2 = half_skin * half_skin
     h = 0.5 * dt / mass
     inv_dt = 1.0 / dt
-    with_hot = hot.shape[0] == n
+    with_hot = hot.shape[0] == nf
     s = 0
     while s < n_steps:
         t0 = (step0 + s) * dt
         t1 = (step0 + s + 1) * dt
         if not resume:
+            for q in prange(nf):
+                vx[q] += h * fx[q]
+                vy[q] += h * fy[q]
+                vz[q] += h * fz[q]
+                x[q] += dt * vx[q]
+                y[q] += dt * vy[q]
+                z[q] += dt * vz[q]
+            for p in range(held.shape[0]):
+                i = held[p]
+                for k in range(nk):
+                    _hold(xs, vs, x_rest, amp, i * nk + k, i, kind[i], scale[k], omega[k], phase[i], t0, t1, inv_dt)
             over = 0
-            for i in prange(n):
-                drift(x, v, f, x_rest, amp, (i,), i, kind[i], 1.0, omega, phase[i], t0, t1, h, dt, inv_dt)
-                if not dist2(x, (i,), x_ref, (i,)) <= lim2:
-                    over += 1
+            for q in prange(nf):
+                r2 = (x[q] - x_ref[q, 0]) ** 2 + (y[q] - x_ref[q, 1]) ** 2 + (z[q] - x_ref[q, 2]) ** 2
+                over += 0 if r2 <= lim2 else 1
             if over > 0:
                 return s, EXPIRED
         resume = False
-        _forces(x, v, start, index, c, inv_a, rc2, delta, f, block)
-        for i in prange(n):
-            kick(v, f, amp, (i,), i, kind[i], 1.0, omega, phase[i], t1, h)
-            if with_hot:
-                hot[i] += kinetic_dt(v, (i,), mass, dt)
+        forces(xs, vs, fs, offsets, block, start, index, delta, prm, square)
+        for q in prange(nf):
+            vx[q] += h * fx[q]
+            vy[q] += h * fy[q]
+            vz[q] += h * fz[q]
+        for p in range(held.shape[0]):
+            i = held[p]
+            for k in range(nk):
+                _hold_velocity(vs, amp, i * nk + k, i, kind[i], scale[k], omega[k], phase[i], t1)
+        if with_hot:
+            for q in prange(nf):
+                hot[q] += 0.5 * mass * (vx[q] * vx[q] + vy[q] * vy[q] + vz[q] * vz[q]) * dt
         s += 1
     return s, DONE
 
 
 @njit(cache=True, error_model="numpy")  # serial: a check, not a hot loop (compiles faster)
-def _pair_energy(x, start, index, c, a, rc2):
-    """Per-particle share of U = sum over pairs i < j of a * int_2^{r/a} F dx (U = 0 at 2a)."""
-    n = x.shape[0]
-    out = np.zeros(n)
-    inv_a = 1.0 / a
-    for i in range(n):
-        u = 0.0
-        for p in range(start[i], start[i + 1]):
-            j = index[p]
-            if j <= i:
-                continue
-            r2 = dist2(x, (j,), x, (i,))
+def _pair_sums(xs, offsets, start, index, c, a, rc2):
+    """(interacting pairs i < j, U) of one replica (xs (3, N)): group slots and residual entries j > i
+    with r < r_cut; U = sum of a * int_2^{r/a} F dx (0 at 2a), per particle, then in index order."""
+    n = xs.shape[1]
+    u = np.zeros(n)
+    count = 0
+    for g in range(offsets.shape[0]):
+        o = offsets[g]
+        for i in range(n - o):
+            r2 = (xs[0, i + o] - xs[0, i]) ** 2 + (xs[1, i + o] - xs[1, i]) ** 2 + (xs[2, i + o] - xs[2, i]) ** 2
             if r2 < rc2:
-                u += energy_x(2.0, math.sqrt(r2) * inv_a, c)
-        out[i] = u * a
-    return out
-
-
-@njit(cache=True, error_model="numpy")  # serial: a check, not a hot loop (compiles faster)
-def _count_pairs(x, start, index, rc2):
-    n = x.shape[0]
-    out = np.zeros(n, dtype=np.int64)
+                count += 1
+                u[i] += energy_x(2.0, math.sqrt(r2) / a, c)
     for i in range(n):
-        m = 0
         for p in range(start[i], start[i + 1]):
             j = index[p]
-            if j > i and dist2(x, (j,), x, (i,)) < rc2:
-                m += 1
-        out[i] = m
-    return out
+            r2 = (xs[0, j] - xs[0, i]) ** 2 + (xs[1, j] - xs[1, i]) ** 2 + (xs[2, j] - xs[2, i]) ** 2
+            if j > i and r2 < rc2:
+                count += 1
+                u[i] += energy_x(2.0, math.sqrt(r2) / a, c)
+    total = 0.0
+    for i in range(n):
+        total += u[i] * a
+    return count, total
+
+
+def pair_forces(x: np.ndarray, v: np.ndarray, nl: NeighbourList, model: SevenRoot, a: float, delta: float,
+                r_cut: float | None = None, force_pass: str = "slabs") -> np.ndarray:
+    """Forces (N, 3) at positions x and velocities v (N, 3) from list nl (r_cut default nl.r_cut): the
+    kernel's force pass, for checks and tests."""
+    prm, square = pair_params(model.coeffs(), a, nl.r_cut if r_cut is None else r_cut)
+    xs, vs = np.ascontiguousarray(x.T), np.ascontiguousarray(v.T)
+    fs = np.empty_like(xs)
+    forces(xs, vs, fs, nl.offsets, slab_block(nl) if force_pass == "slabs" else 0, nl.start, nl.index,
+           np.array([float(delta)]), prm, square)
+    return fs.T.copy()
+
+
+def slab_block(nl: NeighbourList) -> int:
+    """Slab block width of a list's groups: at least the largest offset and TILE (fixed by the groups)."""
+    return max(nl.reach, TILE)
 
 
 def check_range(r_cut: float, skin: float, dt: float) -> None:
@@ -277,15 +399,22 @@ def initial_state(x_rest: np.ndarray, kind: np.ndarray | None, amp: np.ndarray |
     return x_rest, kind, amp, phase, x, v
 
 
+def soa_state(x: np.ndarray, k: int) -> np.ndarray:
+    """(3, N, K) contiguous copy of positions or velocities (N, K, 3) or (N, 3) (then K copies)."""
+    x = np.asarray(x, dtype=np.float64)
+    return np.ascontiguousarray(np.broadcast_to(x.reshape(x.shape[0], -1, 3), (x.shape[0], k, 3)).transpose(2, 0, 1))
+
+
 @dataclass(eq=False, kw_only=True)
 class LatticeRun:
-    """State shared by the runs of the large-N kernels (single run, ensemble) and their step driver:
-    `advance` calls the subclass's kernel until the list expires, checks the state, rebuilds the
-    list and resumes at the force pass."""
+    """State shared by the runs of the large-N kernel (single run: K = 1, ensemble: K replicas) and their
+    step driver: `advance` calls the kernel until the list expires, checks the state, rebuilds the list
+    and resumes at the force pass.  State xs, vs, fs is (3, N, K) (structure of arrays, replica
+    innermost); x, v, f are (N, K, 3) views of it."""
 
-    x: np.ndarray
-    v: np.ndarray
-    f: np.ndarray
+    xs: np.ndarray
+    vs: np.ndarray
+    fs: np.ndarray
     x_rest: np.ndarray
     kind: np.ndarray
     amp: np.ndarray
@@ -297,12 +426,42 @@ class LatticeRun:
     nl: NeighbourList
     hot: np.ndarray
     r_cut: float
+    force_pass: str = "slabs"
     step: int = 0
     status: str = "ok"
     reason: str = ""
 
-    def _steps(self, n_steps: int, resume: bool) -> tuple[int, int]:
-        """Run the numba kernel from self.step: (steps completed, DONE or EXPIRED)."""
+    @property
+    def x(self) -> np.ndarray:
+        return self.xs.transpose(1, 2, 0)
+
+    @property
+    def v(self) -> np.ndarray:
+        return self.vs.transpose(1, 2, 0)
+
+    @property
+    def f(self) -> np.ndarray:
+        return self.fs.transpose(1, 2, 0)
+
+    @property
+    def size(self) -> int:
+        return int(self.xs.shape[1])
+
+    @property
+    def held(self) -> np.ndarray:
+        """Indices of the held (FROZEN, PRESCRIBED) particles."""
+        if getattr(self, "_held_for", None) is not self.kind:
+            self._held = np.flatnonzero(self.kind != FREE)
+            self._held_for = self.kind
+        return self._held
+
+    @property
+    def block(self) -> int:
+        """Slab block width (0: gather pass); fixed by the list's groups."""
+        return 0 if self.force_pass == "gather" else slab_block(self.nl)
+
+    def _vectors(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(scale, omega, delta) per replica and the list's reference positions (N * K, 3)."""
         raise NotImplementedError
 
     def _instability(self, lo: np.ndarray, hi: np.ndarray) -> str:
@@ -311,6 +470,21 @@ class LatticeRun:
 
     def _rebuild(self, step: int) -> None:
         raise NotImplementedError
+
+    def _forces(self) -> None:
+        _, _, delta, _ = self._vectors()
+        prm, square = pair_params(self.coeffs, self.a, self.r_cut)
+        forces(self.xs.reshape(3, -1), self.vs.reshape(3, -1), self.fs.reshape(3, -1), self.nl.offsets, self.block,
+               self.nl.start, self.nl.index, delta, prm, square)
+
+    def _steps(self, n_steps: int, resume: bool) -> tuple[int, int]:
+        """Run the numba kernel from self.step: (steps completed, DONE or EXPIRED)."""
+        scale, omega, delta, x_ref = self._vectors()
+        prm, square = pair_params(self.coeffs, self.a, self.r_cut)
+        return advance(self.xs.reshape(3, -1), self.vs.reshape(3, -1), self.fs.reshape(3, -1), self.x_rest,
+                       self.kind, self.held, self.amp, self.phase, scale, omega, delta, self.mass, self.dt, self.step,
+                       n_steps, self.nl.offsets, self.block, self.nl.start, self.nl.index, x_ref, 0.5 * self.nl.skin,
+                       prm, square, self.hot.reshape(-1), resume)
 
     def advance(self, n_steps: int) -> int:
         """Advance n_steps (fewer if the run becomes unstable: status, reason set, sums kept); rebuilds the
@@ -337,6 +511,12 @@ class LatticeRun:
             self.step += 1
         return done
 
+    @property
+    def nbytes(self) -> int:
+        """Memory of the run's arrays: state, fixes, sums and the neighbour list (bytes)."""
+        arrays = (self.xs, self.vs, self.fs, self.x_rest, self.kind, self.amp, self.phase, self.hot)
+        return int(sum(a.nbytes for a in arrays) + self.nl.nbytes)
+
 
 @dataclass(eq=False, kw_only=True)
 class KernelRun(LatticeRun):
@@ -344,15 +524,15 @@ class KernelRun(LatticeRun):
 
     omega: float
     delta: float
-    force_pass: str = "slabs"
 
     @classmethod
     def start(cls, x_rest: np.ndarray, mass: float, a: float, model: SevenRoot, delta: float, dt: float,
               v0: np.ndarray | None = None, x0: np.ndarray | None = None, kind: np.ndarray | None = None,
               amp: np.ndarray | None = None, phase: np.ndarray | None = None, omega: float = 0.0,
               r_cut: float = DEFAULT_R_CUT, skin: float = DEFAULT_SKIN, hotness: bool = False,
-              force_pass: str = "slabs") -> KernelRun:
-        """Set up a run at t = 0: list built on x0 (default x_rest), forces F(x0, v0) computed."""
+              force_pass: str = "slabs", groups: bool = True) -> KernelRun:
+        """Set up a run at t = 0: list built on x0 (default x_rest), forces F(x0, v0) computed.  groups:
+        offset groups from the rest lattice (`neighbours.stencil_offsets`); False: residual list only."""
         check_range(r_cut, skin, dt)
         if force_pass not in FORCE_PASSES:
             raise SceneError(f"force_pass={force_pass!r} is not allowed; allowed: {', '.join(FORCE_PASSES)}")
@@ -363,35 +543,32 @@ class KernelRun(LatticeRun):
         drv = kind == PRESCRIBED
         x[drv] = x_rest[drv] + amp[drv] * np.sin(phase[drv])[:, None]
         v[drv] = amp[drv] * (omega * np.cos(phase[drv]))[:, None]
-        nl = build_neighbours(x, r_cut * a, skin * a)
-        run = cls(x=x, v=v, f=np.zeros((n, 3)), x_rest=x_rest, kind=kind, amp=amp, phase=phase, omega=float(omega),
-                  mass=float(mass), a=float(a), dt=float(dt), coeffs=model.coeffs(), delta=float(delta), nl=nl,
-                  hot=np.zeros(n if hotness else 0), r_cut=float(r_cut) * a, force_pass=force_pass)
-        _forces(run.x, run.v, nl.start, nl.index, run.coeffs, 1.0 / run.a, run.r_cut**2, run.delta, run.f,
-                run.block)
+        offsets = stencil_offsets(x_rest, (r_cut + skin) * a) if groups else None
+        nl = build_neighbours(x, r_cut * a, skin * a, offsets)
+        run = cls(xs=soa_state(x, 1), vs=soa_state(v, 1), fs=np.zeros((3, n, 1)), x_rest=x_rest, kind=kind, amp=amp,
+                  phase=phase, omega=float(omega), mass=float(mass), a=float(a), dt=float(dt), coeffs=model.coeffs(),
+                  delta=float(delta), nl=nl, hot=np.zeros(n if hotness else 0), r_cut=float(r_cut) * a,
+                  force_pass=force_pass)
+        run._forces()
         return run
 
     @property
-    def block(self) -> int:
-        """Slab block width for the current list (0: gather pass)."""
-        if self.force_pass == "gather":
-            return 0
-        if getattr(self, "_block_for", None) is not self.nl.index:
-            self._block = int(list_reach(self.nl.start, self.nl.index))
-            self._block_for = self.nl.index
-        return self._block
+    def x(self) -> np.ndarray:
+        return self.xs[:, :, 0].T
 
     @property
-    def size(self) -> int:
-        return int(self.x.shape[0])
+    def v(self) -> np.ndarray:
+        return self.vs[:, :, 0].T
 
-    def _steps(self, n_steps: int, resume: bool) -> tuple[int, int]:
-        return advance(self.x, self.v, self.f, self.x_rest, self.kind, self.amp, self.phase, self.omega, self.mass,
-                       self.dt, self.step, n_steps, self.nl.start, self.nl.index, self.nl.x_ref, 0.5 * self.nl.skin,
-                       self.coeffs, 1.0 / self.a, self.r_cut**2, self.delta, self.hot, resume, self.block)
+    @property
+    def f(self) -> np.ndarray:
+        return self.fs[:, :, 0].T
+
+    def _vectors(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        return np.ones(1), np.array([self.omega]), np.array([self.delta]), self.nl.x_ref
 
     def _instability(self, lo: np.ndarray, hi: np.ndarray) -> str:
-        if not np.isfinite(self.x).all() or not np.isfinite(self.v).all():
+        if not np.isfinite(self.xs).all() or not np.isfinite(self.vs).all():
             return f"NaN/Inf in the state at step {self.step}; sums kept"
         if (self.x < lo).any() or (self.x > hi).any():
             return f"a particle left the bar's neighbourhood (more than a outside) at step {self.step}; sums kept"
@@ -402,20 +579,16 @@ class KernelRun(LatticeRun):
 
     def pair_count(self) -> int:
         """Interacting pairs (i < j, r < r_cut) at the current positions."""
-        return int(_count_pairs(self.x, self.nl.start, self.nl.index, self.r_cut**2).sum())
+        return int(_pair_sums(self.xs[:, :, 0], self.nl.offsets, self.nl.start, self.nl.index, self.coeffs, self.a,
+                              self.r_cut**2)[0])
 
     def potential_energy(self) -> float:
         """U(x) (J) with U = 0 for pairs at 2a; summed per particle, then in index order (deterministic)."""
-        return float(_pair_energy(self.x, self.nl.start, self.nl.index, self.coeffs, self.a, self.r_cut**2).sum())
+        return float(_pair_sums(self.xs[:, :, 0], self.nl.offsets, self.nl.start, self.nl.index, self.coeffs,
+                                self.a, self.r_cut**2)[1])
 
     def kinetic_energy(self) -> float:
         return float(0.5 * self.mass * np.einsum("ij,ij->", self.v, self.v))
-
-    @property
-    def nbytes(self) -> int:
-        """Memory of the run's arrays: state, fixes, sums and the neighbour list (bytes)."""
-        arrays = (self.x, self.v, self.f, self.x_rest, self.kind, self.amp, self.phase, self.hot)
-        return int(sum(a.nbytes for a in arrays) + self.nl.nbytes)
 
 
 def bench_lattice(n: int, box: Box | None = None, density: float = 2800.0) -> tuple[np.ndarray, float, float]:
