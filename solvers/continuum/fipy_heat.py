@@ -365,7 +365,7 @@ class FipyHeat:
 
         stock=True builds with plain `fipy.Grid3D` / `fipy.DiffusionTerm`: the reference for the subclasses of
         fipy_fast, which give the same K and f bit for bit, faster (tests/test_fipy_fast.py, benchmark).
-        FiPy's mesh and variables reference each other, so their arrays (~GB at 673 501 cells) are freed only by
+        FiPy's mesh and variables reference each other, so their arrays (1.3 GB at 673 501 cells) are freed only by
         Python's cyclic collector, whenever it next runs: measured inside the next solve, which then took
         7.0-8.6 s instead of 4.8-5.9 s.  So the FiPy set-up runs with the collector paused (all its objects stay
         in the youngest generation) and one collection of that generation (~ms) frees them as it returns.
