@@ -184,32 +184,42 @@ def test_run_equals_solver_fixed_pair_kernel(zeta, force_pass):
     assert np.abs(run.x - ref.x).max() <= 1e-11 * a
 
 
-@pytest.mark.parametrize(("force_pass", "groups"), [("slabs", True), ("gather", True), ("slabs", False)])
-def test_thread_count_independent_and_deterministic(force_pass, groups):
+@pytest.mark.parametrize(("n", "force_pass", "groups"), [(5, "slabs", True), (8, "slabs", True), (8, "gather", True),
+                                                         (8, "slabs", False)])
+def test_thread_count_independent_and_deterministic(n, force_pass, groups):
     """Tiles, slab blocks and row order are fixed by N and the list, never by the thread count: 1 and
-    2 threads must give the same bits (n = 8: three tiles and three slab blocks; 0.02a noise with the
-    default skin rebuilds the list and leaves residual pairs; without groups all pairs are residual)."""
+    2 threads must give the same bits and rebuild at the same steps (n = 8: three tiles and three slab
+    blocks; 0.01a noise with a 0.02a skin rebuilds the list every few steps and leaves residual pairs;
+    without groups all pairs are residual; frozen and driven particles; calls of 1, 7 and 92 steps).
+    n = 5 (one tile): a displacement count shared by prange loops in branches of one function once
+    missed expiries on one thread only (rebuilt a step late); the rebuild steps must agree."""
     if numba.config.NUMBA_NUM_THREADS < 2:
         pytest.skip("numba has a single thread here: nothing to compare")
-    x, a, m = bench_lattice(8)
-    _, _, _, x0 = _perturbed(8)
+    x, a, m, x0 = _perturbed(n, amp=0.01)
     w = omega_bound(MODEL, a, m)
+    kind = np.zeros(len(x), dtype=np.int8)
+    kind[[0, 8]], kind[[5, 6]] = FROZEN, PRESCRIBED
+    amp = np.zeros((len(x), 3))
+    amp[5, 1], amp[6, 1] = 0.02 * a, -0.02 * a
     results = []
     for threads in (1, 2, 2, 1):
         numba.set_num_threads(threads)
         try:
-            run = KernelRun.start(x, m, a, MODEL, 0.02 * m * w, 0.2 / w, x0=x0, hotness=True,
-                                  force_pass=force_pass, groups=groups)
-            run.advance(100)
-            assert len(x) > 2 * TILE and (len(x) // slab_block(run.nl) >= 2 or not groups)
+            run = KernelRun.start(x, m, a, MODEL, 0.02 * m * w, 0.2 / w, x0=x0, hotness=True, kind=kind, amp=amp,
+                                  omega=0.3 * w, skin=0.02, force_pass=force_pass, groups=groups)
+            for steps in (1, 7, 92):
+                run.advance(steps)
+            assert n < 8 or (len(x) > 2 * TILE and (len(x) // slab_block(run.nl) >= 2 or not groups))
         finally:
             numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
-        results.append((run.x.copy(), run.v.copy(), run.hot.copy(), run.potential_energy()))
+        results.append((run.x.copy(), run.v.copy(), run.hot.copy(), run.potential_energy(), run.nl.history))
+    assert len(results[0][4]) > 10  # the list was rebuilt (the steps of the rebuilds are compared too)
     for other in results[1:]:
         assert np.array_equal(results[0][0], other[0])
         assert np.array_equal(results[0][1], other[1])
         assert np.array_equal(results[0][2], other[2])
         assert results[0][3] == other[3]
+        assert results[0][4] == other[4]  # expiry counts are exact: the same rebuild steps
 
 
 def test_energy_error_second_order_in_dt():

@@ -267,64 +267,142 @@ def _hold_velocity(vs, amp, s, i, kd, scale, omega, phase, t1):
             vs[d, s] = 0.0
 
 
+@njit(inline="always")
+def _over(xs, x_ref, q, lim2):
+    """1 if slot q is more than sqrt(lim2) from x_ref[q] (or not finite), else 0."""
+    r2 = (xs[0, q] - x_ref[q, 0]) ** 2 + (xs[1, q] - x_ref[q, 1]) ** 2 + (xs[2, q] - x_ref[q, 2]) ** 2
+    return 0 if r2 <= lim2 else 1
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def _kick_drift(xs, vs, fs, x_ref, hot, h, dt, hmk, lim2):
+    """One pass over every slot as if it were free: the closing kick of a step (v += h f; hot += m/2 |v|^2
+    dt if hot is not empty) and the drift of the next (v += h f, x += dt v).  Returns how many slots
+    are now beyond sqrt(lim2) of x_ref.  One sweep over the state instead of three; contiguous loops
+    over the flat index (vectorised).  One reduction per function: one count shared by prange loops in
+    the branches of a single function came out wrong on one thread (rebuilds a step late; numba 0.68;
+    the thread test in tests/test_neighbours.py catches it)."""
+    x, y, z = xs[0], xs[1], xs[2]
+    vx, vy, vz = vs[0], vs[1], vs[2]
+    fx, fy, fz = fs[0], fs[1], fs[2]
+    with_hot = hot.shape[0] == x.shape[0]
+    over = 0
+    for q in prange(x.shape[0]):
+        vx[q] += h * fx[q]
+        vy[q] += h * fy[q]
+        vz[q] += h * fz[q]
+        if with_hot:
+            hot[q] += hmk * (vx[q] * vx[q] + vy[q] * vy[q] + vz[q] * vz[q]) * dt
+        vx[q] += h * fx[q]
+        vy[q] += h * fy[q]
+        vz[q] += h * fz[q]
+        x[q] += dt * vx[q]
+        y[q] += dt * vy[q]
+        z[q] += dt * vz[q]
+        over += _over(xs, x_ref, q, lim2)
+    return over
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def _drift(xs, vs, fs, x_ref, h, dt, lim2):
+    """The drift alone (first step of a call): v += h f, x += dt v; returns the count as `_kick_drift`."""
+    x, y, z = xs[0], xs[1], xs[2]
+    vx, vy, vz = vs[0], vs[1], vs[2]
+    fx, fy, fz = fs[0], fs[1], fs[2]
+    over = 0
+    for q in prange(x.shape[0]):
+        vx[q] += h * fx[q]
+        vy[q] += h * fy[q]
+        vz[q] += h * fz[q]
+        x[q] += dt * vx[q]
+        y[q] += dt * vy[q]
+        z[q] += dt * vz[q]
+        over += _over(xs, x_ref, q, lim2)
+    return over
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def _kick(vs, fs, hot, h, dt, hmk):
+    """The closing kick alone (last step of a call): v += h f; hot += m/2 |v|^2 dt if hot is not empty."""
+    vx, vy, vz = vs[0], vs[1], vs[2]
+    fx, fy, fz = fs[0], fs[1], fs[2]
+    with_hot = hot.shape[0] == vx.shape[0]
+    for q in prange(vx.shape[0]):
+        vx[q] += h * fx[q]
+        vy[q] += h * fy[q]
+        vz[q] += h * fz[q]
+        if with_hot:
+            hot[q] += hmk * (vx[q] * vx[q] + vy[q] * vy[q] + vz[q] * vz[q]) * dt
+
+
 @njit(cache=True, parallel=True, error_model="numpy")
 def advance(xs, vs, fs, x_rest, kind, held, amp, phase, scale, omega, delta, mass, dt, step0, n_steps, offsets,
             block, start, index, x_ref, half_skin, prm, square, hot, resume):
     """Velocity-Verlet steps of K replicas (K = len(scale); state (3, N * K), x_ref (N * K, 3)) from
     step0 until n_steps are done or the list expires.
 
-    Half kick and drift run over every slot as if it were free (contiguous, vectorised loops); the
-    held particles (indices `held`, few) are then set to their drive or rest.  Returns (steps
-    completed, status).  On EXPIRED the step in progress has been drifted (x at t_{n+1}, v =
-    v_{n+1/2}) but has no forces yet: rebuild the list and call again with resume=True, which starts
-    at the force pass.  hot (N * K) accumulates KE dt (if not empty).
+    The closing kick of a step and the drift of the next run in one pass over every slot as if it
+    were free (`_kick_drift`); the held particles (indices `held`, few) are then corrected: their hot
+    sum, kick velocity, drive or rest and displacement count are redone exactly as a separate pass
+    would have done them (bit for bit).  Returns (steps completed, status).  On EXPIRED the step in
+    progress has been drifted (x at t_{n+1}, v = v_{n+1/2}) but has no forces yet: rebuild the list
+    and call again with resume=True, which starts at the force pass.  hot (N * K) accumulates KE dt
+    (if not empty).
     """
     nk = scale.shape[0]
-    nf = xs.shape[1]
-    x, y, z = xs[0], xs[1], xs[2]
-    vx, vy, vz = vs[0], vs[1], vs[2]
-    fx, fy, fz = fs[0], fs[1], fs[2]
     lim2 = half_skin * half_skin
     h = 0.5 * dt / mass
     inv_dt = 1.0 / dt
-    with_hot = hot.shape[0] == nf
-    s = 0
-    while s < n_steps:
-        t0 = (step0 + s) * dt
-        t1 = (step0 + s + 1) * dt
-        if not resume:
-            for q in prange(nf):
-                vx[q] += h * fx[q]
-                vy[q] += h * fy[q]
-                vz[q] += h * fz[q]
-                x[q] += dt * vx[q]
-                y[q] += dt * vy[q]
-                z[q] += dt * vz[q]
-            for p in range(held.shape[0]):
-                i = held[p]
-                for k in range(nk):
-                    _hold(xs, vs, x_rest, amp, i * nk + k, i, kind[i], scale[k], omega[k], phase[i], t0, t1, inv_dt)
-            over = 0
-            for q in prange(nf):
-                r2 = (x[q] - x_ref[q, 0]) ** 2 + (y[q] - x_ref[q, 1]) ** 2 + (z[q] - x_ref[q, 2]) ** 2
-                over += 0 if r2 <= lim2 else 1
-            if over > 0:
-                return s, EXPIRED
-        resume = False
-        forces(xs, vs, fs, offsets, block, start, index, delta, prm, square)
-        for q in prange(nf):
-            vx[q] += h * fx[q]
-            vy[q] += h * fy[q]
-            vz[q] += h * fz[q]
+    hmk = 0.5 * mass
+    with_hot = hot.shape[0] == xs.shape[1]
+    saved = np.zeros(held.shape[0] * nk)
+    if n_steps <= 0:
+        return 0, DONE
+    if not resume:  # drift of the first step
+        over = _drift(xs, vs, fs, x_ref, h, dt, lim2)
         for p in range(held.shape[0]):
             i = held[p]
             for k in range(nk):
-                _hold_velocity(vs, amp, i * nk + k, i, kind[i], scale[k], omega[k], phase[i], t1)
-        if with_hot:
-            for q in prange(nf):
-                hot[q] += 0.5 * mass * (vx[q] * vx[q] + vy[q] * vy[q] + vz[q] * vz[q]) * dt
+                q = i * nk + k
+                over -= _over(xs, x_ref, q, lim2)
+                _hold(xs, vs, x_rest, amp, q, i, kind[i], scale[k], omega[k], phase[i], step0 * dt, (step0 + 1) * dt,
+                      inv_dt)
+                over += _over(xs, x_ref, q, lim2)
+        if over > 0:
+            return 0, EXPIRED
+    s = 0
+    while True:
+        forces(xs, vs, fs, offsets, block, start, index, delta, prm, square)
         s += 1
-    return s, DONE
+        t1 = (step0 + s) * dt  # end of step s, start of step s + 1 (times as n * dt, never summed)
+        t2 = (step0 + s + 1) * dt
+        last = s == n_steps
+        if with_hot:
+            for p in range(held.shape[0]):
+                for k in range(nk):
+                    saved[p * nk + k] = hot[held[p] * nk + k]
+        over = 0
+        if last:
+            _kick(vs, fs, hot, h, dt, hmk)
+        else:
+            over = _kick_drift(xs, vs, fs, x_ref, hot, h, dt, hmk, lim2)
+        for p in range(held.shape[0]):
+            i = held[p]
+            for k in range(nk):
+                q = i * nk + k
+                if not last:
+                    over -= _over(xs, x_ref, q, lim2)
+                _hold_velocity(vs, amp, q, i, kind[i], scale[k], omega[k], phase[i], t1)
+                if with_hot:
+                    hot[q] = saved[p * nk + k] + hmk * (vs[0, q] * vs[0, q] + vs[1, q] * vs[1, q]
+                                                        + vs[2, q] * vs[2, q]) * dt
+                if not last:
+                    _hold(xs, vs, x_rest, amp, q, i, kind[i], scale[k], omega[k], phase[i], t1, t2, inv_dt)
+                    over += _over(xs, x_ref, q, lim2)
+        if last:
+            return s, DONE
+        if over > 0:
+            return s, EXPIRED
 
 
 @njit(cache=True, error_model="numpy")  # serial: a check, not a hot loop (compiles faster)
