@@ -23,12 +23,14 @@ from harness.scene import Box, SceneError
 from solvers.particles import macromolecule as mm
 from solvers.particles.lattice import build_lattice
 from solvers.particles.modal import free_dofs, hessian, top_frequency
-from solvers.particles.neighbours import build_neighbours, stencil_offsets
+from solvers.particles.neighbours import build_neighbours, merge_lists, stencil_offsets, union_list
 from solvers.particles.scaling import (
     FROZEN,
     PRESCRIBED,
     TILE,
     KernelRun,
+    _drift,
+    _kick_drift,
     bench_lattice,
     omega_bound,
     pair_forces,
@@ -82,6 +84,19 @@ def test_list_equals_kdtree_pairs(groups):
         assert np.linalg.norm(x_rest[nl.index] - x_rest[i], axis=1).min() > 2.2 * a
     else:
         assert nl.entries == 2 * len(ref)
+
+
+@pytest.mark.parametrize("n", [4, 8])
+def test_union_list_equals_merged_lists(n):
+    """The ensemble's one-call union (serial builds below 4096 particles, parallel above) holds exactly
+    the rows of K separate lists merged, array for array; K = 5 position sets with 0.03a noise."""
+    x, a, _ = bench_lattice(n)
+    offsets = stencil_offsets(x, 2.2 * a)
+    xk = x[None] + 0.03 * a * np.random.default_rng(n).standard_normal((5, *x.shape))
+    ref = merge_lists([build_neighbours(xk[k], 2.1 * a, 0.1 * a, offsets) for k in range(5)])
+    got = union_list(xk, 2.1 * a, 0.1 * a, offsets)
+    assert ref.entries > 0 and np.array_equal(got.start, ref.start) and np.array_equal(got.index, ref.index)
+    assert np.array_equal(got.offsets, offsets) and np.array_equal(got.x_ref, xk[0])
 
 
 def test_stencil_offsets_are_the_lattice_offsets():
@@ -191,8 +206,8 @@ def test_thread_count_independent_and_deterministic(n, force_pass, groups):
     2 threads must give the same bits and rebuild at the same steps (n = 8: three tiles and three slab
     blocks; 0.01a noise with a 0.02a skin rebuilds the list every few steps and leaves residual pairs;
     without groups all pairs are residual; frozen and driven particles; calls of 1, 7 and 92 steps).
-    n = 5 (one tile): a displacement count shared by prange loops in branches of one function once
-    missed expiries on one thread only (rebuilt a step late); the rebuild steps must agree."""
+    n = 5 (one tile): a displacement count that read stale positions once missed expiries at the
+    start of a call on one thread (rebuilt a step late); the rebuild steps must agree."""
     if numba.config.NUMBA_NUM_THREADS < 2:
         pytest.skip("numba has a single thread here: nothing to compare")
     x, a, m, x0 = _perturbed(n, amp=0.01)
@@ -220,6 +235,34 @@ def test_thread_count_independent_and_deterministic(n, force_pass, groups):
         assert np.array_equal(results[0][2], other[2])
         assert results[0][3] == other[3]
         assert results[0][4] == other[4]  # expiry counts are exact: the same rebuild steps
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+def test_drift_counts_displaced_slots(threads):
+    """The drift passes return exactly the number of slots beyond sqrt(lim2) of x_ref after the drift
+    (numpy recount; positions and velocities as numpy computes them, bit for bit).  A version that read
+    the positions back through the (3, N) state inside the parallel loop saw stale values (0 or 1
+    instead of 3 here, depending on the thread count)."""
+    if threads > numba.config.NUMBA_NUM_THREADS:
+        pytest.skip("numba has a single thread here")
+    rng = np.random.default_rng(7)
+    n = 3000
+    xs, vs, fs = rng.standard_normal((3, 3, n))
+    x_ref = xs.T + 0.01 * rng.standard_normal((n, 3))
+    hot = np.zeros(n)
+    h, dt, lim2 = 0.3, 0.02, 0.02**2
+    for fused in (False, True):
+        x, v = xs.copy(), vs.copy()
+        numba.set_num_threads(threads)
+        try:
+            got = (_kick_drift(x, v, fs, x_ref, hot, h, dt, 0.5, lim2) if fused else
+                   _drift(x, v, fs, x_ref, h, dt, lim2))
+        finally:
+            numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+        u = vs + h * fs + (h * fs if fused else 0.0)
+        assert np.array_equal(v, u) and np.array_equal(x, xs + dt * u)
+        want = int(((((xs + dt * u).T - x_ref) ** 2).sum(axis=1) > lim2).sum())
+        assert 0 < want < n and got == want
 
 
 def test_energy_error_second_order_in_dt():

@@ -3,7 +3,7 @@ frequency, integrated in one kernel (parameter sweeps of the macromolecule model
 
 Replicas share the rest lattice, the fixes (kinds, drive directions, phases), the time step and
 one neighbour list: the same offset groups (from the rest lattice) and the union of every
-replica's residual list (`neighbours.merge_lists`), valid for replica k while no particle of k has
+replica's residual list (`neighbours.union_list`), valid for replica k while no particle of k has
 moved more than skin/2 from its own build positions.  State is (3, N, K), replica innermost: the
 flat index i * K + k is a lattice with offsets o * K, so `scaling.advance` runs its contiguous,
 vectorised group loops over all replicas at once (K times longer loops, one pass over the tiles,
@@ -24,7 +24,7 @@ import numpy as np
 
 from harness.scene import SceneError
 
-from .neighbours import build_neighbours, merge_lists, stencil_offsets
+from .neighbours import build_neighbours, stencil_offsets, union_list
 from .scaling import (
     DEFAULT_R_CUT,
     DEFAULT_SKIN,
@@ -106,9 +106,7 @@ class EnsembleRun(LatticeRun):
 
     def _rebuild(self, step: int) -> None:
         """Union of every replica's list at the current positions."""
-        lists = [build_neighbours(self.x[:, r], self.nl.r_cut, self.nl.skin, self.nl.offsets)
-                 for r in range(self.replicas)]
-        merged = merge_lists(lists)
+        merged = union_list(self.x.transpose(1, 0, 2), self.nl.r_cut, self.nl.skin, self.nl.offsets)
         builds, history = self.nl.builds, self.nl.history
         self.nl = merged
         self.nl.builds, self.nl.history = builds + 1, [*history, step]

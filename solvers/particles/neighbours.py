@@ -229,6 +229,59 @@ class NeighbourList:
         return out[np.lexsort((out[:, 1], out[:, 0]))]
 
 
+@njit(cache=True, error_model="numpy")
+def _build_serial(x, radius):
+    """`_build` on one thread (small N: the parallel launches cost more than the scan)."""
+    n = x.shape[0]
+    cell, cstart, members, dims = _cells(x, radius)
+    r2max = radius * radius
+    none = np.empty(0, dtype=np.int32)
+    start = np.zeros(n + 1, dtype=np.int64)
+    for i in range(n):
+        start[i + 1] = start[i] + _scan(x, i, cell, cstart, members, dims, r2max, none, 0, False)
+    index = np.empty(start[n], dtype=np.int32)
+    for i in range(n):
+        _scan(x, i, cell, cstart, members, dims, r2max, index, start[i], True)
+    return start, index
+
+
+@njit(cache=True, error_model="numpy")  # serial driver; large sets are built in parallel
+def _union(xk, radius, offsets):
+    """Residual CSR list holding every pair within `radius` in any of the K position sets xk (K, N, 3)
+    (offsets `offsets` left out): one call for an ensemble's K builds and their union (rows ascending)."""
+    nk = xk.shape[0]
+    n = xk.shape[1]
+    keys = np.empty(0, dtype=np.int64)
+    for k in range(nk):
+        start, index = _build(xk[k], radius) if n > 4096 else _build_serial(xk[k], radius)
+        if offsets.shape[0] > 0:
+            start, index = _drop_offsets(start, index, offsets)
+        ki = np.empty(index.shape[0], dtype=np.int64)
+        for i in range(n):
+            for p in range(start[i], start[i + 1]):
+                ki[p] = i * n + index[p]
+        keys = np.concatenate((keys, ki))
+    keys = np.unique(keys)
+    out_start = np.zeros(n + 1, dtype=np.int64)
+    out_index = np.empty(keys.shape[0], dtype=np.int32)
+    for p in range(keys.shape[0]):
+        out_start[keys[p] // n + 1] += 1
+        out_index[p] = keys[p] % n
+    for i in range(n):
+        out_start[i + 1] += out_start[i]
+    return out_start, out_index
+
+
+def union_list(xk: np.ndarray, r_cut: float, skin: float, offsets: np.ndarray) -> NeighbourList:
+    """One list for K position sets xk (K, N, 3) of the same particles: groups `offsets` and the union of
+    the K residual lists (what `merge_lists` of K `build_neighbours` gives, in one numba call); x_ref
+    is the first set.  Used by ensembles at every rebuild."""
+    xk = np.ascontiguousarray(xk, dtype=np.float64)
+    start, index = _union(xk, float(r_cut + skin), np.ascontiguousarray(offsets, dtype=np.int64))
+    return NeighbourList(start=start, index=index, x_ref=xk[0].copy(), r_cut=float(r_cut), skin=float(skin),
+                         offsets=np.ascontiguousarray(offsets, dtype=np.int64))
+
+
 def _residual(x: np.ndarray, radius: float, offsets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     start, index = _build(x, radius)
     return _drop_offsets(start, index, offsets) if offsets.size else (start, index)

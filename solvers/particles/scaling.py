@@ -268,10 +268,30 @@ def _hold_velocity(vs, amp, s, i, kd, scale, omega, phase, t1):
 
 
 @njit(inline="always")
-def _over(xs, x_ref, q, lim2):
-    """1 if slot q is more than sqrt(lim2) from x_ref[q] (or not finite), else 0."""
-    r2 = (xs[0, q] - x_ref[q, 0]) ** 2 + (xs[1, q] - x_ref[q, 1]) ** 2 + (xs[2, q] - x_ref[q, 2]) ** 2
+def _over(px, py, pz, x_ref, q, lim2):
+    """1 if position (px, py, pz) of slot q is more than sqrt(lim2) from x_ref[q] (or not finite), else 0."""
+    r2 = (px - x_ref[q, 0]) ** 2 + (py - x_ref[q, 1]) ** 2 + (pz - x_ref[q, 2]) ** 2
     return 0 if r2 <= lim2 else 1
+
+
+@njit(inline="always")
+def _drift_slot(x, y, z, vx, vy, vz, fx, fy, fz, x_ref, q, h, dt, lim2):
+    """v += h f, x += dt v for slot q; returns `_over` of the new position.  The count takes the values
+    just computed: read back through the (3, N) state while the loop wrote its row views, the parallel
+    loop saw stale positions (expiries missed, rebuilds a step late; numba 0.68, measured)."""
+    ux = vx[q] + h * fx[q]
+    uy = vy[q] + h * fy[q]
+    uz = vz[q] + h * fz[q]
+    vx[q] = ux
+    vy[q] = uy
+    vz[q] = uz
+    px = x[q] + dt * ux
+    py = y[q] + dt * uy
+    pz = z[q] + dt * uz
+    x[q] = px
+    y[q] = py
+    z[q] = pz
+    return _over(px, py, pz, x_ref, q, lim2)
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
@@ -279,27 +299,22 @@ def _kick_drift(xs, vs, fs, x_ref, hot, h, dt, hmk, lim2):
     """One pass over every slot as if it were free: the closing kick of a step (v += h f; hot += m/2 |v|^2
     dt if hot is not empty) and the drift of the next (v += h f, x += dt v).  Returns how many slots
     are now beyond sqrt(lim2) of x_ref.  One sweep over the state instead of three; contiguous loops
-    over the flat index (vectorised).  One reduction per function: one count shared by prange loops in
-    the branches of a single function came out wrong on one thread (rebuilds a step late; numba 0.68;
-    the thread test in tests/test_neighbours.py catches it)."""
+    over the flat index (vectorised)."""
     x, y, z = xs[0], xs[1], xs[2]
     vx, vy, vz = vs[0], vs[1], vs[2]
     fx, fy, fz = fs[0], fs[1], fs[2]
     with_hot = hot.shape[0] == x.shape[0]
     over = 0
     for q in prange(x.shape[0]):
-        vx[q] += h * fx[q]
-        vy[q] += h * fy[q]
-        vz[q] += h * fz[q]
+        ux = vx[q] + h * fx[q]
+        uy = vy[q] + h * fy[q]
+        uz = vz[q] + h * fz[q]
+        vx[q] = ux
+        vy[q] = uy
+        vz[q] = uz
         if with_hot:
-            hot[q] += hmk * (vx[q] * vx[q] + vy[q] * vy[q] + vz[q] * vz[q]) * dt
-        vx[q] += h * fx[q]
-        vy[q] += h * fy[q]
-        vz[q] += h * fz[q]
-        x[q] += dt * vx[q]
-        y[q] += dt * vy[q]
-        z[q] += dt * vz[q]
-        over += _over(xs, x_ref, q, lim2)
+            hot[q] += hmk * (ux * ux + uy * uy + uz * uz) * dt
+        over += _drift_slot(x, y, z, vx, vy, vz, fx, fy, fz, x_ref, q, h, dt, lim2)
     return over
 
 
@@ -311,13 +326,7 @@ def _drift(xs, vs, fs, x_ref, h, dt, lim2):
     fx, fy, fz = fs[0], fs[1], fs[2]
     over = 0
     for q in prange(x.shape[0]):
-        vx[q] += h * fx[q]
-        vy[q] += h * fy[q]
-        vz[q] += h * fz[q]
-        x[q] += dt * vx[q]
-        y[q] += dt * vy[q]
-        z[q] += dt * vz[q]
-        over += _over(xs, x_ref, q, lim2)
+        over += _drift_slot(x, y, z, vx, vy, vz, fx, fy, fz, x_ref, q, h, dt, lim2)
     return over
 
 
@@ -364,10 +373,10 @@ def advance(xs, vs, fs, x_rest, kind, held, amp, phase, scale, omega, delta, mas
             i = held[p]
             for k in range(nk):
                 q = i * nk + k
-                over -= _over(xs, x_ref, q, lim2)
+                over -= _over(xs[0, q], xs[1, q], xs[2, q], x_ref, q, lim2)
                 _hold(xs, vs, x_rest, amp, q, i, kind[i], scale[k], omega[k], phase[i], step0 * dt, (step0 + 1) * dt,
                       inv_dt)
-                over += _over(xs, x_ref, q, lim2)
+                over += _over(xs[0, q], xs[1, q], xs[2, q], x_ref, q, lim2)
         if over > 0:
             return 0, EXPIRED
     s = 0
@@ -391,14 +400,14 @@ def advance(xs, vs, fs, x_rest, kind, held, amp, phase, scale, omega, delta, mas
             for k in range(nk):
                 q = i * nk + k
                 if not last:
-                    over -= _over(xs, x_ref, q, lim2)
+                    over -= _over(xs[0, q], xs[1, q], xs[2, q], x_ref, q, lim2)
                 _hold_velocity(vs, amp, q, i, kind[i], scale[k], omega[k], phase[i], t1)
                 if with_hot:
                     hot[q] = saved[p * nk + k] + hmk * (vs[0, q] * vs[0, q] + vs[1, q] * vs[1, q]
                                                         + vs[2, q] * vs[2, q]) * dt
                 if not last:
                     _hold(xs, vs, x_rest, amp, q, i, kind[i], scale[k], omega[k], phase[i], t1, t2, inv_dt)
-                    over += _over(xs, x_ref, q, lim2)
+                    over += _over(xs[0, q], xs[1, q], xs[2, q], x_ref, q, lim2)
         if last:
             return s, DONE
         if over > 0:
