@@ -4,7 +4,8 @@ frequency, integrated in one kernel (parameter sweeps of the macromolecule model
 Replicas share the rest lattice, the fixes (kinds, drive directions, phases), the time step and
 one neighbour list: the same offset groups (from the rest lattice) and the union of every
 replica's residual list (`neighbours.union_list`), valid for replica k while no particle of k has
-moved more than skin/2 from its own build positions.  State is (3, N, K), replica innermost: the
+moved more than skin/2 from its own build positions; a replica that expires is rebuilt alone and
+its list added to the union (`EnsembleRun._rebuild`).  State is (3, N, K), replica innermost: the
 flat index i * K + k is a lattice with offsets o * K, so `scaling.advance` runs its contiguous,
 vectorised group loops over all replicas at once (K times longer loops, one pass over the tiles,
 the damping per slot from a K-periodic vector).
@@ -24,7 +25,7 @@ import numpy as np
 
 from harness.scene import SceneError
 
-from .neighbours import build_neighbours, stencil_offsets, union_list
+from .neighbours import build_neighbours, merge_lists, stencil_offsets, union_list
 from .scaling import (
     DEFAULT_R_CUT,
     DEFAULT_SKIN,
@@ -105,12 +106,22 @@ class EnsembleRun(LatticeRun):
         return self.scale, self.omega, self.delta, self.x_ref.reshape(-1, 3)
 
     def _rebuild(self, step: int) -> None:
-        """Union of every replica's list at the current positions."""
-        merged = union_list(self.x.transpose(1, 0, 2), self.nl.r_cut, self.nl.skin, self.nl.offsets)
+        """Rebuild the lists of the replicas that expired (a particle beyond skin/2 of its own x_ref) and add
+        them to the shared list; the others keep their x_ref and their entries.  Stale entries only add
+        pairs beyond r_cut, which every force pass skips (no bit changes); the whole union is rebuilt
+        at the start and once the list has grown to twice its last full size."""
+        x = np.ascontiguousarray(self.x)
+        moved = ~(((x - self.x_ref) ** 2).sum(axis=2) <= (0.5 * self.nl.skin) ** 2).all(axis=0)
         builds, history = self.nl.builds, self.nl.history
-        self.nl = merged
+        if step < 0 or self.nl.entries > 2 * getattr(self, "_full_entries", 0):
+            self.nl = union_list(x.transpose(1, 0, 2), self.nl.r_cut, self.nl.skin, self.nl.offsets)
+            self._full_entries = max(self.nl.entries, self.size)
+            self.x_ref = x
+        else:
+            fresh = union_list(x[:, moved].transpose(1, 0, 2), self.nl.r_cut, self.nl.skin, self.nl.offsets)
+            self.nl = merge_lists([self.nl, fresh])
+            self.x_ref[:, moved] = x[:, moved]
         self.nl.builds, self.nl.history = builds + 1, [*history, step]
-        self.x_ref = np.ascontiguousarray(self.x)
 
     def _instability(self, lo: np.ndarray, hi: np.ndarray) -> str:
         bad = ~np.isfinite(self.x).all(axis=(0, 2)) | ~np.isfinite(self.v).all(axis=(0, 2))
