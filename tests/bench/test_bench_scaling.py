@@ -100,12 +100,11 @@ def test_bench_kernel_step(benchmark, n: int, threads: int, force_pass: str) -> 
     assert builds == 1  # 0.003a (rms) vibrations stay below skin/2 = 0.05a (max ~0.03a at 10^6): list kept
 
 
-def test_bench_ensemble_throughput(benchmark) -> None:
-    """K = 4 replicas (damping, drive amplitude, frequency differ) in one kernel against the same four
-    runs one after another, same steps, timed in the same test; replicas checked bit-identical.
-    The ensemble's gain comes from running the group loops over K replicas at once (K times longer
-    contiguous loops, one pass over the tiles and blocks, one set of loop and call overheads)."""
-    n, k, steps = 16, 4, 20
+def _ensemble_vs_singles(benchmark, n: int, k: int, steps: int, drive: float) -> None:
+    """K replicas (damping, drive amplitude and frequency differ) in one kernel against the same K runs one
+    after another, same steps, timed side by side (interleaved, best of 3, fresh runs each time) in one
+    test; every replica checked bit-identical to its single run.  drive: amplitude of the corner
+    particles' drive in units of a (scaled by 0.5 ... 2 over the replicas)."""
     x, a, m = bench_lattice(n)
     w = omega_bound(MODEL, a, m)
     dt = 0.2 / w
@@ -113,10 +112,10 @@ def test_bench_ensemble_throughput(benchmark) -> None:
     hot = np.flatnonzero(np.linalg.norm(x - x[0], axis=1) < 1.01 * a)  # a corner particle and its neighbours
     kind[hot] = PRESCRIBED
     amp = np.zeros((len(x), 3))
-    amp[hot, 1] = 0.02 * a
-    deltas = np.array([0.01, 0.02, 0.03, 0.04]) * m * w
-    omegas = np.array([0.2, 0.3, 0.4, 0.5]) * w
-    scales = np.array([0.5, 1.0, 1.5, 2.0])
+    amp[hot, 1] = drive * a
+    deltas = np.linspace(0.01, 0.04, k) * m * w
+    omegas = np.linspace(0.2, 0.5, k) * w
+    scales = np.linspace(0.5, 2.0, k)
 
     def make_ensemble() -> EnsembleRun:
         return EnsembleRun.start(x, m, a, MODEL, dt, deltas, omegas, scales, kind=kind, amp=amp)
@@ -131,24 +130,44 @@ def test_bench_ensemble_throughput(benchmark) -> None:
 
     make_ensemble().advance(steps)
     run_singles(make_singles())  # warm-up: compilation outside the timing
-    ref = make_singles()
-    c0, t0 = time.process_time(), time.perf_counter()
-    run_singles(ref)
-    c_single, t_single = time.process_time() - c0, time.perf_counter() - t0
-    ens = make_ensemble()
-    c0, t0 = time.process_time(), time.perf_counter()
-    ens.advance(steps)
-    c_ens, t_ens = time.process_time() - c0, time.perf_counter() - t0
+    best = {"single": (np.inf, np.inf), "ensemble": (np.inf, np.inf)}
+    last = {}
+    for _ in range(3):
+        for name in best:
+            last[name] = make_singles() if name == "single" else make_ensemble()
+            c0, t0 = time.process_time(), time.perf_counter()
+            if name == "single":
+                run_singles(last[name])
+            else:
+                last[name].advance(steps)
+            wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+            best[name] = (min(best[name][0], wall), min(best[name][1], cpu))
+    ref, ens = last["single"], last["ensemble"]
     benchmark.pedantic(lambda e: e.advance(steps), setup=lambda: ((make_ensemble(),), {}), rounds=3, iterations=1)
-    stats = getattr(benchmark, "stats", None)
-    t_ens_b = stats.stats.median if stats is not None else t_ens
     for r in range(k):
         assert np.array_equal(ens.x[:, r], ref[r].x) and np.array_equal(ens.hot[:, r], ref[r].hot)
+    (t_single, c_single), (t_ens, c_ens) = best["single"], best["ensemble"]
+    work = k * steps * ref[0].pair_count()
     benchmark.extra_info.update(
-        n=n, particles=len(x), replicas=k, steps=steps, pairs=ref[0].pair_count(),
-        replica_pair_steps=k * steps * ref[0].pair_count(), ensemble_s=t_ens, singles_s=t_single,
+        n=n, particles=len(x), replicas=k, steps=steps, drive_over_a=drive, pairs=ref[0].pair_count(),
+        replica_pair_steps=work, ensemble_s=t_ens, singles_s=t_single,
         speedup_per_replica=t_single / t_ens, cpu_speedup_per_replica=c_single / c_ens,
-        ns_per_replica_pair_step_ensemble=1e9 * t_ens_b / (k * steps * ref[0].pair_count()),
-        ns_per_replica_pair_step_single=1e9 * t_single / (k * steps * ref[0].pair_count()),
+        ns_per_replica_pair_step_ensemble=1e9 * t_ens / work, ns_per_replica_pair_step_single=1e9 * t_single / work,
+        list_builds_ensemble=ens.nl.builds, list_builds_singles=sum(s.nl.builds for s in ref),
         threads=numba.get_num_threads(),
     )
+
+
+def test_bench_ensemble_throughput(benchmark) -> None:
+    """K = 4 replicas at n = 16 (11 776 particles), 20 steps, drive 0.02a (no rebuild).  The single run
+    is already vectorised over particles, so the replicas add no SIMD width: the gain is the per-step
+    work shared by the replicas (loop set-up, tile and block passes, parallel-region launches)."""
+    _ensemble_vs_singles(benchmark, 16, 4, 20, 0.02)
+
+
+@pytest.mark.parametrize("drive", [0.002, 0.02])
+def test_bench_ensemble_paper_lattice(benchmark, drive: float) -> None:
+    """K = 16 replicas at the paper's n = 4 (160 particles), 2000 steps: a parameter sweep's regime, where
+    a single step is mostly fixed overhead.  drive 0.002a: the list holds for the whole run; 0.02a:
+    rebuilds every few tens of steps (the ensemble rebuilds the replicas that expired)."""
+    _ensemble_vs_singles(benchmark, 4, 16, 2000, drive)
