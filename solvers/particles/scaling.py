@@ -536,8 +536,8 @@ class LatticeRun:
 
     @property
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        """The bar's neighbourhood (rest box widened by a on every side); computed once (numpy's min and max
-        over axis 0 of an (N, 3) array took 0.6 ms at N = 11 776: ~7 % of an 11-step benchmark call)."""
+        """The bar's neighbourhood (rest box widened by a on every side), computed once per run: numpy's
+        min and max over axis 0 of an (N, 3) array are strided reductions, too slow for every call."""
         if getattr(self, "_bounds_for", None) is not self.x_rest:
             self._bounds = (self.x_rest.min(axis=0) - self.a, self.x_rest.max(axis=0) + self.a)
             self._bounds_for = self.x_rest
