@@ -25,8 +25,13 @@ damping delta * rdot, F > 0 attraction), for lattices up to ~10^6 particles on a
   the operations of its single run (K = 1) in the same order: bit-identical to it;
 - time stepping is velocity Verlet (LAMMPS fix nve): half kick, drift, forces, half kick.  The
   damping in F_{n+1} uses v_{n+1/2}, the velocities at force time (LAMMPS' dpd does the same;
-  it is the half-step predictor of the solver's kernel, see integrate.py);
-- fixes: FREE, FROZEN (held at rest), PRESCRIBED (x = x_rest + amp sin(omega t + phase)).
+  it is the half-step predictor of the solver's kernel, see integrate.py).  The closing half kick
+  of a step, the next half kick and drift and the list's displacement check are one contiguous
+  pass over all slots (every slot treated as free); held particles are corrected after it;
+- fixes: FREE, FROZEN (held at rest), PRESCRIBED (x = x_rest + amp sin(omega t + phase));
+- memory: state x, v, f (72 B per particle and replica), rest positions, drive amplitudes and
+  phases, kinds (57 B), the list's reference positions and residual row offsets (32 B); the
+  groups cost nothing per particle.
 
 Work counter: a pair-step is one interacting pair (i < j, r < r_cut) advanced one step (the
 gather evaluates each twice, the slab pass once; group slots beyond r_cut are work not counted).
