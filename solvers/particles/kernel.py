@@ -63,7 +63,7 @@ from .integrate import (
     reset_outputs,
     verdict,
 )
-from .seven_root import _GL_W, _GL_X, C_A, C_P, C_ROOTS, C_X0, C_X1, energy_x
+from .seven_root import _GL_W, _GL_X, C_A, C_P, C_ROOTS, C_X0, C_X1, energy_x, force_tree
 
 __all__ = ["pair_pass", "run", "stencil"]
 
@@ -97,6 +97,13 @@ def stencil(pairs: np.ndarray, shell: np.ndarray, n: int, basins: np.ndarray) ->
 
 
 @njit(inline="always")
+def _slot(base, i, o):
+    """Slot index of pair (i, i + o) in its group, and i and i + o: unsigned, so that numba emits
+    no negative-index wrap-around (which hides the contiguous access from LLVM's vectoriser)."""
+    return np.uint64(base + i), np.uint64(i), np.uint64(i + o)
+
+
+@njit(inline="always")
 def _group(px, py, pz, vx, vy, vz, o, base, lo, hi, mask, rt, amp_a, p, step_lo, inv_w, a, delta, dt,
            qk, fsx, fsy, fsz, dk, out, square):
     """One stencil group: per-slot force vectors and dissipation terms in one loop; returns how
@@ -113,40 +120,19 @@ def _group(px, py, pz, vx, vy, vz, o, base, lo, hi, mask, rt, amp_a, p, step_lo,
     negative-index wrap-around (which hides the contiguous access from LLVM's vectoriser), and the
     loop body has no inner loop and no call (either keeps LLVM from vectorising it)."""
     inv_a = 1.0 / a
-    r0 = rt[0]
-    r1 = rt[1]
-    r2 = rt[2]
-    r3 = rt[3]
-    r4 = rt[4]
-    r5 = rt[5]
-    r6 = rt[6]
+    r0, r1, r2, r3, r4, r5, r6 = rt[0], rt[1], rt[2], rt[3], rt[4], rt[5], rt[6]
     changed = 0
     for i in range(px.shape[0] - o):
-        s = np.uint64(base + i)
-        iu = np.uint64(i)
-        j = np.uint64(i + o)
+        s, iu, j = _slot(base, i, o)
         m = mask[s]
-        dx = px[j] - px[iu]
-        dy = py[j] - py[iu]
-        dz = pz[j] - pz[iu]
+        dx, dy, dz = px[j] - px[iu], py[j] - py[iu], pz[j] - pz[iu]
         r = math.sqrt(dx * dx + dy * dy + dz * dz)
         ir = 1.0 / r
         ex = dx * ir
         ey = dy * ir
         ez = dz * ir
         x = r * inv_a
-        # product of the root factors as a depth-3 tree (no pow, exact near the roots); the STEP
-        # is branch-free: 1 below its start, 0 from 2a on (the product beyond 2a is multiplied by 0)
-        prod = (((x - r0) * (x - r1)) * ((x - r2) * (x - r3))) * (((x - r4) * (x - r5)) * ((x - r6) * amp_a))
-        if square:
-            ix = a * ir
-            env = ix * ix
-        else:
-            env = x ** (-p)
-        d = (x - step_lo) * inv_w
-        d = d if d > 0.0 else 0.0
-        d = d if d < 1.0 else 1.0
-        f = prod * env * (1.0 - d * d * (3.0 - 2.0 * d)) * m
+        f = force_tree(x, a * ir, r0, r1, r2, r3, r4, r5, r6, amp_a, p, step_lo, inv_w, square) * m
         dvx = vx[j] - vx[iu]
         dvy = vy[j] - vy[iu]
         dvz = vz[j] - vz[iu]
@@ -218,39 +204,19 @@ _GL_PAIRS = tuple((float(x), float(w)) for x, w in zip(_GL_X[6:], _GL_W[6:], str
 
 
 @njit(inline="always")
-def _force_x(x, r0, r1, r2, r3, r4, r5, r6, amp_a, p, square):
-    """Conservative force below the STEP start (no STEP factor): product tree times envelope."""
-    prod = (((x - r0) * (x - r1)) * ((x - r2) * (x - r3))) * (((x - r4) * (x - r5)) * ((x - r6) * amp_a))
-    if square:
-        ix = 1.0 / x
-        return prod * (ix * ix)
-    return prod * x ** (-p)
-
-
-@njit(inline="always")
-def _energy(px, py, pz, o, base, mask, r0s, rt, amp_a, p, step_lo, a, es, square):
+def _energy(px, py, pz, o, base, mask, r0s, rt, amp_a, p, step_lo, inv_w, a, es, square):
     """Per-slot potential energy U(r) - U(r0) of one group (over a), 12-point Gauss-Legendre.
 
     The same rule as `seven_root.energy_x` (same nodes on [x0, x]), vectorised over the slots: a
     slot whose x or x0 lies beyond the STEP start (where energy_x splits the interval) gets 0 here
     and is counted; the caller evaluates those few with energy_x itself."""
     inv_a = 1.0 / a
-    r0 = rt[0]
-    r1 = rt[1]
-    r2 = rt[2]
-    r3 = rt[3]
-    r4 = rt[4]
-    r5 = rt[5]
-    r6 = rt[6]
+    r0, r1, r2, r3, r4, r5, r6 = rt[0], rt[1], rt[2], rt[3], rt[4], rt[5], rt[6]
     beyond = 0
     for i in range(px.shape[0] - o):
-        s = np.uint64(base + i)
-        iu = np.uint64(i)
-        j = np.uint64(i + o)
+        s, iu, j = _slot(base, i, o)
         m = mask[s]
-        dx = px[j] - px[iu]
-        dy = py[j] - py[iu]
-        dz = pz[j] - pz[iu]
+        dx, dy, dz = px[j] - px[iu], py[j] - py[iu], pz[j] - pz[iu]
         x = math.sqrt(dx * dx + dy * dy + dz * dz) * inv_a
         x0 = r0s[s] * inv_a
         inside = (x <= step_lo) & (x0 <= step_lo)
@@ -260,23 +226,33 @@ def _energy(px, py, pz, o, base, mask, r0s, rt, amp_a, p, step_lo, a, es, square
         for k in literal_unroll(_GL_PAIRS):  # the 12 nodes as 6 symmetric pairs, unrolled
             xa = mid + half * k[0]
             xb = mid - half * k[0]
-            acc += k[1] * (_force_x(xa, r0, r1, r2, r3, r4, r5, r6, amp_a, p, square)
-                           + _force_x(xb, r0, r1, r2, r3, r4, r5, r6, amp_a, p, square))
+            fa = force_tree(xa, 1.0 / xa, r0, r1, r2, r3, r4, r5, r6, amp_a, p, step_lo, inv_w, square, False)
+            fb = force_tree(xb, 1.0 / xb, r0, r1, r2, r3, r4, r5, r6, amp_a, p, step_lo, inv_w, square, False)
+            acc += k[1] * (fa + fb)
         es[s] = acc * half * m if inside else 0.0
         beyond += 1 if (m != 0.0) & (not inside) else 0
     return beyond
 
 
 @njit(cache=True, boundscheck=False, error_model="numpy")
-def _energy_p2(px, py, pz, o, base, mask, r0s, rt, amp_a, p, step_lo, a, es):
+def _energy_p2(px, py, pz, o, base, mask, r0s, rt, amp_a, p, step_lo, inv_w, a, es):
     """`_energy` for the default envelope (a/r)^2 (the vectorised loop)."""
-    return _energy(px, py, pz, o, base, mask, r0s, rt, amp_a, p, step_lo, a, es, True)
+    return _energy(px, py, pz, o, base, mask, r0s, rt, amp_a, p, step_lo, inv_w, a, es, True)
 
 
 @njit(cache=True, boundscheck=False, error_model="numpy")
-def _energy_any(px, py, pz, o, base, mask, r0s, rt, amp_a, p, step_lo, a, es):
+def _energy_any(px, py, pz, o, base, mask, r0s, rt, amp_a, p, step_lo, inv_w, a, es):
     """`_energy` for any envelope exponent p."""
-    return _energy(px, py, pz, o, base, mask, r0s, rt, amp_a, p, step_lo, a, es, False)
+    return _energy(px, py, pz, o, base, mask, r0s, rt, amp_a, p, step_lo, inv_w, a, es, False)
+
+
+@njit(inline="always")
+def _reduced(px, py, pz, i, j, inv_a):
+    """Reduced distance |x_j - x_i| / a (the scalar loops' form of the vectorised loops' x)."""
+    dx = px[j] - px[i]
+    dy = py[j] - py[i]
+    dz = pz[j] - pz[i]
+    return math.sqrt(dx * dx + dy * dy + dz * dz) * inv_a
 
 
 @njit(cache=True, boundscheck=False)
@@ -284,24 +260,21 @@ def potential(px, py, pz, g_off, g_base, mask, r0s, c, pint, a, es):
     """U(x) - U(x_rest) summed over the listed pairs (J): `integrate.potential_energy` on the stencil."""
     rt = c[C_ROOTS:C_ROOTS + 7]
     inv_a = 1.0 / a
+    inv_w = 1.0 / (c[C_X1] - c[C_X0])
     for g in range(g_off.shape[0]):
         o = g_off[g]
         base = g_base[g]
         if pint == 2:
-            beyond = _energy_p2(px, py, pz, o, base, mask, r0s, rt, c[C_A], c[C_P], c[C_X0], a, es)
+            beyond = _energy_p2(px, py, pz, o, base, mask, r0s, rt, c[C_A], c[C_P], c[C_X0], inv_w, a, es)
         else:
-            beyond = _energy_any(px, py, pz, o, base, mask, r0s, rt, c[C_A], c[C_P], c[C_X0], a, es)
+            beyond = _energy_any(px, py, pz, o, base, mask, r0s, rt, c[C_A], c[C_P], c[C_X0], inv_w, a, es)
         if beyond == 0:
             continue
         for i in range(px.shape[0] - o):
             s = base + i
             if mask[s] == 0.0:
                 continue
-            j = i + o
-            dx = px[j] - px[i]
-            dy = py[j] - py[i]
-            dz = pz[j] - pz[i]
-            x = math.sqrt(dx * dx + dy * dy + dz * dz) * inv_a
+            x = _reduced(px, py, pz, i, i + o, inv_a)
             x0 = r0s[s] * inv_a
             if x > c[C_X0] or x0 > c[C_X0]:
                 es[s] = energy_x(x0, x, c)
@@ -316,11 +289,7 @@ def _hops(px, py, pz, o, base, lo, hi, mask, a, out, ever, step, counters):
         s = base + i
         if mask[s] == 0.0:
             continue
-        j = i + o
-        dx = px[j] - px[i]
-        dy = py[j] - py[i]
-        dz = pz[j] - pz[i]
-        x = math.sqrt(dx * dx + dy * dy + dz * dz) * inv_a
+        x = _reduced(px, py, pz, i, i + o, inv_a)
         if (x < lo) | (x >= hi):
             hop_out(s, out, ever, step, counters)
         elif out[s] != 0:

@@ -51,7 +51,7 @@ from numba import njit, prange
 from harness.scene import Box, SceneError, lattice_points, lattice_spacing
 
 from .neighbours import NeighbourList, build_neighbours, stencil_offsets
-from .seven_root import C_A, C_P, C_PINT, C_ROOTS, C_X0, C_X1, SevenRoot, energy_x, shell_stiffness
+from .seven_root import C_A, C_P, C_PINT, C_ROOTS, C_X0, C_X1, SevenRoot, energy_x, force_tree, shell_stiffness
 
 FREE, FROZEN, PRESCRIBED = 0, 1, 2
 DONE, EXPIRED = 0, 1
@@ -89,16 +89,8 @@ def pair_term(dx, dy, dz, dvx, dvy, dvz, prm, delta, square):
     ey = dy * ir
     ez = dz * ir
     x = r * inv_a
-    prod = (((x - r0) * (x - r1)) * ((x - r2) * (x - r3))) * (((x - r4) * (x - r5)) * ((x - r6) * amp_a))
-    if square:
-        ix = a * ir
-        env = ix * ix
-    else:
-        env = x ** (-p)
-    d = (x - step_lo) * inv_w
-    d = d if d > 0.0 else 0.0
-    d = d if d < 1.0 else 1.0
-    g = prod * env * (1.0 - d * d * (3.0 - 2.0 * d)) + delta * (dvx * ex + dvy * ey + dvz * ez)
+    g = (force_tree(x, a * ir, r0, r1, r2, r3, r4, r5, r6, amp_a, p, step_lo, inv_w, square)
+         + delta * (dvx * ex + dvy * ey + dvz * ez))
     g = g if rr < rc2 else 0.0
     return g * ex, g * ey, g * ez
 
@@ -108,18 +100,10 @@ def _slots(xs, vs, fs, s0, s1, o, buf, dl, prm, square):
     """f[:, s] += pair term of slot s (pair (s, s + o) of the flat index) for s in [s0, s1), kept in
     buf[:, s - s0]: one contiguous loop, no call and no branch in its body, so LLVM vectorises it.
     Indices are unsigned (no numba wrap-around code); o < 0 (gather) is fine while s + o >= 0."""
-    x = xs[0]
-    y = xs[1]
-    z = xs[2]
-    vx = vs[0]
-    vy = vs[1]
-    vz = vs[2]
-    fx = fs[0]
-    fy = fs[1]
-    fz = fs[2]
-    bx = buf[0]
-    by = buf[1]
-    bz = buf[2]
+    x, y, z = xs[0], xs[1], xs[2]
+    vx, vy, vz = vs[0], vs[1], vs[2]
+    fx, fy, fz = fs[0], fs[1], fs[2]
+    bx, by, bz = buf[0], buf[1], buf[2]
     for s in range(s0, s1):
         i = np.uint64(s)
         j = np.uint64(s + o)
@@ -280,16 +264,31 @@ def _over(px, py, pz, x_ref, q, lim2):
 
 
 @njit(inline="always")
-def _drift_slot(x, y, z, vx, vy, vz, fx, fy, fz, x_ref, q, h, dt, lim2):
-    """v += h f, x += dt v for slot q; returns `_over` of the new position.  The count takes the values
-    just computed: read back through the (3, N) state while the loop wrote its row views, the parallel
-    loop saw stale positions (expiries missed, rebuilds a step late; numba 0.68, measured)."""
+def _kick_v(vx, vy, vz, fx, fy, fz, q, h):
+    """v += h f for slot q; returns the new v."""
     ux = vx[q] + h * fx[q]
     uy = vy[q] + h * fy[q]
     uz = vz[q] + h * fz[q]
     vx[q] = ux
     vy[q] = uy
     vz[q] = uz
+    return ux, uy, uz
+
+
+@njit(inline="always")
+def _kick_slot(vx, vy, vz, fx, fy, fz, q, h, hot, hmk, dt, with_hot):
+    """The closing kick of slot q: v += h f, and hot += m/2 |v|^2 dt with the new v if with_hot."""
+    ux, uy, uz = _kick_v(vx, vy, vz, fx, fy, fz, q, h)
+    if with_hot:
+        hot[q] += hmk * (ux * ux + uy * uy + uz * uz) * dt
+
+
+@njit(inline="always")
+def _drift_slot(x, y, z, vx, vy, vz, fx, fy, fz, x_ref, q, h, dt, lim2):
+    """v += h f, x += dt v for slot q; returns `_over` of the new position.  The count takes the values
+    just computed: read back through the (3, N) state while the loop wrote its row views, the parallel
+    loop saw stale positions (expiries missed, rebuilds a step late; numba 0.68, measured)."""
+    ux, uy, uz = _kick_v(vx, vy, vz, fx, fy, fz, q, h)
     px = x[q] + dt * ux
     py = y[q] + dt * uy
     pz = z[q] + dt * uz
@@ -311,14 +310,7 @@ def _kick_drift(xs, vs, fs, x_ref, hot, h, dt, hmk, lim2):
     with_hot = hot.shape[0] == x.shape[0]
     over = 0
     for q in prange(x.shape[0]):
-        ux = vx[q] + h * fx[q]
-        uy = vy[q] + h * fy[q]
-        uz = vz[q] + h * fz[q]
-        vx[q] = ux
-        vy[q] = uy
-        vz[q] = uz
-        if with_hot:
-            hot[q] += hmk * (ux * ux + uy * uy + uz * uz) * dt
+        _kick_slot(vx, vy, vz, fx, fy, fz, q, h, hot, hmk, dt, with_hot)
         over += _drift_slot(x, y, z, vx, vy, vz, fx, fy, fz, x_ref, q, h, dt, lim2)
     return over
 
@@ -342,11 +334,7 @@ def _kick(vs, fs, hot, h, dt, hmk):
     fx, fy, fz = fs[0], fs[1], fs[2]
     with_hot = hot.shape[0] == vx.shape[0]
     for q in prange(vx.shape[0]):
-        vx[q] += h * fx[q]
-        vy[q] += h * fy[q]
-        vz[q] += h * fz[q]
-        if with_hot:
-            hot[q] += hmk * (vx[q] * vx[q] + vy[q] * vy[q] + vz[q] * vz[q]) * dt
+        _kick_slot(vx, vy, vz, fx, fy, fz, q, h, hot, hmk, dt, with_hot)
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
