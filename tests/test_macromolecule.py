@@ -140,9 +140,10 @@ def test_energy_conserved_undamped() -> None:
     """delta = 0, no drive, small random velocities, 1e5 steps at safety 0.1: the leapfrog energy
     error stays <= 1e-6; the on-step energy of velocity Verlet oscillates by ~(omega dt)^2/16 but
     does not drift."""
-    p, s, fx = _undriven(3, delta=0.0)
+    p, s, fx = _undriven(3, delta=0.0, safety=0.1)
     lat = s["lat"]
     w = 2 * np.pi * s["f_top"]
+    assert s["dt"] * w / 2 == pytest.approx(0.1, rel=1e-12)
     v0 = np.random.default_rng(1).normal(size=(lat.size, 3)) * 1e-6 * lat.a * w
     r = simulate(lat, s["model"], fx, 0.0, s["dt"], 1e5 * s["dt"], v0=v0)
     assert r.steps == 100_000 and r.status_code == ig.DONE
@@ -217,26 +218,29 @@ def test_stability_limit_damped(n: int, zeta: float) -> None:
         assert measured == pytest.approx(single, rel=0.03)
 
 
-@pytest.mark.parametrize("n,zeta,D", [(2, 0.01, 0.05), (3, 0.05, 0.02), (4, 0.01, 0.02)])
+@pytest.mark.parametrize("n,zeta,D", [(2, 0.01, 0.05), (3, 0.01, 0.05), (4, 0.01, 0.05), (3, 0.05, 0.02),
+                                     (4, 0.01, 0.02), (5, 0.01, 0.02)])
 def test_energy_balance_driven_damped(n: int, zeta: float, D: float) -> None:
     """Driven and damped at the default dt: E_end - E_start + dissipated - drive work closes to 1e-3
-    of the drive work (15 s, f = 50 Hz, no hops).  The accounting is the exact discrete identity of
-    integrate.py, so the residual is the quadrature error of the anharmonic conservative forces
-    (see test_energy_balance_residual_is_anharmonic_integration_error for n = 5, where it is larger)."""
+    of the drive work (15 s, f = 50 Hz): the paper's three runs (D = 0.05 a; n = 3, 4 hop, measured
+    6.2e-5 and 6.8e-4) and runs without hops, n = 5 included (5.0e-4; 2.0e-3 at safety 0.1).  The
+    accounting is the exact discrete identity of integrate.py, so the residual is the quadrature
+    error of the anharmonic conservative forces (see the next test)."""
     sol = SOLVER.solve(PAPER, Resolution(n), damping_ratio=zeta, drive_amplitude=D)
     e = sol.diagnostics["energy"]
     assert e["drive_work"] > 0 and e["dissipated"] > 0
     assert sol.summary["energy_balance_error"] <= 1e-3
-    assert sol.summary["hops"] == 0
+    if D < 0.05:
+        assert sol.summary["hops"] == 0
 
 
 def test_energy_balance_residual_is_anharmonic_integration_error() -> None:
-    """n = 5, zeta = 0.01, D = 0.02: the residual is 2e-3 of the drive work at the default dt (above
-    the 1e-3 target).  It is an integration error, not bookkeeping: it falls as dt^2 (ratio 4 +- 10 %
-    from safety 0.1 to 0.05; an accounting inconsistency would not scale with dt), and it comes from
-    the nonlinear resonance of the chain below the red pair (pair amplitude +-4 % of a): with the
-    pair forces replaced by their linearisation the same run closes to 2e-7 (measured with an
-    instrumented kernel, see integrate.py).  At safety 0.05 it meets 1e-3."""
+    """n = 5, zeta = 0.01, D = 0.02: at safety 0.1 the residual is 2e-3 of the drive work (above the
+    1e-3 target; why the default safety is 0.05).  It is an integration error, not bookkeeping: it
+    falls as dt^2 (ratio 4 +- 10 % from safety 0.1 to 0.05; an accounting inconsistency would not
+    scale with dt), and it comes from the nonlinear resonance of the chain below the red pair (pair
+    amplitude +-4 % of a): with the pair forces replaced by their linearisation the same run closes
+    to 2e-7 (measured with an instrumented kernel, see integrate.py).  At safety 0.05 it meets 1e-3."""
     errs = []
     for safety in (0.1, 0.05):
         sol = SOLVER.solve(PAPER, Resolution(5), damping_ratio=0.01, drive_amplitude=0.02, t_end=5.0, safety=safety)

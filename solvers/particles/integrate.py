@@ -47,11 +47,13 @@ resonance (bond excursion +-2 to +-4 % of a, nearly independent of D; with linea
 same bond moves +-0.006 % of a).  So the residual is the genuine O(dt^2) integration error of
 velocity Verlet on the anharmonic force in that resonance, not bookkeeping and not the damping
 treatment (the lagged damping changes the trajectory at O(dt zeta) but enters the identity
-exactly).  Runs without hops at n = 2, 3, 4 stay below 2e-4 at the default dt; at n = 5 the
-default dt (safety 0.1) misses 1e-3 by a factor ~2 and safety 0.05 meets it.  Runs with hops
-(the paper's D = 0.05 a at n = 3, 4) leave 2-3e-3: the same error, in a chaotic defect regime.
-A shadow-energy correction would hide the error, not remove it; a higher-order integrator would
-remove it and is not done.
+exactly).  At safety 0.1, runs without hops at n = 2, 3, 4 stay below 2e-4, but from n = 5 on
+(and in the paper's hopping runs, D = 0.05 a, from n = 4 on: 2.7e-3, a chaotic defect regime with
+the same error) 1e-3 is missed by a factor 2-3.  Hence the solver's default safety is 0.05, where
+every run measured closes to <= 8e-4 (paper runs n = 2, 3, 4, 6, 8, 11: 1.4e-7, 6.2e-5, 6.8e-4,
+6.7e-4, 8.0e-4, 7.6e-4; D = 0.02 a, n = 5, 6: 5.0e-4, 7.4e-4) and the paper's runs still take
+under 1 s.  A shadow-energy correction would hide the error, not remove it; a higher-order
+integrator would remove it at several force passes per step and is not done.
 
 Stability with damping (issue 3b).  For one mode of frequency omega and damping ratio zeta the
 scheme is stable for omega dt / 2 < sqrt(1 + zeta^2) - zeta.  The radial pair damping is not
