@@ -34,9 +34,10 @@ What differs is only how the work is laid out:
 Measured (tests/bench/test_bench_macromolecule.py, CPU time, N = 160, damping on, machine shared
 with other jobs): ~8 ns per pair-step for the whole kernel against ~16 for the reference kernel
 (ratio ~2 in one run).  The 3 ns target is not reached: on this CPU (Zen 4, AVX-512) the group
-loop stripped to the forces (no dissipation terms, no hop flags, no scatter) costs ~3.6 ns per
-listed pair, and ~2.9 ns with the square root and the division removed as well (2.3 ns per slot;
-29 % of the slots are masked lattice-edge slots at N = 160).
+loop stripped to the slot forces (no dissipation terms, hop flags, scatter or integration) costs
+2.6-2.9 ns per listed pair for the conservative force alone and 3.2-3.4 ns with the radial damping,
+against 7.5-7.8 for the full pair pass (test_bench_kernel_floor, side by side; 29 % of the slots
+are masked lattice-edge slots at N = 160).
 """
 
 from __future__ import annotations
