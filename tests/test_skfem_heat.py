@@ -305,10 +305,12 @@ def test_tensor_csr_is_kronecker_sum():
     assert abs(mine - ref).max() <= 1e-14 * abs(ref).max()
 
 
-def test_split_free_is_fancy_indexing():
+@pytest.mark.parametrize("fraction", [0.7, 1.0])
+def test_split_free_is_fancy_indexing(fraction: float):
+    """Also with every row free (the shortcut that returns the matrix itself, no copy)."""
     rng = np.random.default_rng(3)
     a = sp.random(60, 60, density=0.2, random_state=rng, format="csr") + sp.eye(60)
-    free = rng.random(60) < 0.7
+    free = rng.random(60) < fraction
     ff, fb = split_free(a, free)
     # exactly scipy's a[free][:, free] and a[free][:, ~free] (same entries, same order)
     assert (ff != a[free][:, free]).nnz == 0 and (fb != a[free][:, ~free]).nnz == 0

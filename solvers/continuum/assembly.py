@@ -275,11 +275,14 @@ def split_free(a: sp.csr_matrix, free: np.ndarray) -> tuple[sp.csr_matrix, sp.cs
     """(A[free][:, free], A[free][:, ~free]) for a boolean mask `free`, in one O(nnz) pass.
 
     Same matrices as scipy's fancy indexing (columns keep their order), without its two copies of the
-    matrix; used to condense Dirichlet nodes out of ~14-million-entry operators.
+    matrix; used to condense Dirichlet nodes out of ~14-million-entry operators.  With every row free
+    the first is `a` itself (no copy) and the second has no columns.
     """
     a = sp.csr_matrix(a)
     free = np.asarray(free, dtype=bool)
     n_free = int(free.sum())
+    if n_free == free.size:
+        return a, sp.csr_matrix((n_free, 0))
     new_index = np.empty(free.size, dtype=np.int64)
     new_index[free] = np.arange(n_free)
     new_index[~free] = np.arange(free.size - n_free)

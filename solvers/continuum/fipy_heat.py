@@ -425,12 +425,8 @@ class FipyHeat:
             method = "direct" if nfree <= p["amg_threshold"] else "amg"
         t_solve = time.perf_counter()
         # cell adjacency graph for AMG aggregation; FiPy numbers cells x fastest, grid_graph z fastest
-        graph = grid_graph(sysd["shape"][::-1]) if method == "amg" else None
-        if fixed.any():
-            Kff, Kfc = split_free(K, free)
-            graph = split_free(graph, free)[0] if graph is not None else None
-        else:  # face constraints act through FiPy's face values: K is already the free block (no copies)
-            Kff, Kfc = K, sp.csr_matrix((K.shape[0], 0))
+        Kff, Kfc = split_free(K, free)  # no copies when no cell is fixed (face constraints act through faces)
+        graph = split_free(grid_graph(sysd["shape"][::-1]), free)[0] if method == "amg" else None
         T = np.full(K.shape[0], float(scene.initial_temperature))
         T[fixed] = tfix[fixed]
         tc = tfix[fixed]
