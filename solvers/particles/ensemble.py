@@ -58,6 +58,7 @@ class EnsembleRun(LatticeRun):
     omega: np.ndarray
     delta: np.ndarray
     x_ref: np.ndarray
+    full_entries: int = 0  # list entries at the last full union (a union of twice that size is rebuilt)
 
     @classmethod
     def start(cls, x_rest: np.ndarray, mass: float, a: float, model: SevenRoot, dt: float, delta: np.ndarray | float,
@@ -113,9 +114,9 @@ class EnsembleRun(LatticeRun):
         x = np.ascontiguousarray(self.x)
         moved = ~(((x - self.x_ref) ** 2).sum(axis=2) <= (0.5 * self.nl.skin) ** 2).all(axis=0)
         builds, history = self.nl.builds, self.nl.history
-        if step < 0 or self.nl.entries > 2 * getattr(self, "_full_entries", 0):
+        if step < 0 or self.nl.entries > 2 * self.full_entries:
             self.nl = union_list(x.transpose(1, 0, 2), self.nl.r_cut, self.nl.skin, self.nl.offsets)
-            self._full_entries = max(self.nl.entries, self.size)
+            self.full_entries = max(self.nl.entries, self.size)
             self.x_ref = x
         else:
             fresh = union_list(x[:, moved].transpose(1, 0, 2), self.nl.r_cut, self.nl.skin, self.nl.offsets)
