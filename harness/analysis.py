@@ -11,9 +11,9 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from harness.catalogue import make_scene
-from harness.metrics import field_errors, observed_order, richardson
-from references import analytic
+from pcverify.harness.catalogue import make_scene
+from pcverify.harness.metrics import field_errors, observed_order, richardson
+from pcverify.references import analytic
 
 
 def spacing(result: dict[str, Any]) -> float:

@@ -10,7 +10,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from harness.scene import (
+from pcverify.harness.scene import (
     ALUMINIUM,
     DURALUMIN,
     RESPONSES,

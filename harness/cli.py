@@ -16,9 +16,9 @@ from typing import Any
 
 import numpy as np
 
-from harness import __version__
-from harness.catalogue import CATALOGUE, make_scene
-from harness.scene import Param, SceneError
+from pcverify.harness import __version__
+from pcverify.harness.catalogue import CATALOGUE, make_scene
+from pcverify.harness.scene import Param, SceneError
 
 EPILOG = """\
 examples:
@@ -86,7 +86,7 @@ def cmd_scenes(args: argparse.Namespace) -> int:
 
 
 def cmd_solvers(args: argparse.Namespace) -> int:
-    from solvers import REGISTRY, SolverUnavailable, get_solver
+    from pcverify.solvers.registry import REGISTRY, SolverUnavailable, get_solver
 
     rows = []
     for name in REGISTRY:
@@ -171,8 +171,9 @@ def working(label: str, enabled: bool = True) -> Iterator[None]:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    from solvers import get_solver
-    from solvers.base import Resolution, skipped
+    from pcverify.harness.scene import Resolution
+    from pcverify.solvers.protocol import skipped
+    from pcverify.solvers.registry import get_solver
 
     if args.scene not in CATALOGUE:
         raise SceneError(f"scene={args.scene!r} is unknown; allowed: one of {', '.join(CATALOGUE)}")
@@ -203,15 +204,15 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 
 def cmd_study(args: argparse.Namespace) -> int:
-    from harness.interrupt import remember_sigint
-    from harness.study import run_study_cli
+    from pcverify.harness.interrupt import remember_sigint
+    from pcverify.harness.study import run_study_cli
 
     with remember_sigint():
         return run_study_cli(args)
 
 
 def cmd_report(args: argparse.Namespace) -> int:
-    from harness.report import report_cli
+    from pcverify.harness.report import report_cli
 
     return report_cli(args)
 
@@ -303,7 +304,7 @@ def main(argv: list[str] | None = None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return 0
-    from solvers import SolverUnavailable
+    from pcverify.solvers.registry import SolverUnavailable
 
     try:
         return args.func(args)

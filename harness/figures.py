@@ -61,10 +61,8 @@ def _shown(r: dict[str, Any], sample: str) -> bool:
 
 
 def is_particle(result: dict[str, Any]) -> bool:
-    """Whether a result comes from a particle solver (one registered under solvers.particles)."""
-    from solvers import REGISTRY
-
-    return REGISTRY.get(result.get("solver", ""), "").startswith("solvers.particles.")
+    """Whether a result comes from a particle solver (the solver's declared kind)."""
+    return result.get("solver_kind") == "particle"
 
 
 def convergence(levels: pd.DataFrame, columns: list[str], path: Path, title: str,

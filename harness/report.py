@@ -20,9 +20,9 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from harness import analysis, figures, verdict
-from harness.scene import SceneError
-from harness.vtu import write_vtu
+from pcverify.harness import analysis, figures, verdict
+from pcverify.harness.scene import SceneError
+from pcverify.harness.vtu import write_vtu
 
 PACKAGES = ("numpy", "scipy", "numba", "fipy", "scikit-fem", "pyamg", "pandas", "matplotlib")
 
@@ -94,7 +94,7 @@ def _group_tables(g: Any, res: list[dict[str, Any]], cells: pd.DataFrame, folder
         if figures.work_precision(df, f"err.{error}", stem, g.title):
             figs.append(f"{g.id}.png")
     elif g.analysis == "stability":
-        from harness.stability import report_tables
+        from pcverify.harness.stability import report_tables
 
         tables, more = report_tables(res, folder, g.id, g.title)
         figs += more
@@ -252,8 +252,8 @@ def write_index(out: Path) -> Path:
 
 def report_cli(args: argparse.Namespace) -> int:
     """`pcverify report`: rebuild every study's tables from the cache, then index.html."""
-    from harness.cache import Cache
-    from harness.study import cached_results, load_study, study_files
+    from pcverify.harness.cache import Cache
+    from pcverify.harness.study import cached_results, load_study, study_files
 
     out = Path(args.out)
     cache = Cache(out / "cache")

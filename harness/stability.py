@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from harness.scene import Param, Scene, SceneError, resolve_params
+from pcverify.harness.scene import Param, Scene, SceneError, resolve_params
 
 PROBE_KINDS = ("limit", "map")
 
@@ -88,7 +88,7 @@ class MacromoleculeProbe:
     theory = THEORY["macromolecule"]
 
     def __init__(self) -> None:
-        from solvers.particles.macromolecule import Macromolecule
+        from pcverify.solvers.particles.macromolecule.solver import Macromolecule
 
         self.solver = Macromolecule()
         self.version = f"{self.solver.version}+probe2"  # bump when the probe's results change
@@ -99,7 +99,7 @@ class MacromoleculeProbe:
 
     def prepare(self, scene: Scene, n: int, params: dict[str, Any]) -> dict[str, Any]:
         """Everything before a run (lattice, fixes, A, delta, zeta, dt_theory); validates params."""
-        from solvers.base import effective_params
+        from pcverify.solvers.protocol import effective_params
 
         p = effective_params(self.solver, params)
         s = self.solver.setup(scene, n, p)
@@ -111,8 +111,8 @@ class MacromoleculeProbe:
 
     def run(self, prep: dict[str, Any], ratio: float) -> dict[str, Any]:
         """One run at dt = ratio * dt_theory over the solver's window; status and an independent check."""
-        from solvers.particles import integrate as ig
-        from solvers.particles.macromolecule import simulate
+        from pcverify.solvers.particles.macromolecule import kernel_reference as ig
+        from pcverify.solvers.particles.macromolecule.solver import simulate
 
         p, s = prep["p"], prep["s"]
         lat, fx = s["lat"], s["fx"]
@@ -155,7 +155,7 @@ class MacromoleculeProbe:
         if key in _LINEAR_LIMITS:
             return _LINEAR_LIMITS[key]
 
-        from solvers.particles.modal import damping_matrix, free_dofs, hessian
+        from pcverify.solvers.particles.macromolecule.modal import damping_matrix, free_dofs, hessian
 
         s = prep["s"]
         lat, fx = s["lat"], s["fx"]
@@ -188,7 +188,7 @@ class McaProbe:
     theory = THEORY["mca"]
 
     def __init__(self) -> None:
-        from solvers import get_solver
+        from pcverify.solvers.registry import get_solver
 
         self.solver = get_solver("mca")
         self.version = f"{self.solver.version}+probe2"
@@ -203,7 +203,8 @@ class McaProbe:
         return ok, why
 
     def prepare(self, scene: Scene, n: int, params: dict[str, Any]) -> dict[str, Any]:
-        from solvers.base import Resolution, effective_params
+        from pcverify.harness.scene import Resolution
+        from pcverify.solvers.protocol import effective_params
 
         if "cfl" in params or "heat_cfl" in params:
             raise SceneError("cfl and heat_cfl are not allowed in a stability cell; allowed: set dt_ratio (the probe "
@@ -218,8 +219,8 @@ class McaProbe:
     def _prepare_heat(self, scene: Scene, n: int) -> dict[str, Any]:
         """Explicit heat transfer (forward Euler on the automata): the solver's own arrays; dt_theory is its
         Gershgorin step, guaranteed stable; the exact limit comes from the generalised eigenproblem."""
-        from solvers.particles import mca_heat
-        from solvers.particles.mca_lattice import bar_automata
+        from pcverify.solvers.particles.mca import heat as mca_heat
+        from pcverify.solvers.particles.mca.automata import bar_automata
 
         aut = bar_automata(scene.box, n, scene.material.density)
         held, values = self.solver._held(scene, aut)
@@ -232,7 +233,7 @@ class McaProbe:
     def _run_heat(self, prep: dict[str, Any], ratio: float) -> dict[str, Any]:
         """HEAT_STEPS forward-Euler steps at dt = ratio * dt_G; unstable when the temperature leaves
         [-1, 2] t_max (the exact field stays in [0, 1] t_max) or is not finite."""
-        from solvers.particles import mca_heat
+        from pcverify.solvers.particles.mca import heat as mca_heat
 
         aut, held, values, cap, g = prep["heat"]
         dt = ratio * prep["dt_theory"]
@@ -273,7 +274,7 @@ class McaProbe:
             return math.nan
         import scipy.linalg as sla
 
-        from solvers.particles import mca_heat
+        from pcverify.solvers.particles.mca import heat as mca_heat
 
         aut, held, _, cap, g = prep["heat"]
         free = np.flatnonzero(held == 0)
@@ -287,7 +288,7 @@ PROBES: dict[str, type] = {"macromolecule": MacromoleculeProbe, "mca": McaProbe}
 
 def get_probe(name: str) -> Any:
     """The probe of model `name`; ProbeUnavailable (a skip reason) if unregistered or without a probe."""
-    from solvers import REGISTRY, SolverUnavailable, get_solver
+    from pcverify.solvers.registry import REGISTRY, SolverUnavailable, get_solver
 
     if name not in REGISTRY:
         raise ProbeUnavailable(f"solver {name!r} is not registered (yet): no stability measurement")

@@ -20,12 +20,12 @@ from typing import Any
 
 from tqdm import tqdm
 
-from harness.cache import Cache, cell_key
-from harness.catalogue import make_scene
-from harness.interrupt import check_interrupted, ignore_sigint_in_worker
-from harness.scene import SceneError
-from harness.studyfile import check_study_document, read_study_document
-from harness.verdict import parse_claims
+from pcverify.harness.cache import Cache, cell_key
+from pcverify.harness.catalogue import make_scene
+from pcverify.harness.interrupt import check_interrupted, ignore_sigint_in_worker
+from pcverify.harness.scene import SceneError
+from pcverify.harness.studyfile import check_study_document, read_study_document
+from pcverify.harness.verdict import parse_claims
 
 ANALYSES = ("convergence", "timing", "table", "work-precision", "stability")
 SERIAL_ANALYSES = ("timing", "work-precision")  # their wall times are compared: serial pass after a warm-up
@@ -69,7 +69,7 @@ class Study:
 
 def study_files() -> dict[str, Path]:
     """The study files shipped with the package, by name."""
-    folder = resources.files("harness") / "studies"
+    folder = resources.files("pcverify.harness") / "studies"
     return {Path(str(p)).stem: Path(str(p)) for p in folder.iterdir() if str(p).endswith(".toml")}
 
 
@@ -134,8 +134,9 @@ def load_study(name_or_path: str) -> Study:
 
 def cell_identity(cell: Cell) -> tuple[dict[str, Any], Any, Any, str | None]:
     """(key payload, scene, solver, skip reason) for a cell; the payload includes the solver's code version."""
-    from solvers import SolverUnavailable, get_solver
-    from solvers.base import Resolution, effective_params
+    from pcverify.harness.scene import Resolution
+    from pcverify.solvers.protocol import effective_params
+    from pcverify.solvers.registry import SolverUnavailable, get_solver
 
     scene = make_scene(cell.scene, **dict(cell.scene_params))
     resolution = Resolution(cell.n, cell.refine)
@@ -158,7 +159,7 @@ def cell_identity(cell: Cell) -> tuple[dict[str, Any], Any, Any, str | None]:
 
 def _probe_identity(cell: Cell, scene: Any) -> tuple[dict[str, Any], Any, Any, str | None]:
     """cell_identity of a stability cell: the probe stands in for the solver (skipped if it has none)."""
-    from harness.stability import ProbeUnavailable, get_probe, split_params
+    from pcverify.harness.stability import ProbeUnavailable, get_probe, split_params
 
     payload = {"scene": scene.content_hash(), "solver": cell.solver, "probe": cell.probe, "n": cell.n,
                "refine": cell.refine, "params": dict(cell.solver_params)}
@@ -173,7 +174,7 @@ def _probe_identity(cell: Cell, scene: Any) -> tuple[dict[str, Any], Any, Any, s
 
 def run_cell(cell: Cell) -> dict[str, Any]:
     """Solve one cell and return its JSON-ready result (skips and failures are results too)."""
-    from solvers.base import Resolution
+    from pcverify.harness.scene import Resolution
 
     payload, scene, solver, skip = cell_identity(cell)
     base = {"group": cell.group, "scene": cell.scene, "solver": cell.solver, "n": cell.n, "refine": cell.refine,
@@ -181,7 +182,7 @@ def run_cell(cell: Cell) -> dict[str, Any]:
     if skip is not None:
         return base | {"status": "skipped", "reason": skip}
     if cell.probe:
-        from harness.stability import run_probe_cell
+        from pcverify.harness.stability import run_probe_cell
 
         try:
             return base | run_probe_cell(cell.probe, solver, scene, cell.n, dict(cell.solver_params))
@@ -191,7 +192,7 @@ def run_cell(cell: Cell) -> dict[str, Any]:
         solution = solver.solve(scene, Resolution(cell.n, cell.refine), **dict(cell.solver_params))
     except (SceneError, ValueError, ArithmeticError, MemoryError) as exc:
         return base | {"status": "failed", "reason": f"{type(exc).__name__}: {exc}"}
-    return base | solution.to_dict()
+    return base | solution.to_dict() | {"solver_kind": solver.kind}
 
 
 def _indexed(i: int, cell: Cell) -> tuple[int, dict[str, Any]]:
@@ -332,7 +333,7 @@ def as_cell(entry: dict[str, Any] | None, cell: Cell) -> dict[str, Any] | None:
 
 def run_study_cli(args: argparse.Namespace) -> int:
     """`pcverify study NAME`: run (or dry-run) one study, or all shipped ones for `default`."""
-    from harness.report import write_index, write_study_report
+    from pcverify.harness.report import write_index, write_study_report
 
     names = sorted(study_files()) if args.name == "default" else [args.name]
     studies = [load_study(n) for n in names]  # validate all before running any

@@ -12,8 +12,8 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
-from harness.catalogue import make_scene
-from harness.scene import SceneError
+from pcverify.harness.catalogue import make_scene
+from pcverify.harness.scene import SceneError
 
 GROUP_TABLES = ("scene_params", "solver_params", "sweep")
 RESOLUTION_RANGES = {"n": (2, 1000), "refine": (1, 1000)}
@@ -82,8 +82,8 @@ def _check_group(g: dict[str, Any], where: str, analyses: tuple[str, ...]) -> No
 
 def _check_solver_params(g: dict[str, Any], solvers: list[str], where: str, stability: bool) -> None:
     """Every solver parameter and sweep value against the solver's declared ranges (probe keys apart)."""
-    from solvers import REGISTRY, SolverUnavailable, get_solver
-    from solvers.base import effective_params
+    from pcverify.solvers.protocol import effective_params
+    from pcverify.solvers.registry import REGISTRY, SolverUnavailable, get_solver
 
     table = g.get("solver_params", {})
     for key, value in table.items():
@@ -96,7 +96,7 @@ def _check_solver_params(g: dict[str, Any], solvers: list[str], where: str, stab
         variants = [base] + [dict(base, **{k: v}) for k, vals in g.get("sweep", {}).items()
                              for v in (vals if isinstance(vals, list) else [vals])]
         if stability:
-            from harness.stability import ProbeUnavailable, get_probe
+            from pcverify.harness.stability import ProbeUnavailable, get_probe
 
             try:
                 probe = get_probe(name)
@@ -113,7 +113,7 @@ def _check_solver_params(g: dict[str, Any], solvers: list[str], where: str, stab
         for params in variants:
             try:
                 if stability:
-                    from harness.stability import split_params
+                    from pcverify.harness.stability import split_params
 
                     params, _ = split_params(params)
                 effective_params(solver, params)

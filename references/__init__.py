@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from harness.scene import FaceTemperature, Scene
-from references import heat_faces
+from pcverify.harness.scene import FaceTemperature, Scene
+from pcverify.references import heat_faces
 
 
 def analytic(scene: Scene, points: np.ndarray) -> np.ndarray | None:

@@ -128,10 +128,10 @@ def converged_frequencies(refines: tuple[int, ...] = DEFAULT_REFINES, n: int = 2
     2-core machine, minutes under load) run once.  The clamped edges are singular, so the apparent order
     is ~1.5 (falling towards 2 x 0.54 = 1.1): the GCI, not the extrapolated value alone, is the reference.
     """
-    from harness.catalogue import make_scene
-    from harness.metrics import richardson
-    from solvers.base import Resolution
-    from solvers.continuum.skfem_elastic import SkfemElastic
+    from pcverify.harness.catalogue import make_scene
+    from pcverify.harness.metrics import richardson
+    from pcverify.harness.scene import Resolution
+    from pcverify.solvers.continuum.skfem_elastic import SkfemElastic
 
     solver = SkfemElastic()
     scene = make_scene("bar-modes", modes=modes)

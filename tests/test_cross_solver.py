@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from harness.catalogue import make_scene
-from solvers import get_solver
-from solvers.base import Resolution
+from pcverify.harness.catalogue import make_scene
+from pcverify.harness.scene import Resolution
+from pcverify.solvers.registry import get_solver
 
 
 @pytest.fixture(scope="module")

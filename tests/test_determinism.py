@@ -17,11 +17,11 @@ from typing import Any
 import numpy as np
 import pytest
 
-from harness.cache import Cache
-from harness.catalogue import make_scene
-from harness.study import execute, load_study, run_cell
-from solvers import REGISTRY
-from solvers.base import Resolution
+from pcverify.harness.cache import Cache
+from pcverify.harness.catalogue import make_scene
+from pcverify.harness.scene import Resolution
+from pcverify.harness.study import execute, load_study, run_cell
+from pcverify.solvers.registry import REGISTRY
 
 STUDY = """name = "same"
 title = "determinism"
@@ -101,7 +101,7 @@ def test_rerun_in_one_process_is_bit_identical(study_path) -> None:
 
 def test_same_seed_same_arrays_through_the_api() -> None:
     """Through the solver API (no JSON): hotness arrays and energy histories equal with np.array_equal."""
-    from solvers.particles.macromolecule import Macromolecule
+    from pcverify.solvers.particles.macromolecule.solver import Macromolecule
 
     scene = make_scene("bar-heat-faces")
     a = Macromolecule().solve(scene, Resolution(2), t_end=0.5, seed=11)

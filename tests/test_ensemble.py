@@ -15,10 +15,17 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from harness.scene import SceneError
-from solvers.particles.ensemble import EnsembleRun
-from solvers.particles.scaling import FROZEN, PRESCRIBED, TILE, KernelRun, bench_lattice, omega_bound
-from solvers.particles.seven_root import SevenRoot
+from pcverify.harness.scene import SceneError
+from pcverify.solvers.particles.macromolecule.ensemble import EnsembleRun
+from pcverify.solvers.particles.macromolecule.force import SevenRoot
+from pcverify.solvers.particles.macromolecule.large_n import (
+    FROZEN,
+    PRESCRIBED,
+    TILE,
+    KernelRun,
+    bench_lattice,
+    omega_bound,
+)
 
 MODEL = SevenRoot(1.0)
 X, A, M = bench_lattice(3)

@@ -25,10 +25,10 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from harness import cache as cache_module
-from harness.cache import Cache
-from harness.cli import main
-from harness.study import execute, load_study
+from pcverify.harness import cache as cache_module
+from pcverify.harness.cache import Cache
+from pcverify.harness.cli import main
+from pcverify.harness.study import execute, load_study
 
 SLOW_STUDY = """name = "killme"
 title = "FiPy cells of a fraction of a second each"
@@ -269,8 +269,8 @@ def test_swallowed_ctrl_c_still_stops_the_study(fast_study, tmp_path, monkeypatc
     """FiPy evaluates variables under bare `except:`, so a KeyboardInterrupt raised inside it is lost
     (seen as a flaky Ctrl-C: the study ran to the end).  The runner remembers the SIGINT and stops
     after the cell in progress, which is stored: here the second cell swallows the interrupt."""
-    import harness.study as st
-    from harness.interrupt import remember_sigint
+    import pcverify.harness.study as st
+    from pcverify.harness.interrupt import remember_sigint
 
     real = st.run_cell
     calls = {"n": 0}

@@ -15,10 +15,11 @@ import weakref
 import numpy as np
 import pytest
 
-from harness.catalogue import make_scene
-from solvers.base import Resolution, effective_params
-from solvers.continuum.fipy_fast import diffusion_term, tensor_grid3d
-from solvers.continuum.fipy_heat import FipyHeat, grid_axes
+from pcverify.harness.catalogue import make_scene
+from pcverify.harness.scene import Resolution
+from pcverify.solvers.continuum.fipy_fast import diffusion_term, tensor_grid3d
+from pcverify.solvers.continuum.fipy_heat import FipyHeat, grid_axes
+from pcverify.solvers.protocol import effective_params
 
 fp = pytest.importorskip("fipy")
 SOLVER = FipyHeat()

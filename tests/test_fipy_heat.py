@@ -8,11 +8,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from harness.catalogue import make_scene
-from harness.scene import SceneError
-from references.heat_faces import transient
-from solvers.base import Resolution
-from solvers.continuum.fipy_heat import FipyHeat, grid_axes
+from pcverify.harness.catalogue import make_scene
+from pcverify.harness.scene import Resolution, SceneError
+from pcverify.references.heat_faces import transient
+from pcverify.solvers.continuum.fipy_heat import FipyHeat, grid_axes
 
 fp = pytest.importorskip("fipy")
 SOLVER = FipyHeat()

@@ -21,11 +21,11 @@ import pytest
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
-from harness.catalogue import CATALOGUE, make_scene
-from harness.cli import main
-from harness.scene import Param, SceneError
-from solvers import REGISTRY, SolverUnavailable, get_solver
-from solvers.base import Resolution, effective_params
+from pcverify.harness.catalogue import CATALOGUE, make_scene
+from pcverify.harness.cli import main
+from pcverify.harness.scene import Param, Resolution, SceneError
+from pcverify.solvers.protocol import effective_params
+from pcverify.solvers.registry import REGISTRY, SolverUnavailable, get_solver
 
 PROFILE = settings(derandomize=True, database=None, deadline=None, max_examples=150,
                    suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much,
@@ -383,7 +383,7 @@ def test_skfem_tiny_t_max_gives_the_same_relative_field() -> None:
 
     (It returned 0 at every free node with status ok while t_max's range was (0, 1e5]; the range is now
     [1e-3, 1e5] K.)"""
-    from solvers.continuum.skfem_heat import SkfemHeat
+    from pcverify.solvers.continuum.skfem_heat import SkfemHeat
 
     a = SkfemHeat().solve(make_scene("bar-heat-paper", t_max=500.0), Resolution(2))
     try:
@@ -399,7 +399,7 @@ def test_fipy_tiny_patch_keeps_the_hot_corner(rho: float) -> None:
     """A patch too small for the grid must be refused or still hold the hot corner (bulk near 1/3).
 
     (It lost every patch, all values 0 with status ok, before tiny patches were held at the centre's cell.)"""
-    from solvers.continuum.fipy_heat import FipyHeat
+    from pcverify.solvers.continuum.fipy_heat import FipyHeat
 
     try:
         sol = FipyHeat().solve(make_scene("bar-heat-patch", rho=rho), Resolution(3, 2))

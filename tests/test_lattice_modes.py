@@ -10,15 +10,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from harness.catalogue import make_scene
-from solvers.base import Resolution
-from solvers.continuum.skfem_elastic import SkfemElastic
-from solvers.particles.lattice import build_lattice
-from solvers.particles.macromolecule import Macromolecule
-from solvers.particles.mca import Mca
-from solvers.particles.mca_compare import uniaxial_constants
-from solvers.particles.modal import hessian
-from solvers.particles.seven_root import SevenRoot
+from pcverify.harness.catalogue import make_scene
+from pcverify.harness.scene import Resolution
+from pcverify.solvers.continuum.skfem_elastic import SkfemElastic
+from pcverify.solvers.particles.macromolecule.elastic_modes import uniaxial_constants
+from pcverify.solvers.particles.macromolecule.force import SevenRoot
+from pcverify.solvers.particles.macromolecule.lattice import build_lattice
+from pcverify.solvers.particles.macromolecule.modal import hessian
+from pcverify.solvers.particles.macromolecule.solver import Macromolecule
+from pcverify.solvers.particles.mca.solver import Mca
 
 SCENE = make_scene("bar-modes", modes=4)
 

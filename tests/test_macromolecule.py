@@ -11,14 +11,13 @@ import numpy as np
 import pytest
 import scipy.linalg as sla
 
-from harness.catalogue import make_scene
-from harness.scene import SceneError
-from solvers.base import Resolution, effective_params
-from solvers.particles import integrate as ig
-from solvers.particles import kernel as fk
-from solvers.particles.lattice import build_lattice
-from solvers.particles.macromolecule import Macromolecule, energy_balance_error, make_fixes, simulate
-from solvers.particles.modal import (
+from pcverify.harness.catalogue import make_scene
+from pcverify.harness.scene import Resolution, SceneError
+from pcverify.solvers.particles.macromolecule import kernel_fast as fk
+from pcverify.solvers.particles.macromolecule import kernel_reference as ig
+from pcverify.solvers.particles.macromolecule.force import STABLE, SevenRoot, force_array, force_slope_array
+from pcverify.solvers.particles.macromolecule.lattice import build_lattice
+from pcverify.solvers.particles.macromolecule.modal import (
     damped_top_mode,
     damping_matrix,
     free_dofs,
@@ -26,7 +25,8 @@ from solvers.particles.modal import (
     modal_basis,
     top_frequency,
 )
-from solvers.particles.seven_root import STABLE, SevenRoot, force_array, force_slope_array
+from pcverify.solvers.particles.macromolecule.solver import Macromolecule, energy_balance_error, make_fixes, simulate
+from pcverify.solvers.protocol import effective_params
 
 SOLVER = Macromolecule()
 PAPER = make_scene("bar-heat-paper")

@@ -10,14 +10,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from mca_block import block_curve
 
-from harness.catalogue import make_scene
-from harness.scene import Response, SceneError
-from references import analytic
-from solvers import get_solver
-from solvers.base import Resolution
-from solvers.particles import response as rf
-from solvers.particles.mca_block import block_curve
+from pcverify.harness.catalogue import make_scene
+from pcverify.harness.scene import Resolution, Response, SceneError
+from pcverify.references import analytic
+from pcverify.solvers.particles.mca import response as rf
+from pcverify.solvers.registry import get_solver
 
 E, NU = 70e9, 0.33
 
@@ -189,11 +188,11 @@ def test_linearised_stiffness_gives_hooke_and_the_macromolecule_lattice_is_scale
     """The assembled MCA stiffness (used for modes and the time step) solved directly in the uniaxial test
     returns E and nu to round-off; the macromolecule lattice scaled to E returns E (by construction) and
     its own central-force Poisson's ratio, far from 0.33."""
-    from harness.scene import Box
-    from solvers.particles.mca_compare import macromolecule_modes, uniaxial_constants
-    from solvers.particles.mca_lattice import bar_automata
-    from solvers.particles.mca_model import Elastic
-    from solvers.particles.mca_stiffness import stiffness
+    from pcverify.harness.scene import Box
+    from pcverify.solvers.particles.macromolecule.elastic_modes import macromolecule_modes, uniaxial_constants
+    from pcverify.solvers.particles.mca.automata import bar_automata
+    from pcverify.solvers.particles.mca.model import Elastic
+    from pcverify.solvers.particles.mca.stiffness import stiffness
 
     box = Box()
     aut = bar_automata(box, 4, 2800.0)

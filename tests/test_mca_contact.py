@@ -10,9 +10,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from solvers.particles import mca_kernel as mk
-from solvers.particles.mca_lattice import build_automata
-from solvers.particles.mca_model import Elastic, Model, rebuild_pairs
+from pcverify.solvers.particles.mca import kernel as mk
+from pcverify.solvers.particles.mca.automata import build_automata
+from pcverify.solvers.particles.mca.model import Elastic, Model, rebuild_pairs
 
 H = 0.005
 EL = Elastic(70e9, 0.33)

@@ -19,12 +19,10 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from harness.scene import Box, SceneError
-from solvers.particles import macromolecule as mm
-from solvers.particles.lattice import build_lattice
-from solvers.particles.modal import free_dofs, hessian, top_frequency
-from solvers.particles.neighbours import build_neighbours, merge_lists, stencil_offsets, union_list
-from solvers.particles.scaling import (
+from pcverify.harness.scene import Box, SceneError
+from pcverify.solvers.particles.macromolecule import solver as mm
+from pcverify.solvers.particles.macromolecule.force import SevenRoot, force_array
+from pcverify.solvers.particles.macromolecule.large_n import (
     FROZEN,
     PRESCRIBED,
     TILE,
@@ -37,7 +35,14 @@ from solvers.particles.scaling import (
     rows_from_benchmark_json,
     slab_block,
 )
-from solvers.particles.seven_root import SevenRoot, force_array
+from pcverify.solvers.particles.macromolecule.lattice import build_lattice
+from pcverify.solvers.particles.macromolecule.modal import free_dofs, hessian, top_frequency
+from pcverify.solvers.particles.macromolecule.neighbours import (
+    build_neighbours,
+    merge_lists,
+    stencil_offsets,
+    union_list,
+)
 
 MODEL = SevenRoot(1.0)
 

@@ -5,8 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from harness.catalogue import make_scene
-from references import analytic, heat_faces
+from pcverify.harness.catalogue import make_scene
+from pcverify.references import analytic, heat_faces
 
 L, ALPHA = 0.03, 237.0 / (2700.0 * 897.0)
 

@@ -7,9 +7,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from harness.catalogue import CATALOGUE, make_scene
-from harness.scene import Param, SceneError, lattice_points, lattice_shape, lattice_spacing
-from solvers.base import Resolution
+from pcverify.harness.catalogue import CATALOGUE, make_scene
+from pcverify.harness.scene import Param, Resolution, SceneError, lattice_points, lattice_shape, lattice_spacing
 
 
 @pytest.mark.parametrize("n, count", [(2, 16), (3, 63), (4, 160), (5, 325), (11, 3751)])

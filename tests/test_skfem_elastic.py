@@ -20,12 +20,11 @@ import json
 import numpy as np
 import pytest
 
-from harness.catalogue import make_scene
-from harness.metrics import richardson
-from harness.scene import FaceSupport, SceneError
-from references import elasticity as ref
-from solvers import get_solver
-from solvers.base import Resolution
+from pcverify.harness.catalogue import make_scene
+from pcverify.harness.metrics import richardson
+from pcverify.harness.scene import FaceSupport, Resolution, SceneError
+from pcverify.references import elasticity as ref
+from pcverify.solvers.registry import get_solver
 
 SOLVER = get_solver("skfem-elastic")
 E, NU, RHO = 70e9, 0.33, 2800.0
@@ -67,8 +66,8 @@ def test_uniform_assembly_equals_cell_by_cell_assembly():
     from skfem.helpers import dot
     from skfem.models.elasticity import lame_parameters, linear_elasticity
 
-    from solvers.continuum.grid import StructuredGrid
-    from solvers.continuum.skfem_elastic import scatter_uniform, unit_cell_matrices
+    from pcverify.solvers.continuum.grid import StructuredGrid
+    from pcverify.solvers.continuum.skfem_elastic import scatter_uniform, unit_cell_matrices
 
     grid = StructuredGrid.lattice(np.array([W, H, L]), 2, 2)
     mesh = MeshHex(np.ascontiguousarray(grid.points.T), grid.cells.astype(np.int32))
@@ -187,7 +186,7 @@ def test_supports_and_bad_input():
 
 
 def test_deterministic_and_cli_json(capsys):
-    from harness.cli import main
+    from pcverify.harness.cli import main
 
     scene = make_scene("bar-modes", modes=4)
     a = SOLVER.solve(scene, Resolution(2, 2), element="q1").summary["frequencies_hz"]

@@ -14,13 +14,12 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from harness.catalogue import make_scene
-from harness.scene import SceneError
-from references.heat_faces import transient
-from solvers.base import Resolution
-from solvers.continuum.assembly import assemble_q1, split_free, tensor_csr
-from solvers.continuum.grid import SphereWarp, StructuredGrid, plan_sphere_warp
-from solvers.continuum.skfem_heat import SkfemHeat
+from pcverify.harness.catalogue import make_scene
+from pcverify.harness.scene import Resolution, SceneError
+from pcverify.references.heat_faces import transient
+from pcverify.solvers.continuum.assembly import assemble_q1, split_free, tensor_csr
+from pcverify.solvers.continuum.grid import SphereWarp, StructuredGrid, plan_sphere_warp
+from pcverify.solvers.continuum.skfem_heat import SkfemHeat
 
 SOLVER = SkfemHeat()
 

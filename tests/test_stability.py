@@ -11,12 +11,12 @@ import math
 import pandas as pd
 import pytest
 
-from harness.cache import Cache
-from harness.catalogue import make_scene
-from harness.report import write_study_report
-from harness.scene import SceneError
-from harness.stability import MacromoleculeProbe, get_probe, measure_limit, run_probe_cell, split_params
-from harness.study import execute, load_study
+from pcverify.harness.cache import Cache
+from pcverify.harness.catalogue import make_scene
+from pcverify.harness.report import write_study_report
+from pcverify.harness.scene import SceneError
+from pcverify.harness.stability import MacromoleculeProbe, get_probe, measure_limit, run_probe_cell, split_params
+from pcverify.harness.study import execute, load_study
 
 PAPER = make_scene("bar-heat-paper")
 PROBE = MacromoleculeProbe()
@@ -137,7 +137,7 @@ def test_mca_limit_respects_its_gershgorin_guarantee() -> None:
     """MCA (n = 2, bar-compression): dt = cfl * 2 / omega_G with omega_G >= omega_max, so every cfl <= 1
     is stable and the measured limit is >= 1 (measured 1.137); above it the run stops as unstable with
     the step in the reason, and heat scenes are skipped with the reason (heat_cfl <= 1 by range)."""
-    from harness.stability import McaProbe
+    from pcverify.harness.stability import McaProbe
 
     probe = McaProbe()
     scene = make_scene("bar-compression")
@@ -153,7 +153,7 @@ def test_mca_limit_respects_its_gershgorin_guarantee() -> None:
 def test_mca_heat_limit_is_the_exact_forward_euler_limit() -> None:
     """Forward Euler on the automata: the bisected limit equals 2 / lambda_max(C^-1 L) (a linear scheme, so
     to the bisection resolution) and is at least the Gershgorin step the solver uses (ratio 1)."""
-    from harness.stability import get_probe, measure_limit
+    from pcverify.harness.stability import get_probe, measure_limit
 
     probe = get_probe("mca")
     scene = make_scene("bar-heat-faces", mode="transient", t_end=1.0, dt=0.005)

@@ -39,7 +39,7 @@ import numba
 import numpy as np
 import scipy.sparse as sp
 
-from solvers.continuum.grid import HEX_CORNERS, StructuredGrid
+from pcverify.solvers.continuum.grid import HEX_CORNERS, StructuredGrid
 
 DROP_RTOL = 1e-12  # entries |a_ij| <= DROP_RTOL * |a_ii| are round-off of exact zeros (see module docstring)
 

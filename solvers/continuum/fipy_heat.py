@@ -72,18 +72,19 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from scipy.interpolate import RegularGridInterpolator
 
-from harness.scene import (
+from pcverify.harness.scene import (
     FaceTemperature,
     Param,
     PatchTemperature,
     PointTemperature,
+    Resolution,
     Scene,
     SceneError,
     lattice_shape,
 )
-from solvers.base import Resolution, Solution, effective_params, heat_summary
-from solvers.continuum.assembly import grid_graph, split_free
-from solvers.continuum.fipy_fast import diffusion_term, tensor_grid3d
+from pcverify.solvers.continuum.assembly import grid_graph, split_free
+from pcverify.solvers.continuum.fipy_fast import diffusion_term, tensor_grid3d
+from pcverify.solvers.protocol import Solution, effective_params, heat_summary
 
 _FACE_AXIS = {"x0": (0, 0), "xW": (0, 1), "y0": (1, 0), "yH": (1, 1), "z0": (2, 0), "zL": (2, 1)}
 _FIPY_FACES = {"x0": "facesLeft", "xW": "facesRight", "y0": "facesBottom", "yH": "facesTop",
@@ -230,6 +231,7 @@ class FipyHeat:
     """FiPy cell-centred finite volumes on the node-centred dual grid of the refined lattice."""
 
     name = "fipy"
+    kind = "continuum"
     version = "1.4"
     parameters = (
         Param("patch", "cut", "", "patch constraint: cut (fixed cells + Shortley-Weller faces), volume-fraction "

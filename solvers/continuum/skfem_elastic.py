@@ -53,10 +53,10 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import LinearOperator, eigsh
 
-from harness.scene import FaceClamp, FaceSupport, Param, Scene, SceneError
-from solvers.base import Resolution, Solution, effective_params
-from solvers.continuum.grid import StructuredGrid
-from solvers.continuum.linear_solver import SpdSolver
+from pcverify.harness.scene import FaceClamp, FaceSupport, Param, Resolution, Scene, SceneError
+from pcverify.solvers.continuum.grid import StructuredGrid
+from pcverify.solvers.continuum.linear_solver import SpdSolver
+from pcverify.solvers.protocol import Solution, effective_params
 
 PARAMETERS: tuple[Param, ...] = (
     Param("element", "q2", "", "Q1 (trilinear) or Q2 (triquadratic) hexahedra", choices=("q1", "q2"), kind=str),
@@ -104,7 +104,7 @@ def unit_cell_matrices(element_name: str, intorder: int, lam: float, mu: float, 
     from skfem.helpers import dot
     from skfem.models.elasticity import linear_elasticity
 
-    from solvers.continuum.grid import HEX_CORNERS
+    from pcverify.solvers.continuum.grid import HEX_CORNERS
 
     @BilinearForm
     def vmass(u, v, _w):
@@ -226,6 +226,7 @@ class SkfemElastic:
     """Linear elasticity of the bar with scikit-fem Q1/Q2 hexahedra: static supports and modal analysis."""
 
     name = "skfem-elastic"
+    kind = "continuum"
     version = "1.1"
     parameters = PARAMETERS
 

@@ -39,11 +39,19 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
-from harness.scene import FaceTemperature, Param, PatchTemperature, PointTemperature, Scene, SceneError
-from solvers.base import Resolution, Solution, effective_params, heat_summary
-from solvers.continuum.assembly import assemble_q1, grid_graph, split_free
-from solvers.continuum.grid import StructuredGrid, plan_sphere_warp
-from solvers.continuum.linear_solver import SpdSolver
+from pcverify.harness.scene import (
+    FaceTemperature,
+    Param,
+    PatchTemperature,
+    PointTemperature,
+    Resolution,
+    Scene,
+    SceneError,
+)
+from pcverify.solvers.continuum.assembly import assemble_q1, grid_graph, split_free
+from pcverify.solvers.continuum.grid import StructuredGrid, plan_sphere_warp
+from pcverify.solvers.continuum.linear_solver import SpdSolver
+from pcverify.solvers.protocol import Solution, effective_params, heat_summary
 
 PARAMETERS: tuple[Param, ...] = (
     Param("scheme", "crank-nicolson", "", "time integration of transient scenes",
@@ -98,6 +106,7 @@ class SkfemHeat:
     """Heat conduction with scikit-fem Q1 hexahedra (steady and theta-method transient)."""
 
     name = "skfem"
+    kind = "continuum"
     version = "1.2"
     parameters = PARAMETERS
 

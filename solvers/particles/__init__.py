@@ -1,0 +1,1 @@
+"""Particle solvers: one package per particle model (macromolecule, mca)."""

@@ -21,12 +21,12 @@ import time
 import numpy as np
 import pytest
 
-from harness.catalogue import make_scene
-from solvers import get_solver
-from solvers.base import Resolution
-from solvers.continuum.assembly import assemble_q1
-from solvers.continuum.fipy_heat import FipyHeat
-from solvers.continuum.grid import StructuredGrid
+from pcverify.harness.catalogue import make_scene
+from pcverify.harness.scene import Resolution
+from pcverify.solvers.continuum.assembly import assemble_q1
+from pcverify.solvers.continuum.fipy_heat import FipyHeat
+from pcverify.solvers.continuum.grid import StructuredGrid
+from pcverify.solvers.registry import get_solver
 
 SIZES = {5: 11_776, 10: 87_451, 20: 673_501}  # refine of n = 4 -> unknowns
 LARGE = 20

@@ -24,9 +24,9 @@ import numba
 import numpy as np
 import pytest
 
-from solvers.particles.lammps_peer import load_lammps, run_lammps
-from solvers.particles.scaling import KernelRun, bench_lattice, omega_bound
-from solvers.particles.seven_root import SevenRoot
+from pcverify.solvers.particles.macromolecule.force import SevenRoot
+from pcverify.solvers.particles.macromolecule.lammps_peer import load_lammps, run_lammps
+from pcverify.solvers.particles.macromolecule.large_n import KernelRun, bench_lattice, omega_bound
 
 LAMMPS, WHY = load_lammps()
 pytestmark = pytest.mark.skipif(LAMMPS is None, reason=f"LAMMPS peer unavailable: {WHY}")

@@ -16,12 +16,13 @@ import numpy as np
 import pytest
 from numba import njit
 
-from harness.catalogue import make_scene
-from solvers.base import Resolution, effective_params
-from solvers.particles import integrate as ig
-from solvers.particles import kernel as fk
-from solvers.particles.macromolecule import Macromolecule, simulate
-from solvers.particles.seven_root import C_A, C_P, C_ROOTS, C_X0, C_X1, force_tree
+from pcverify.harness.catalogue import make_scene
+from pcverify.harness.scene import Resolution
+from pcverify.solvers.particles.macromolecule import kernel_fast as fk
+from pcverify.solvers.particles.macromolecule import kernel_reference as ig
+from pcverify.solvers.particles.macromolecule.force import C_A, C_P, C_ROOTS, C_X0, C_X1, force_tree
+from pcverify.solvers.particles.macromolecule.solver import Macromolecule, simulate
+from pcverify.solvers.protocol import effective_params
 
 SOLVER = Macromolecule()
 PAPER = make_scene("bar-heat-paper")

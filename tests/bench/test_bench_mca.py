@@ -12,13 +12,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from harness.catalogue import make_scene
-from harness.scene import Box
-from solvers.base import Resolution
-from solvers.particles import mca_kernel as mk
-from solvers.particles.mca import Mca
-from solvers.particles.mca_lattice import bar_automata
-from solvers.particles.mca_model import Elastic, Model
+from pcverify.harness.catalogue import make_scene
+from pcverify.harness.scene import Box, Resolution
+from pcverify.solvers.particles.mca import kernel as mk
+from pcverify.solvers.particles.mca.automata import bar_automata
+from pcverify.solvers.particles.mca.model import Elastic, Model
+from pcverify.solvers.particles.mca.solver import Mca
 
 STEPS = 2000
 

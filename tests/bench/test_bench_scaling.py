@@ -27,9 +27,9 @@ import numba
 import numpy as np
 import pytest
 
-from solvers.particles.ensemble import EnsembleRun
-from solvers.particles.scaling import PRESCRIBED, KernelRun, bench_lattice, omega_bound
-from solvers.particles.seven_root import SevenRoot
+from pcverify.solvers.particles.macromolecule.ensemble import EnsembleRun
+from pcverify.solvers.particles.macromolecule.force import SevenRoot
+from pcverify.solvers.particles.macromolecule.large_n import PRESCRIBED, KernelRun, bench_lattice, omega_bound
 
 MODEL = SevenRoot(1.0)
 SIZES = {4: 160, 16: 11_776, 41: 203_401, 70: 1_019_200}

@@ -10,9 +10,9 @@ from __future__ import annotations
 
 import pytest
 
-from harness.catalogue import make_scene
-from solvers.base import Resolution
-from solvers.continuum.skfem_elastic import SkfemElastic
+from pcverify.harness.catalogue import make_scene
+from pcverify.harness.scene import Resolution
+from pcverify.solvers.continuum.skfem_elastic import SkfemElastic
 
 SOLVER = SkfemElastic()
 COMPRESSION = make_scene("bar-compression")

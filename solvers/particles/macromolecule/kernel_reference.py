@@ -74,7 +74,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .seven_root import energy_x, force_x
+from .force import energy_x, force_x
 
 FREE, FROZEN, PRESCRIBED, GROUP = 0, 1, 2, 3
 

@@ -19,7 +19,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from scipy.optimize import brentq
 
-from .seven_root import SevenRoot, force_slope_array
+from .force import SevenRoot, force_slope_array
 
 DENSE_MAX = 1500  # free DOFs up to which dense eigensolvers are used
 

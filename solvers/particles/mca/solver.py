@@ -34,24 +34,25 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import eigsh
 
-from harness.scene import (
+from pcverify.harness.scene import (
     FaceClamp,
     FaceSupport,
     FaceTemperature,
     Param,
     PatchTemperature,
     PointTemperature,
+    Resolution,
     Scene,
     SceneError,
 )
-from solvers.base import Resolution, Solution, effective_params, heat_summary
+from pcverify.solvers.protocol import Solution, effective_params, heat_summary
 
-from . import mca_heat
-from . import mca_kernel as mk
+from . import heat as mca_heat
+from . import kernel as mk
 from . import response as rf
-from .mca_lattice import Automata, bar_automata
-from .mca_model import COEFFICIENTS, Elastic, Model, rebuild_pairs, relax
-from .mca_stiffness import mass_diagonal, stiffness
+from .automata import Automata, bar_automata
+from .model import COEFFICIENTS, Elastic, Model, rebuild_pairs, relax
+from .stiffness import mass_diagonal, stiffness
 
 ENERGY_ALARM = 1e-2  # relative energy-balance error of an undamped elastic phase that flags a run as unstable
 
@@ -86,6 +87,7 @@ class Mca:
     """Movable cellular automata on the bar lattice (elasticity, fracture, modes, heat)."""
 
     name = "mca"
+    kind = "particle"
     version = "1.2"
     parameters = PARAMETERS
 

@@ -23,10 +23,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from harness.scene import SceneError
+from pcverify.harness.scene import SceneError
 
-from .neighbours import build_neighbours, merge_lists, stencil_offsets, union_list
-from .scaling import (
+from .force import SevenRoot
+from .large_n import (
     DEFAULT_R_CUT,
     DEFAULT_SKIN,
     FORCE_PASSES,
@@ -36,7 +36,7 @@ from .scaling import (
     initial_state,
     soa_state,
 )
-from .seven_root import SevenRoot
+from .neighbours import build_neighbours, merge_lists, stencil_offsets, union_list
 
 
 def _param_vector(name: str, values: np.ndarray | float, k: int, low: float, unit: str) -> np.ndarray:

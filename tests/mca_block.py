@@ -15,11 +15,10 @@ import math
 
 import numpy as np
 
-from harness.scene import Response
-
-from . import mca_kernel as mk
-from .mca_lattice import build_automata
-from .mca_model import Elastic, Model, relax
+from pcverify.harness.scene import Response
+from pcverify.solvers.particles.mca import kernel as mk
+from pcverify.solvers.particles.mca.automata import build_automata
+from pcverify.solvers.particles.mca.model import Elastic, Model, relax
 
 
 def block_curve(resp: Response | None, youngs: float, poisson: float, strain_path: np.ndarray,

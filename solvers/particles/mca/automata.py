@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from harness.scene import Box, SceneError, lattice_shape
+from pcverify.harness.scene import Box, SceneError, lattice_shape
 
 
 @dataclass(frozen=True, eq=False)

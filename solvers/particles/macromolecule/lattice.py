@@ -16,9 +16,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from harness.scene import Box, SceneError, lattice_points, lattice_shape, lattice_spacing
+from pcverify.harness.scene import Box, SceneError, lattice_points, lattice_shape, lattice_spacing
 
-from .seven_root import STABLE
+from .force import STABLE
 
 REL_TOL = 1e-9
 

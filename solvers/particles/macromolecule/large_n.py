@@ -48,10 +48,10 @@ import llvmlite.binding as llvm
 import numpy as np
 from numba import njit, prange
 
-from harness.scene import Box, SceneError, lattice_points, lattice_spacing
+from pcverify.harness.scene import Box, SceneError, lattice_points, lattice_spacing
 
+from .force import C_A, C_P, C_PINT, C_ROOTS, C_X0, C_X1, SevenRoot, energy_x, force_tree, shell_stiffness
 from .neighbours import NeighbourList, build_neighbours, stencil_offsets
-from .seven_root import C_A, C_P, C_PINT, C_ROOTS, C_X0, C_X1, SevenRoot, energy_x, force_tree, shell_stiffness
 
 FREE, FROZEN, PRESCRIBED = 0, 1, 2
 DONE, EXPIRED = 0, 1

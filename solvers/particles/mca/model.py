@@ -27,12 +27,12 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy.spatial import cKDTree
 
-from harness.scene import Response, SceneError
+from pcverify.harness.scene import Response, SceneError
 
-from . import mca_kernel as mk
+from . import kernel as mk
 from . import response as rf
-from .mca_lattice import Automata
-from .mca_stiffness import mass_diagonal, omega_max_bound, stiffness
+from .automata import Automata
+from .stiffness import mass_diagonal, omega_max_bound, stiffness
 
 COEFFICIENTS = ("hooke", "psakhie-2G/K")
 

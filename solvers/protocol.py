@@ -13,27 +13,11 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from harness.scene import Param, Scene, SceneError, resolve_params
+from pcverify.harness.scene import Param, Resolution, Scene, resolve_params
 
 STATUSES = ("ok", "unstable", "skipped", "non-stationary", "defect", "failed")
 
 
-@dataclass(frozen=True)
-class Resolution:
-    """Lattice resolution n (n x n x (3n - 2) nodes) and, for grids, an integer refinement."""
-
-    n: int
-    refine: int = 1
-
-    def __post_init__(self) -> None:
-        for name, low in (("n", 2), ("refine", 1)):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or not low <= v <= 1000:
-                raise SceneError(f"{name}={v!r} is out of range; allowed: integer in [{low}, 1000]")
-
-    def spacing(self, width: float) -> float:
-        """Grid spacing h = a / refine with a = width / (n - 1)."""
-        return width / (self.n - 1) / self.refine
 
 
 @dataclass

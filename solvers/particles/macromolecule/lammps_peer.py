@@ -31,9 +31,9 @@ from typing import Any
 
 import numpy as np
 
-from harness.scene import SceneError
+from pcverify.harness.scene import SceneError
 
-from .seven_root import SevenRoot, energy_x, force_array
+from .force import SevenRoot, energy_x, force_array
 
 KEYWORD = "SEVENROOT"
 

@@ -48,7 +48,8 @@ import llvmlite.binding as llvm
 import numpy as np
 from numba import literal_unroll, njit
 
-from .integrate import (
+from .force import _GL_W, _GL_X, C_A, C_P, C_ROOTS, C_X0, C_X1, energy_x, force_tree
+from .kernel_reference import (
     E_START,
     FREE,
     FROZEN,
@@ -64,7 +65,6 @@ from .integrate import (
     reset_outputs,
     verdict,
 )
-from .seven_root import _GL_W, _GL_X, C_A, C_P, C_ROOTS, C_X0, C_X1, energy_x, force_tree
 
 __all__ = ["pair_pass", "run", "stencil"]
 

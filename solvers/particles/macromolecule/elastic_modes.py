@@ -15,11 +15,11 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 from scipy.sparse.linalg import spsolve
 
-from harness.scene import Box
+from pcverify.harness.scene import Box
 
+from .force import SevenRoot
 from .lattice import build_lattice
 from .modal import hessian
-from .seven_root import SevenRoot
 
 
 def _faces(pos: np.ndarray, box: Box) -> dict[str, np.ndarray]:

@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from .mca_lattice import Automata
+from .automata import Automata
 
 
 def _cross_matrix(n: np.ndarray) -> np.ndarray:

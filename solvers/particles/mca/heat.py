@@ -18,7 +18,7 @@ import scipy.sparse as sp
 from numba import njit
 from scipy.sparse.linalg import spsolve
 
-from .mca_lattice import Automata
+from .automata import Automata
 
 
 def conductances(aut: Automata, conductivity: float) -> np.ndarray:

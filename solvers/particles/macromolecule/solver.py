@@ -27,11 +27,12 @@ from typing import Any
 
 import numpy as np
 
-from harness.scene import FaceTemperature, Param, PointTemperature, Scene, SceneError
-from solvers.base import Resolution, Solution, effective_params, heat_summary
+from pcverify.harness.scene import FaceTemperature, Param, PointTemperature, Resolution, Scene, SceneError
+from pcverify.solvers.protocol import Solution, effective_params, heat_summary
 
-from . import integrate as ig
-from . import kernel as fk
+from . import kernel_fast as fk
+from . import kernel_reference as ig
+from .force import SevenRoot
 from .lattice import Lattice, build_lattice
 from .modal import (
     damped_top_mode,
@@ -42,7 +43,6 @@ from .modal import (
     hessian,
     modal_basis,
 )
-from .seven_root import SevenRoot
 
 DEFAULT_DAMPING_RATIO = 0.01
 N_HISTORY = 400
@@ -259,6 +259,7 @@ class Macromolecule:
     """Solver "macromolecule": relative hotness of the seven-root particle lattice."""
 
     name = "macromolecule"
+    kind = "particle"
     version = "4"
     parameters = PARAMETERS
 
@@ -394,7 +395,7 @@ class Macromolecule:
     def _modes(self, scene: Scene, n: int, p: dict[str, Any], t_wall: float) -> Solution:
         """Eigenfrequencies of the seven-root lattice (shape p, s, unstable_fraction as given) clamped at z = 0,
         its stiffness scaled so that its uniaxial Young's modulus is the material's (mca_compare)."""
-        from .mca_compare import macromolecule_modes
+        from .elastic_modes import macromolecule_modes
 
         t0 = time.perf_counter()
         m = macromolecule_modes(scene.box, n, scene.material.youngs_modulus, scene.material.density, scene.modes,

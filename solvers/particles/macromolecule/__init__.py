@@ -1,0 +1,1 @@
+"""Arinchev's macromolecule model: heat conduction as forced vibration of a seven-root particle lattice."""
