@@ -196,7 +196,7 @@ class McaProbe:
 
     def supports(self, scene: Scene) -> tuple[bool, str]:
         ok, why = self.solver.supports(scene)
-        if ok and "elasticity" not in scene.physics and scene.mode != "transient":
+        if ok and "elasticity" not in scene.physics and scene.conduction.mode != "transient":
             return False, "steady mca heat is a direct solve: no time stepping, no stability probe needed"
         if ok and "modes" in scene.physics:
             return False, "bar-modes is an eigenproblem: no time stepping"
@@ -228,7 +228,7 @@ class McaProbe:
         cap, g, dt_g = mca_heat.explicit_system(aut, mat.conductivity, mat.density * mat.heat_capacity, held)
         return {"p": {}, "heat": (aut, held, values, cap, g), "omega_max": math.nan, "zeta": 0.0,
                 "dt_theory": dt_g, "safety_theory": 1.0, "solver_dt_limit": dt_g,
-                "scene_hash": scene.content_hash(), "n": n, "t_max": scene.t_max}
+                "scene_hash": scene.content_hash(), "n": n, "t_max": scene.conduction.t_max}
 
     def _run_heat(self, prep: dict[str, Any], ratio: float) -> dict[str, Any]:
         """HEAT_STEPS forward-Euler steps at dt = ratio * dt_G; unstable when the temperature leaves

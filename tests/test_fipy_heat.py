@@ -78,14 +78,14 @@ def test_implicit_euler_step_is_fipys():
     edges, _ = grid_axes(scene, res)
     mesh = fp.Grid3D(dx=np.diff(edges[0]), dy=np.diff(edges[1]), dz=np.diff(edges[2]))
     T = fp.CellVariable(mesh=mesh, value=0.0)
-    T.constrain(scene.t_max, where=mesh.facesFront)
+    T.constrain(scene.conduction.t_max, where=mesh.facesFront)
     T.constrain(0.0, where=mesh.facesBack)
     m = scene.material
     eq = fp.TransientTerm(coeff=m.density * m.heat_capacity) == fp.DiffusionTerm(coeff=m.conductivity)
     eq.solve(var=T, dt=0.05, solver=fp.LinearLUSolver())
     centres = np.asarray(mesh.cellCenters).T
     sol = SOLVER.solve(scene, res, samples={"c": centres}, scheme="implicit-euler")
-    assert np.max(np.abs(sol.samples["c"]["values"] - np.asarray(T) / scene.t_max)) <= 1e-10
+    assert np.max(np.abs(sol.samples["c"]["values"] - np.asarray(T) / scene.conduction.t_max)) <= 1e-10
 
 
 def _patch_run(r, mode):
@@ -172,11 +172,12 @@ def test_penalty_rows_match_fipy_combined_build():
     assert abs(Kf - sysd["K"]).max() <= 1e-12 * abs(sysd["K"]).max()
     assert np.max(np.abs(-np.asarray(lin.RHSvector) - sysd["f"])) <= 1e-12 * np.max(np.abs(sysd["f"]))
     eq.solve(var=T, solver=fp.LinearLUSolver())
-    dev = np.max(np.abs(np.asarray(T)[sysd["fixed"]] - sysd["tfix"][sysd["fixed"]])) / scene.t_max
+    dev = np.max(np.abs(np.asarray(T)[sysd["fixed"]] - sysd["tfix"][sysd["fixed"]])) / scene.conduction.t_max
     assert dev <= 8.0 / penalty
     ours = SOLVER.solve(scene, res, samples={"c": np.asarray(mesh.cellCenters).T})
     free = ~sysd["fixed"]
-    assert np.max(np.abs(ours.samples["c"]["values"][free] - np.asarray(T)[free] / scene.t_max)) <= 8.0 / penalty
+    t_max = scene.conduction.t_max
+    assert np.max(np.abs(ours.samples["c"]["values"][free] - np.asarray(T)[free] / t_max)) <= 8.0 / penalty
 
 
 def test_amg_agrees_with_direct():

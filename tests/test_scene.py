@@ -8,22 +8,22 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from pcverify.harness.catalogue import CATALOGUE, make_scene
-from pcverify.harness.scene import Param, Resolution, SceneError, lattice_points, lattice_shape, lattice_spacing
+from pcverify.harness.scene import Param, Resolution, SceneError
 
 
 @pytest.mark.parametrize("n, count", [(2, 16), (3, 63), (4, 160), (5, 325), (11, 3751)])
 def test_lattice_family_sizes_and_spacing(n, count):
     scene = make_scene("bar-heat-paper")
-    pts = lattice_points(scene.box, n)
+    pts = scene.box.lattice_points(n)
     assert pts.shape == (count, 3)
-    a = lattice_spacing(scene.box, n)
+    a = scene.box.lattice_spacing(n)
     # nodes on all faces, uniform spacing a in every direction (m = 3n - 2 makes L/(m-1) = a)
     for axis, ext in enumerate(scene.box.extent):
         vals = np.unique(pts[:, axis])
         assert vals[0] == 0.0 and vals[-1] == pytest.approx(ext)
         assert np.allclose(np.diff(vals), a)
     # ordering: x slowest, z fastest
-    nx, ny, nz = lattice_shape(n)
+    nx, ny, nz = scene.box.lattice_shape(n)
     i, j, k = 1, 1, 2
     assert np.allclose(pts[(i * ny + j) * nz + k], [i * a, j * a, k * a])
 
@@ -83,7 +83,8 @@ def test_hostile_t_max_is_rejected_or_in_range(value):
     except SceneError as exc:
         assert "t_max" in str(exc)
     else:
-        assert isinstance(scene.t_max, float) and 0 < scene.t_max <= 1e5 and math.isfinite(scene.t_max)
+        t_max = scene.conduction.t_max
+        assert isinstance(t_max, float) and 0 < t_max <= 1e5 and math.isfinite(t_max)
 
 
 @given(st.text(max_size=12))

@@ -15,7 +15,7 @@ import pytest
 import scipy.sparse as sp
 
 from pcverify.harness.catalogue import make_scene
-from pcverify.harness.scene import Resolution, SceneError
+from pcverify.harness.scene import Elasticity, Material, Resolution, SceneError
 from pcverify.references.heat_faces import transient
 from pcverify.solvers.continuum.assembly import assemble_q1, split_free, tensor_csr
 from pcverify.solvers.continuum.grid import SphereWarp, StructuredGrid, plan_sphere_warp
@@ -229,7 +229,10 @@ def test_bad_scene_settings_raise():
     short = make_scene("bar-heat-faces", mode="transient", t_end=0.1, dt=0.05)
     with pytest.raises(SceneError, match="rannacher_steps"):
         SOLVER.solve(short, Resolution(2), rannacher_steps=6)
-    ok, why = SOLVER.supports(dataclasses.replace(scene, physics=frozenset({"conduction", "elasticity"})))
+    both = Material("both", 2700.0, 237.0, 897.0, 70e9, 0.33)
+    coupled = dataclasses.replace(scene, physics=frozenset({"conduction", "elasticity"}), elasticity=Elasticity(),
+                                  material=both)
+    ok, why = SOLVER.supports(coupled)
     assert not ok and "conduction" in why
     assert SOLVER.supports(make_scene("bar-heat-patch")) == (True, "")
 

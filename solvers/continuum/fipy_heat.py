@@ -80,7 +80,6 @@ from pcverify.harness.scene import (
     Resolution,
     Scene,
     SceneError,
-    lattice_shape,
 )
 from pcverify.solvers.continuum.assembly import grid_graph, split_free
 from pcverify.solvers.continuum.fipy_fast import diffusion_term, tensor_grid3d
@@ -102,7 +101,7 @@ def _fipy():
 def grid_axes(scene: Scene, resolution: Resolution) -> tuple[list[np.ndarray], list[float]]:
     """Cell edges per axis of the dual grid and the spacing h per axis."""
     edges, hs = [], []
-    for ext, cnt in zip(scene.box.extent, lattice_shape(resolution.n), strict=True):
+    for ext, cnt in zip(scene.box.extent, scene.box.lattice_shape(resolution.n), strict=True):
         m = (cnt - 1) * resolution.refine + 1  # refined nodes = cells on this axis
         h = float(ext) / (m - 1)
         e = np.concatenate([[0.0], (np.arange(m - 1) + 0.5) * h, [float(ext)]])
@@ -345,7 +344,7 @@ class FipyHeat:
         else:
             mesh, term = tensor_grid3d(*dxyz), diffusion_term
         k = scene.material.conductivity
-        T = fp.CellVariable(mesh=mesh, value=scene.initial_temperature)
+        T = fp.CellVariable(mesh=mesh, value=scene.conduction.initial_temperature)
         fixed_faces = {}
         for c in scene.constraints:
             if isinstance(c, FaceTemperature):
@@ -409,10 +408,11 @@ class FipyHeat:
         if not ok:
             raise SceneError(why)
         nsteps = 0
-        if scene.mode == "transient":
-            nsteps = int(round(scene.t_end / scene.dt))
-            if nsteps < 1 or abs(nsteps * scene.dt - scene.t_end) > 1e-9 * scene.t_end:
-                raise SceneError(f"dt={scene.dt!r} does not divide t_end={scene.t_end!r}; allowed: t_end / dt an "
+        heat = scene.conduction
+        if heat.mode == "transient":
+            nsteps = int(round(heat.t_end / heat.dt))
+            if nsteps < 1 or abs(nsteps * heat.dt - heat.t_end) > 1e-9 * heat.t_end:
+                raise SceneError(f"dt={heat.dt!r} does not divide t_end={heat.t_end!r}; allowed: t_end / dt an "
                                  "integer (within 1e-9)")
             if p["scheme"] == "crank-nicolson" and p["rannacher_steps"] > 2 * nsteps:
                 raise SceneError(f"rannacher_steps={p['rannacher_steps']!r} is out of range; allowed: even integer "
@@ -429,12 +429,12 @@ class FipyHeat:
         # cell adjacency graph for AMG aggregation; FiPy numbers cells x fastest, grid_graph z fastest
         Kff, Kfc = split_free(K, free)  # no copies when no cell is fixed (face constraints act through faces)
         graph = split_free(grid_graph(sysd["shape"][::-1]), free)[0] if method == "amg" else None
-        T = np.full(K.shape[0], float(scene.initial_temperature))
+        T = np.full(K.shape[0], float(scene.conduction.initial_temperature))
         T[fixed] = tfix[fixed]
         tc = tfix[fixed]
         solvers: list[_Linear] = []
         steps_taken = 0
-        if scene.mode == "steady":
+        if scene.conduction.mode == "steady":
             lin = _Linear(Kff, method, p["rtol"], graph)
             solvers.append(lin)
             T[free] = lin(f[free] - Kfc @ tc)
@@ -442,13 +442,13 @@ class FipyHeat:
             C = scene.material.density * scene.material.heat_capacity * sysd["vol"]
             plan: list[tuple[float, float, int]] = []  # (dt, theta, count)
             if p["scheme"] == "implicit-euler":
-                plan.append((scene.dt, 1.0, nsteps))
+                plan.append((scene.conduction.dt, 1.0, nsteps))
             else:
                 r = p["rannacher_steps"]
                 if r:
-                    plan.append((scene.dt / 2, 1.0, r))
+                    plan.append((scene.conduction.dt / 2, 1.0, r))
                 if nsteps - r // 2:
-                    plan.append((scene.dt, 0.5, nsteps - r // 2))
+                    plan.append((scene.conduction.dt, 0.5, nsteps - r // 2))
             for dt, theta, count in plan:
                 A = (sp.diags(C[free] / dt) + theta * Kff).tocsr()
                 lin = _Linear(A, method, p["rtol"], graph)
@@ -460,7 +460,7 @@ class FipyHeat:
         solve_s = time.perf_counter() - t_solve
 
         # ---- output
-        t_max = scene.t_max
+        t_max = scene.conduction.t_max
         Tg = T.reshape(sysd["shape"][::-1]).transpose(2, 1, 0)  # (mx, my, mz)
         sets = scene.sample_sets(resolution.n) if samples is None else samples
         out = {}

@@ -6,7 +6,7 @@ Grid.  The grid of resolution (n, refine) has the particle lattice of resolution
 nodes: (n - 1) * refine + 1 nodes across x and y, (3n - 3) * refine + 1 along z for the standard bar,
 spacing h = a / refine, a = W / (n - 1).  (`StructuredGrid.for_box` builds it for any box whose sides
 are integer multiples of h.)  Node (i, j, k) has the flat index (i * ny + j) * nz + k: x slowest,
-z fastest, the same order as `harness.scene.lattice_points`.  Cell (i, j, k) spans the nodes
+z fastest, the same order as `Box.lattice_points`.  Cell (i, j, k) spans the nodes
 (i..i+1, j..j+1, k..k+1); `hex_connectivity` lists its 8 nodes in scikit-fem's MeshHex1 order.
 
 Warp.  `SphereWarp` moves the nodes near a patch centre c (a grid node, usually a box corner) so that
@@ -242,11 +242,13 @@ class StructuredGrid:
 
     @classmethod
     def lattice(cls, extent, n: int, refine: int) -> StructuredGrid:
-        """The refined particle-lattice grid of the bar: (n-1)*refine cells across, (3n-3)*refine along."""
+        """The refined particle-lattice grid of a box: (n-1)*refine cells across x and as many cells of the
+        same width along y and z as the box holds (the bar: (3n-3)*refine along z)."""
         c = (n - 1) * refine
         extent = np.asarray(extent, dtype=float)
+        cy = int(round(extent[1] / extent[0] * c))
         cz = int(round(extent[2] / extent[0] * c))
-        return cls.for_box(extent, (c, c, cz))
+        return cls.for_box(extent, (c, cy, cz))
 
     @property
     def reference_points(self) -> np.ndarray:

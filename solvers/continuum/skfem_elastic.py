@@ -430,11 +430,11 @@ class SkfemElastic:
 
     @staticmethod
     def _modes(scene, stiff, mass, is_fixed, method, p, near_null, locs, extent, unit):
-        """Lowest `scene.modes` eigenpairs of K phi = omega^2 M phi on the free dofs, classified."""
+        """Lowest `scene.elasticity.modes` eigenpairs of K phi = omega^2 M phi on the free dofs, classified."""
         free = np.flatnonzero(~is_fixed)
         kff = stiff[free][:, free].tocsr()
         mff = mass[free][:, free].tocsr()
-        k = int(scene.modes)
+        k = int(scene.elasticity.modes)
         k_solve = k + 2  # two spare pairs so that a degenerate cluster at the top of the list is complete
         if k_solve >= free.size - 1:
             raise SceneError(f"modes={k} is out of range; allowed: integer in [1, {free.size - 4}] at this "

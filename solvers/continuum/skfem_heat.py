@@ -14,7 +14,7 @@ Discretisation (PHYSICS.md §5):
   grid; "conforming" warps the grid (see `grid.SphereWarp`) so that a closed shell of grid faces lies on
   the sphere, then fixes the nodes on and inside it.  The warp is checked: every warped cell must have a
   positive Jacobian at its corners and centre.
-- Transient: theta-method from `scene.initial_temperature`, constrained values switched on at t = 0+
+- Transient: theta-method from `scene.conduction.initial_temperature`, constrained values switched on at t = 0+
   (the state at t = 0+ is the initial field with the constrained nodes at their values, as the analytic
   Fourier series assumes).  `scheme` "implicit-euler" (theta = 1) or "crank-nicolson" (theta = 1/2) with a
   Rannacher start: the first `rannacher_steps` half steps (dt/2) are implicit Euler, so
@@ -113,7 +113,7 @@ class SkfemHeat:
     def supports(self, scene: Scene) -> tuple[bool, str]:
         if set(scene.physics) != {"conduction"}:
             return False, f"skfem heat solver does conduction only; scene needs {sorted(scene.physics)}"
-        if scene.mode == "steady" and not scene.constraints:
+        if scene.conduction.mode == "steady" and not scene.constraints:
             return False, "steady conduction without any prescribed temperature is singular"
         return True, ""
 
@@ -126,12 +126,12 @@ class SkfemHeat:
         if p["rannacher_steps"] % 2:
             raise SceneError(f"rannacher_steps={p['rannacher_steps']!r} is out of range; allowed: even integer "
                              "in [0, 1000] (half steps in pairs)")
-        if scene.mode != "transient":
+        if scene.conduction.mode != "transient":
             return 0
-        steps = int(round(scene.t_end / scene.dt))
-        if steps < 1 or abs(steps * scene.dt - scene.t_end) > 1e-9 * scene.t_end:
-            raise SceneError(f"dt={scene.dt!r} is out of range; allowed: t_end/dt must be an integer "
-                             f"(t_end={scene.t_end:g} s)")
+        steps = int(round(scene.conduction.t_end / scene.conduction.dt))
+        if steps < 1 or abs(steps * scene.conduction.dt - scene.conduction.t_end) > 1e-9 * scene.conduction.t_end:
+            raise SceneError(f"dt={scene.conduction.dt!r} is out of range; allowed: t_end/dt must be an integer "
+                             f"(t_end={scene.conduction.t_end:g} s)")
         if p["scheme"] == "crank-nicolson" and p["rannacher_steps"] // 2 > steps:
             raise SceneError(f"rannacher_steps={p['rannacher_steps']!r} is out of range; allowed: even integer "
                              f"in [0, {2 * steps}] (2 * number of time steps)")
@@ -204,20 +204,20 @@ class SkfemHeat:
         if method == "auto":
             method = "direct" if free.size <= p["direct_max_unknowns"] else "amg"
         t0 = time.perf_counter()
-        ops = assemble_q1(grid, with_mass=scene.mode == "transient", full_pattern=method == "direct")
+        ops = assemble_q1(grid, with_mass=scene.conduction.mode == "transient", full_pattern=method == "direct")
         mat = scene.material
         stiff = mat.conductivity * ops.stiffness
         weights = ops.weights
-        mss = mat.density * mat.heat_capacity * ops.mass if scene.mode == "transient" else None
+        mss = mat.density * mat.heat_capacity * ops.mass if scene.conduction.mode == "transient" else None
         assembly_s = time.perf_counter() - t0
 
         t1 = time.perf_counter()
-        temp = np.full(n_nodes, float(scene.initial_temperature))
+        temp = np.full(n_nodes, float(scene.conduction.initial_temperature))
         temp[bnd] = fixed[bnd]
         iterations = 0
         residual = 0.0
         n_solves = 0
-        if scene.mode == "steady":
+        if scene.conduction.mode == "steady":
             k_ff, k_fb = split_free(stiff, ~is_fixed)
             graph = split_free(grid_graph(grid.shape), ~is_fixed)[0] if method == "amg" else None
             solver = _linear_solver(k_ff, method, p["cg_rtol"], graph)
@@ -254,14 +254,14 @@ class SkfemHeat:
                 interp = grid.interpolation_matrix(pts)
             except ValueError as exc:
                 raise SceneError(f"samples[{key!r}]: {exc}") from None
-            out[key] = {"points": pts, "values": interp @ temp / scene.t_max}
+            out[key] = {"points": pts, "values": interp @ temp / scene.conduction.t_max}
         node_pts = scene.sample_sets(n)["nodes"]
         if "nodes" in out:
             node_vals = out["nodes"]["values"]
         else:
-            node_vals = grid.interpolation_matrix(node_pts) @ temp / scene.t_max
+            node_vals = grid.interpolation_matrix(node_pts) @ temp / scene.conduction.t_max
         volume = float(weights.sum())
-        volume_mean = float(weights @ temp) / volume / scene.t_max
+        volume_mean = float(weights @ temp) / volume / scene.conduction.t_max
         summary = heat_summary(node_vals, volume_mean)
         diag.update({"fixed_nodes": int(bnd.size), "free_nodes": int(free.size), "linear_solver": method,
                      "max_relative_residual": residual, "warped_cells": ops.warped_cells, "mesh_volume": volume,
@@ -271,7 +271,7 @@ class SkfemHeat:
             scene=scene.name, solver=self.name, params=p,
             resolution={"n": n, "refine": refine, "h": grid.h},
             samples=out, unknowns=n_nodes, wall_s=wall, status="ok",
-            work={"unknowns": n_nodes, "time_steps": n_solves if scene.mode == "transient" else 0,
+            work={"unknowns": n_nodes, "time_steps": n_solves if scene.conduction.mode == "transient" else 0,
                   "iterations": int(iterations), "assembly_s": assembly_s, "solve_s": solve_s},
             summary=summary, diagnostics=diag,
         )
@@ -279,7 +279,7 @@ class SkfemHeat:
     @staticmethod
     def _time_plan(scene: Scene, p: dict[str, Any], steps: int) -> list[tuple[float, float]]:
         """(theta, dt) of every step: implicit Euler, or Rannacher half steps then Crank-Nicolson."""
-        dt = scene.t_end / steps  # exact division of t_end
+        dt = scene.conduction.t_end / steps  # exact division of t_end
         if p["scheme"] == "implicit-euler":
             return [(1.0, dt)] * steps
         r = p["rannacher_steps"]

@@ -48,7 +48,7 @@ import llvmlite.binding as llvm
 import numpy as np
 from numba import njit, prange
 
-from pcverify.harness.scene import Box, SceneError, lattice_points, lattice_spacing
+from pcverify.harness.scene import Box, SceneError
 
 from .force import C_A, C_P, C_PINT, C_ROOTS, C_X0, C_X1, SevenRoot, energy_x, force_tree, shell_stiffness
 from .neighbours import NeighbourList, build_neighbours, stencil_offsets
@@ -682,8 +682,8 @@ class KernelRun(LatticeRun):
 def bench_lattice(n: int, box: Box | None = None, density: float = 2800.0) -> tuple[np.ndarray, float, float]:
     """Rest positions (N, 3), spacing a and particle mass of the lattice n x n x (3n-2) in the bar."""
     box = box or Box()
-    x = lattice_points(box, n)
-    return x, lattice_spacing(box, n), density * box.volume / x.shape[0]
+    x = box.lattice_points(n)
+    return x, box.lattice_spacing(n), density * box.volume / x.shape[0]
 
 
 def omega_bound(model: SevenRoot, a: float, mass: float) -> float:

@@ -1,6 +1,6 @@
 """The particle lattice of the macromolecule model: nodes, masses and the fixed pair list.
 
-Nodes are `harness.scene.lattice_points` (x slowest, z fastest), spacing a = W/(n-1), each of
+Nodes are `Box.lattice_points` (x slowest, z fastest), spacing a = W/(n-1), each of
 mass rho V / N.  The pair list holds every pair with rest distance r0 <= 2a (to a relative 1e-9):
 shells a, sqrt2 a, sqrt3 a and, by default, 2a.  Pairs at exactly 2a carry neither force nor
 stiffness at rest (the STEP ends there), but they are kept ("keep") because the paper's model
@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from pcverify.harness.scene import Box, SceneError, lattice_points, lattice_shape, lattice_spacing
+from pcverify.harness.scene import Box, SceneError
 
 from .force import STABLE
 
@@ -34,14 +34,11 @@ class Lattice:
     pairs: np.ndarray
     r0: np.ndarray
     shell: np.ndarray  # index of the stable root the pair rests at: 0..3 for a, sqrt2 a, sqrt3 a, 2a
+    shape: tuple[int, int, int]  # nodes per axis
 
     @property
     def size(self) -> int:
         return int(self.positions.shape[0])
-
-    @property
-    def shape(self) -> tuple[int, int, int]:
-        return lattice_shape(self.n)
 
     def index(self, i: int, j: int, k: int) -> int:
         """Node index of lattice coordinates (i, j, k)."""
@@ -70,8 +67,8 @@ def build_lattice(box: Box, n: int, density: float, pairs_at_2a: str = "keep") -
     """Lattice of resolution n with its fixed pair list (see the module docstring for 2a pairs)."""
     if pairs_at_2a not in ("keep", "drop"):
         raise SceneError(f"pairs_at_2a={pairs_at_2a!r} is not allowed; allowed: keep, drop")
-    pos = lattice_points(box, n)
-    a = lattice_spacing(box, n)
+    pos = box.lattice_points(n)
+    a = box.lattice_spacing(n)
     mass = density * box.volume / pos.shape[0]
     pairs = cKDTree(pos).query_pairs(2.0 * a * (1 + REL_TOL), output_type="ndarray").astype(np.int64)
     pairs = np.sort(pairs, axis=1)
@@ -81,4 +78,4 @@ def build_lattice(box: Box, n: int, density: float, pairs_at_2a: str = "keep") -
     if pairs_at_2a == "drop":
         keep = shell < 3
         pairs, r0, shell = pairs[keep], r0[keep], shell[keep]
-    return Lattice(n=n, a=a, positions=pos, mass=mass, pairs=pairs, r0=r0, shell=shell)
+    return Lattice(n=n, a=a, positions=pos, mass=mass, pairs=pairs, r0=r0, shell=shell, shape=box.lattice_shape(n))

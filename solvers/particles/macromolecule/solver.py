@@ -128,7 +128,7 @@ def make_fixes(scene: Scene, lat: Lattice, p: dict[str, Any], omega_top: float |
     stroke = p["drive_amplitude"] * lat.a
     hot_sets: list[np.ndarray] = []
     for con in scene.constraints:
-        hot = con.value >= scene.t_max * (1 - 1e-12)
+        hot = con.value >= scene.conduction.t_max * (1 - 1e-12)
         if isinstance(con, FaceTemperature):
             axis, side = {"x": 0, "y": 1, "z": 2}[con.face[0]], con.face[1:]
             coord = 0.0 if side == "0" else lat.positions[:, axis].max()
@@ -269,11 +269,11 @@ class Macromolecule:
         if scene.physics != frozenset({"conduction"}):
             return False, (f"macromolecule does conduction (and the modes of its lattice); scene needs "
                            f"{sorted(scene.physics)}")
-        if scene.mode != "steady":
+        if scene.conduction.mode != "steady":
             return False, ("hotness is a time average over a stationary state; the transient of bar-heat-faces "
                            "has no hotness counterpart")
         for c in scene.constraints:
-            if 0.0 < c.value < scene.t_max * (1 - 1e-12):
+            if 0.0 < c.value < scene.conduction.t_max * (1 - 1e-12):
                 return False, f"constraint value {c.value:g} K is neither 0 nor t_max: only hot (driven) and frozen"
         if not any(c.value > 0 for c in scene.constraints):
             return False, "no hot constraint to drive"
@@ -371,7 +371,8 @@ class Macromolecule:
             "kernel_wall_s": run.wall_s,
             "hotness": H, "relative_hotness_raw": rel_raw,
         }
-        if scene.name == "bar-heat-faces":
+        if {c.face for c in scene.constraints if isinstance(c, FaceTemperature)} == {"z0", "zL"}:
+            # held faces at both ends: the layer profile along z against Fourier's linear law
             summary.update(self._faces(lat, H, fx, diagnostics))
         if p["dt_check"]:
             fine = simulate(lat, s["model"], fx, s["delta"], s["dt"] / 2, p["t_end"], p["t_start"], w_drive,
@@ -398,7 +399,8 @@ class Macromolecule:
         from .elastic_modes import macromolecule_modes
 
         t0 = time.perf_counter()
-        m = macromolecule_modes(scene.box, n, scene.material.youngs_modulus, scene.material.density, scene.modes,
+        mat = scene.material
+        m = macromolecule_modes(scene.box, n, mat.youngs_modulus, mat.density, scene.elasticity.modes,
                                 model=SevenRoot(1.0, p["p"], p["s"], p["unstable_fraction"]))
         kernel = time.perf_counter() - t0
         return Solution(scene=scene.name, solver=self.name, params=p, resolution={"n": n, "refine": 1},

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from pcverify.harness.scene import Box, SceneError, lattice_shape
+from pcverify.harness.scene import Box, SceneError
 
 
 @dataclass(frozen=True, eq=False)
@@ -103,10 +103,10 @@ def build_automata(extent: np.ndarray, shape: tuple[int, int, int], density: flo
 
 
 def bar_automata(box: Box, n: int, density: float) -> Automata:
-    """Automata of the bar's lattice family: n x n x (3n - 2) nodes, d = a = W/(n - 1)."""
+    """Automata of the lattice of resolution n of the box (one spacing d = a = W/(n - 1) on every axis)."""
     if int(n) != n or n < 2:
         raise SceneError(f"n={n!r} is out of range; allowed: integer >= 2")
-    return build_automata(box.extent, lattice_shape(int(n)), density)
+    return build_automata(box.extent, box.lattice_shape(int(n)), density)
 
 
 def math_finite(x: float) -> bool:

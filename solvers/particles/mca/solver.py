@@ -94,7 +94,7 @@ class Mca:
     def supports(self, scene: Scene) -> tuple[bool, str]:
         phys = set(scene.physics)
         if phys == {"conduction"}:
-            if scene.mode == "steady" and not scene.constraints:
+            if scene.conduction.mode == "steady" and not scene.constraints:
                 return False, "steady conduction without any prescribed temperature is singular"
             return True, ""
         if "elasticity" in phys:
@@ -144,7 +144,7 @@ class Mca:
     def _held(scene: Scene, aut: Automata) -> tuple[np.ndarray, np.ndarray]:
         """Held mask and values of the temperature constraints."""
         held = np.zeros(aut.size, dtype=np.int64)
-        values = np.full(aut.size, scene.initial_temperature, dtype=float)
+        values = np.full(aut.size, scene.conduction.initial_temperature, dtype=float)
         for c in scene.constraints:
             if isinstance(c, FaceTemperature):
                 idx = aut.on_face(c.face, scene.box.extent)
@@ -167,16 +167,16 @@ class Mca:
         t0 = time.perf_counter()
         summary: dict[str, Any] = {}
         work: dict[str, Any] = {"unknowns": aut.size}
-        if scene.mode == "steady":
+        if scene.conduction.mode == "steady":
             temp = mca_heat.steady(aut, mat.conductivity, values, held)
             work["time_steps"] = 0
         else:
             temp, dt, steps = mca_heat.transient(aut, mat.conductivity, mat.density * mat.heat_capacity, values,
-                                                 held, scene.t_end, p["heat_cfl"])
+                                                 held, scene.conduction.t_end, p["heat_cfl"])
             summary.update(dt=dt, steps=steps)
             work.update(time_steps=steps, pair_steps=steps * len(aut.pairs))
         work["kernel_s"] = time.perf_counter() - t0
-        rel = temp / scene.t_max
+        rel = temp / scene.conduction.t_max
         status, reason = ("ok", "") if np.all(np.isfinite(rel)) else ("unstable", "non-finite temperature")
         summary.update(heat_summary(rel, float((rel * aut.volume).sum() / aut.volume.sum())))
         return {"field": rel, "unknowns": aut.size, "quantity": "T/t_max", "work": work, "summary": summary,
@@ -291,9 +291,9 @@ class Mca:
 
     def _fracture(self, scene: Scene, aut: Automata, p: dict[str, Any]) -> dict[str, Any]:
         el = self._elastic(scene, p)
-        resp = scene.response
+        resp = scene.elasticity.response
         length = scene.box.length
-        speed = scene.strain_rate * length
+        speed = scene.elasticity.strain_rate * length
         fixm, fixv, group, notes = self._fixes(scene, aut, {"zL": speed})
         gamma = 0.0 if p["damping"] is None else p["damping"]
         e_load = 0.5 * rf.tensile_strength(resp) ** 2 / el.youngs * scene.box.volume
@@ -301,7 +301,7 @@ class Mca:
                       krot=p["krot"], relink_stress=p["relink_stress"], cfl=p["cfl"], gamma=gamma, fixm=fixm,
                       fixv=fixv, group=group, ke_limit=p["blowup"] * e_load)
         eps_fail = failure_strain(resp, el.youngs)
-        t_end = 1.5 * eps_fail / scene.strain_rate
+        t_end = 1.5 * eps_fail / scene.elasticity.strain_rate
         steps_total = min(p["max_steps"], math.ceil(t_end / model.dt))
         every = max(1, steps_total // p["records"])
         hist = np.zeros((steps_total // every + 2, mk.N_H))
@@ -377,7 +377,7 @@ class Mca:
         held = fixm[:, :nd].ravel() == 1
         free = np.flatnonzero(~held)
         kff = k[free][:, free].tocsc()
-        count = int(scene.modes)
+        count = int(scene.elasticity.modes)
         if count >= free.size - 1:
             raise SceneError(f"modes={count} is out of range; allowed: integer in [1, {free.size - 2}] at this "
                              "resolution")

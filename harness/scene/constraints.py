@@ -1,0 +1,78 @@
+"""What a scene holds: prescribed temperatures (at points, on patches, on faces) and mechanical supports.
+
+Faces are named x0, xW, y0, yH, z0, zL (the box's six faces, PHYSICS.md §1).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from .params import SceneError, shown
+
+Vec3 = tuple[float, float, float]
+FACES = ("x0", "xW", "y0", "yH", "z0", "zL")
+
+
+def _face(face: str) -> None:
+    if face not in FACES:
+        raise SceneError(f"face={shown(face)} is not allowed; allowed: {', '.join(FACES)}")
+
+
+@dataclass(frozen=True)
+class PointTemperature:
+    """Temperature prescribed at a point (the paper's corner constraint; ill-posed in 3-D)."""
+
+    point: Vec3
+    value: float
+
+
+@dataclass(frozen=True)
+class PatchTemperature:
+    """Temperature prescribed on the solid inside a sphere of `radius` about `centre` (a corner)."""
+
+    centre: Vec3
+    radius: float
+    value: float
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.radius, (int, float)) and math.isfinite(self.radius) and self.radius > 0):
+            raise SceneError(f"rho={shown(self.radius)} is out of range; allowed: number in (0, inf) m")
+
+
+@dataclass(frozen=True)
+class FaceTemperature:
+    """Temperature prescribed on a whole face."""
+
+    face: str
+    value: float
+
+    def __post_init__(self) -> None:
+        _face(self.face)
+
+
+@dataclass(frozen=True)
+class FaceSupport:
+    """Frictionless support: the face's normal displacement is held at `displacement` (m, along the
+    outward axis direction of +x/+y/+z), its tangential motion is free."""
+
+    face: str
+    displacement: float = 0.0
+
+    def __post_init__(self) -> None:
+        _face(self.face)
+
+
+@dataclass(frozen=True)
+class FaceClamp:
+    """Clamped face: every displacement component (and automaton rotation) is zero."""
+
+    face: str
+
+    def __post_init__(self) -> None:
+        _face(self.face)
+
+
+TemperatureConstraint = PointTemperature | PatchTemperature | FaceTemperature
+Support = FaceSupport | FaceClamp
+Constraint = TemperatureConstraint | Support

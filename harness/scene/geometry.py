@@ -1,0 +1,91 @@
+"""Geometry of a scene: the box, its lattice family and a resolution.
+
+The box is W x H x L (x across, y vertical, z along).  Resolution n names the simple-cubic lattice
+with one spacing a = W / (n - 1) in every direction and nodes on the faces, edges and corners, so
+the box must be a whole number of spacings along y and z: (n - 1) H / W and (n - 1) L / W integers.
+The paper's bar (0.01 x 0.01 x 0.03 m) gives n x n x (3n - 2) nodes.  Every solver reports at these
+nodes and uses h = a / refine, so the same resolution means the same h and node count everywhere.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .params import SceneError, shown
+
+WHOLE = 1e-9  # relative tolerance of "a whole number of spacings"
+
+
+@dataclass(frozen=True)
+class Box:
+    """The body: width (x), height (y) and length (z) in metres."""
+
+    width: float = 0.01
+    height: float = 0.01
+    length: float = 0.03
+
+    def __post_init__(self) -> None:
+        for name in ("width", "height", "length"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and 0 < v <= 1e3):
+                raise SceneError(f"{name}={shown(v)} is out of range; allowed: number in (0, 1000] m")
+
+    @property
+    def extent(self) -> np.ndarray:
+        return np.array([self.width, self.height, self.length])
+
+    @property
+    def volume(self) -> float:
+        return self.width * self.height * self.length
+
+    def lattice_shape(self, n: int) -> tuple[int, int, int]:
+        """Nodes per axis of the lattice of resolution n (one spacing a = width / (n - 1))."""
+        if isinstance(n, bool) or int(n) != n or n < 2:
+            raise SceneError(f"n={shown(n)} is out of range; allowed: integer >= 2")
+        n = int(n)
+        shape = [n]
+        for name, ext in (("height", self.height), ("length", self.length)):
+            cells = (n - 1) * ext / self.width
+            whole = round(cells)
+            if whole < 1 or abs(cells - whole) > WHOLE * max(1.0, cells):
+                raise SceneError(f"n={n} does not fit the box: {name}/width = {ext / self.width:.6g}, so (n - 1) "
+                                 f"{name}/width = {cells:.6g} spacings; allowed: n with a whole number of spacings "
+                                 "along every axis")
+            shape.append(whole + 1)
+        return (shape[0], shape[1], shape[2])
+
+    def lattice_spacing(self, n: int) -> float:
+        """Spacing a of the lattice of resolution n."""
+        self.lattice_shape(n)
+        return self.width / (n - 1)
+
+    def lattice_points(self, n: int) -> np.ndarray:
+        """Lattice nodes of resolution n, shape (N, 3), ordered x slowest, z fastest.
+
+        Node (i, j, k) has index (i * ny + j) * nz + k.
+        """
+        shape = self.lattice_shape(n)
+        axes = [np.linspace(0.0, ext, cnt) for ext, cnt in zip(self.extent, shape, strict=True)]
+        grid = np.meshgrid(*axes, indexing="ij")
+        return np.stack([g.ravel() for g in grid], axis=1)
+
+
+@dataclass(frozen=True)
+class Resolution:
+    """Lattice resolution n and, for grids, an integer refinement (h = a / refine)."""
+
+    n: int
+    refine: int = 1
+
+    def __post_init__(self) -> None:
+        for name, low in (("n", 2), ("refine", 1)):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or not low <= v <= 1000:
+                raise SceneError(f"{name}={v!r} is out of range; allowed: integer in [{low}, 1000]")
+
+    def spacing(self, width: float) -> float:
+        """Grid spacing h = a / refine with a = width / (n - 1)."""
+        return width / (self.n - 1) / self.refine

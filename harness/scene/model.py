@@ -1,0 +1,162 @@
+"""The scene: an immutable, validated value that says what is simulated.
+
+A scene declares its geometry (`Box`), material, constraints, the physics it needs and one part per
+physics: `Conduction` (temperature scale, steady or transient, volumetric source) and `Elasticity`
+(eigenfrequencies asked for, loading rate, response function).  New physics adds a part; it does not
+grow the scene.  Solvers read what a scene declares, never its name.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from .constraints import Constraint, FaceClamp, FaceSupport, TemperatureConstraint
+from .geometry import Box
+from .material import Material, Response
+from .params import SceneError, shown
+
+PHYSICS = {
+    "conduction": "heat conduction (a Conduction part)",
+    "heat-source": "a volumetric heat source (Conduction.source != 0)",
+    "elasticity": "linear elasticity (an Elasticity part)",
+    "modes": "eigenfrequencies (Elasticity.modes >= 1)",
+    "fracture": "loading to failure with a response function (Elasticity.response, strain_rate > 0)",
+}
+MODES = ("steady", "transient")
+
+
+def _finite(name: str, v: Any, low: float, high: float, unit: str, low_open: bool = False) -> None:
+    ok = isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+    ok = ok and (v > low if low_open else v >= low) and v <= high
+    if not ok:
+        span = f"{'(' if low_open else '['}{low:g}, {high:g}] {unit}".rstrip()
+        raise SceneError(f"{name}={shown(v)} is out of range; allowed: number in {span}")
+
+
+@dataclass(frozen=True)
+class Conduction:
+    """Heat conduction: temperatures are reported as T / t_max; a transient starts from
+    `initial_temperature` and is reported at `t_end` (continuum solvers step with `dt`); `source` is a
+    uniform volumetric heat source in W/m^3."""
+
+    t_max: float = 500.0
+    mode: str = "steady"
+    t_end: float = 0.0
+    dt: float = 0.0
+    initial_temperature: float = 0.0
+    source: float = 0.0
+
+    def __post_init__(self) -> None:
+        _finite("t_max", self.t_max, 0.0, 1e6, "K", low_open=True)
+        if self.mode not in MODES:
+            raise SceneError(f"mode={shown(self.mode)} is not allowed; allowed: {', '.join(MODES)}")
+        _finite("initial_temperature", self.initial_temperature, 0.0, 1e6, "K")
+        _finite("source", self.source, -1e15, 1e15, "W/m^3")
+        if self.mode == "transient":
+            _finite("t_end", self.t_end, 0.0, 1e6, "s", low_open=True)
+            if not (isinstance(self.dt, (int, float)) and math.isfinite(self.dt) and 0 < self.dt <= self.t_end):
+                raise SceneError(f"dt={shown(self.dt)} is out of range; allowed: number in (0, t_end={self.t_end:g}] s")
+
+
+@dataclass(frozen=True)
+class Elasticity:
+    """Linear elasticity: `modes` eigenfrequencies asked for (0: none); fracture scenes load at the
+    nominal axial strain rate `strain_rate` (1/s) until failure with `response`."""
+
+    modes: int = 0
+    strain_rate: float = 0.0
+    response: Response | None = None
+
+    def __post_init__(self) -> None:
+        if isinstance(self.modes, bool) or not isinstance(self.modes, int) or not 0 <= self.modes <= 1000:
+            raise SceneError(f"modes={shown(self.modes)} is out of range; allowed: integer in [0, 1000]")
+        _finite("strain_rate", self.strain_rate, 0.0, 1e6, "1/s")
+
+
+@dataclass(frozen=True)
+class Scene:
+    """One simulated situation, validated at construction.
+
+    `physics` names what a solver must be able to do (words of PHYSICS); each word's part must be
+    given and consistent with it.  `params` holds the effective catalogue parameters that built it.
+    """
+
+    name: str
+    description: str
+    box: Box
+    material: Material
+    physics: frozenset[str]
+    constraints: tuple[Constraint, ...]
+    conduction: Conduction | None = None
+    elasticity: Elasticity | None = None
+    params: tuple[tuple[str, Any], ...] = field(default=())
+
+    def __post_init__(self) -> None:
+        unknown = sorted(set(self.physics) - set(PHYSICS))
+        if unknown:
+            raise SceneError(f"physics={unknown[0]!r} is unknown; allowed: {', '.join(PHYSICS)}")
+        self._check_part("conduction", self.conduction, Conduction)
+        self._check_part("elasticity", self.elasticity, Elasticity)
+        cond, el = self.conduction, self.elasticity
+        derived = {"heat-source": cond is not None and cond.source != 0.0,
+                   "modes": el is not None and el.modes > 0,
+                   "fracture": el is not None and el.response is not None and el.strain_rate > 0}
+        for word, present in derived.items():
+            if present != (word in self.physics):
+                raise SceneError(f"physics {sorted(self.physics)} and the scene's parts disagree on {word!r}: "
+                                 f"allowed: {word!r} in physics exactly when the scene has {PHYSICS[word]}")
+        if cond is not None:
+            self.material.require("conductivity", "heat_capacity")
+        if el is not None:
+            self.material.require("youngs_modulus", "poisson_ratio")
+        for c in self.constraints:
+            heat = isinstance(c, TemperatureConstraint)
+            if heat and cond is None or isinstance(c, (FaceSupport, FaceClamp)) and el is None:
+                raise SceneError(f"constraint {type(c).__name__} needs the {'conduction' if heat else 'elasticity'} "
+                                 "physics, which the scene does not have")
+
+    def _check_part(self, word: str, part: Any, kind: type) -> None:
+        if (word in self.physics) != (part is not None) or (part is not None and not isinstance(part, kind)):
+            raise SceneError(f"{word}: the scene's physics says {word in self.physics} but its {word} part is "
+                             f"{type(part).__name__}; allowed: a {kind.__name__} exactly when {word!r} is in physics")
+
+    @property
+    def param_dict(self) -> dict[str, Any]:
+        return dict(self.params)
+
+    def sample_sets(self, n: int) -> dict[str, np.ndarray]:
+        """Sample points at resolution n: lattice nodes and the paper's two edges (front top: x = 0, y = H;
+        bottom back: x = W, y = 0), the edges at the lattice's z levels."""
+        nodes = self.box.lattice_points(n)
+        z = np.linspace(0.0, self.box.length, self.box.lattice_shape(n)[2])
+        zeros = np.zeros_like(z)
+        front_top = np.stack([zeros, zeros + self.box.height, z], axis=1)
+        bottom_back = np.stack([zeros + self.box.width, zeros, z], axis=1)
+        return {"nodes": nodes, "front_top_edge": front_top, "bottom_back_edge": bottom_back}
+
+    def content_hash(self) -> str:
+        """Stable hash of everything that defines the scene (not of Python object ids)."""
+        payload = json.dumps(_plain(self), sort_keys=True, default=str)
+        return hashlib.sha256(payload.encode()).hexdigest()[:16]
+
+
+def _plain(obj: Any) -> Any:
+    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
+        fields = {f.name: _plain(getattr(obj, f.name)) for f in dataclasses.fields(obj)}
+        return {"type": type(obj).__name__, **fields}
+    if isinstance(obj, dict):
+        return {str(k): _plain(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_plain(v) for v in obj]
+    if isinstance(obj, (set, frozenset)):
+        return sorted(_plain(v) for v in obj)
+    if isinstance(obj, float):
+        return repr(obj)
+    return obj
