@@ -1,18 +1,25 @@
-"""The catalogue of named scenes: parameters (default, range, unit) and a builder each.
+"""The catalogue of named scenes: the shipped ones, those of installed plugins and those a study defines.
 
-A new scene is one `SceneSpec` entry: data plus the function that turns effective
-parameter values into a `Scene`.  See PHYSICS.md §2 for the three bar-heating variants.
+A scene is a `SceneSpec`: parameters (default, range, unit) and the builder that turns their values
+into a `Scene`.  Shipped scenes are listed here (PHYSICS.md §2 for the three bar-heating variants);
+plugin distributions add theirs through the `pcverify.scenes` entry point group (name ->
+"module:attribute", the attribute a SceneSpec); plugin modules and study files register theirs at run
+time.  Two sources that give the same name are an error that names both.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import importlib
+import math
 from dataclasses import dataclass
+from functools import cache
+from importlib import metadata
 from typing import Any
 
-from pcverify.harness.scene import (
+from pcverify.scene import (
     ALUMINIUM,
     DURALUMIN,
+    MATERIALS,
     RESPONSES,
     Box,
     Conduction,
@@ -20,13 +27,14 @@ from pcverify.harness.scene import (
     FaceClamp,
     FaceSupport,
     FaceTemperature,
+    Material,
     Param,
     PatchTemperature,
     PointTemperature,
     Response,
     Scene,
     SceneError,
-    resolve_params,
+    SceneSpec,
 )
 
 BOX = Box()  # the paper's bar, 0.01 x 0.01 x 0.03 m (the default dimensions of every catalogue scene)
@@ -55,20 +63,6 @@ def corners(box: Box, placement: str) -> list[tuple[tuple[float, float, float], 
     frozen = {"back-edge": ((box.width, 0.0, 0.0), (box.width, 0.0, box.length)),
               "diagonal": ((box.width, 0.0, 0.0), (0.0, 0.0, box.length))}[placement]
     return [((0.0, box.height, 0.0), 1.0)] + [(c, 0.0) for c in frozen]
-
-
-@dataclass(frozen=True)
-class SceneSpec:
-    """A named scene: one-line description, its parameters, and the builder."""
-
-    name: str
-    description: str
-    parameters: tuple[Param, ...]
-    build: Callable[[dict[str, Any]], Scene]
-
-    def make(self, **given: Any) -> Scene:
-        values = resolve_params(self.parameters, given, f"scene {self.name!r}")
-        return self.build(values)
 
 
 def _paper(p: dict[str, Any]) -> Scene:
@@ -189,12 +183,197 @@ CATALOGUE: dict[str, SceneSpec] = {
 }
 
 
+ENTRY_POINT_GROUP = "pcverify.scenes"
+
+
+@dataclass(frozen=True)
+class Entry:
+    """Where a scene name comes from: its spec (or a "module:attribute" to import) and its origin."""
+
+    name: str
+    target: Any
+    origin: str
+
+
+_REGISTERED: dict[str, Entry] = {}
+
+
+@cache
+def _entry_points() -> dict[str, Entry]:
+    out: dict[str, Entry] = {}
+    for ep in metadata.entry_points(group=ENTRY_POINT_GROUP):
+        dist = ep.dist
+        origin = f"entry point of {dist.name} {dist.version}" if dist is not None else "an entry point"
+        _add(out, Entry(ep.name, ep.value, origin))
+    return out
+
+
+def _add(table: dict[str, Entry], entry: Entry) -> None:
+    old = table.get(entry.name)
+    if old is not None and old.origin != entry.origin and old.target is not entry.target:
+        raise SceneError(f"scene name {entry.name!r} is registered twice: by {old.origin} and by {entry.origin}; "
+                         "allowed: one scene per name")
+    table[entry.name] = entry
+
+
+def entries() -> dict[str, Entry]:
+    """Every known scene by name (shipped, entry points, registered at run time)."""
+    table = {name: Entry(name, spec, "pcverify") for name, spec in CATALOGUE.items()}
+    for entry in (*_entry_points().values(), *_REGISTERED.values()):
+        _add(table, entry)
+    return table
+
+
+def register_scene(spec: SceneSpec, origin: str) -> None:
+    """Make a scene spec known under its name (plugin module or study file); SceneError on a clash."""
+    if not isinstance(spec, SceneSpec):
+        raise SceneError(f"{origin}: {spec!r} is not a SceneSpec")
+    entry = Entry(spec.name, spec, origin)
+    _add(entries(), entry)
+    _REGISTERED[spec.name] = entry
+
+
 def scene_names() -> list[str]:
-    return list(CATALOGUE)
+    return list(entries())
+
+
+def get_spec(name: str) -> SceneSpec:
+    """The spec of the scene called `name` (SceneError if unknown or if a plugin's spec cannot be loaded)."""
+    table = entries()
+    if not isinstance(name, str) or name not in table:
+        raise SceneError(f"scene={name!r} is unknown; allowed: one of {', '.join(table)}")
+    entry = table[name]
+    if isinstance(entry.target, SceneSpec):
+        return entry.target
+    module_name, _, attr = str(entry.target).partition(":")
+    try:
+        spec = getattr(importlib.import_module(module_name), attr)
+    except Exception as exc:  # noqa: BLE001 - a plugin's own import-time error, shown as one line
+        raise SceneError(f"scene {name!r} ({entry.origin}) is unavailable: {type(exc).__name__}: {exc}") from None
+    if not isinstance(spec, SceneSpec):
+        raise SceneError(f"scene {name!r} ({entry.origin}): {entry.target} is not a SceneSpec")
+    return spec
 
 
 def make_scene(name: str, **params: Any) -> Scene:
     """Build the named scene with parameter overrides; unknown names or bad values raise SceneError."""
-    if not isinstance(name, str) or name not in CATALOGUE:
-        raise SceneError(f"scene={name!r} is unknown; allowed: one of {', '.join(CATALOGUE)}")
-    return CATALOGUE[name].make(**params)
+    return get_spec(name).make(**params)
+
+
+# -- scenes from data: a study file's [[scene]] tables, built from the shipped building blocks --------------
+
+SCENE_TABLE_KEYS = {
+    "name": "scene name (text)", "description": "one line (text)",
+    "box": "{ width, height, length } in m (default the paper's bar)",
+    "material": f"one of {', '.join(MATERIALS)}, or {{ name, density, conductivity, heat_capacity, youngs_modulus, "
+                "poisson_ratio }}",
+    "t_max": "temperature scale of the reported T / t_max (K)", "mode": "steady or transient",
+    "t_end": "end time of a transient (s)", "dt": "continuum time step of a transient (s)",
+    "initial_temperature": "temperature at t = 0 (K)", "source": "uniform volumetric heat source (W/m^3)",
+    "held": "list of { face | point | patch (+ radius), temperature }",
+    "supports": "list of { face, displacement = 0 } (frictionless supports)", "clamps": "list of faces",
+    "modes": "number of eigenfrequencies asked for",
+}
+HEAT_KEYS = ("t_max", "mode", "t_end", "dt", "initial_temperature", "source", "held")
+ELASTIC_KEYS = ("supports", "clamps", "modes")
+
+
+def _material(value: Any, where: str) -> Material:
+    if isinstance(value, str):
+        if value not in MATERIALS:
+            raise SceneError(f"{where}: material={value!r} is unknown; allowed: one of {', '.join(MATERIALS)} or a "
+                             "table of constants")
+        return MATERIALS[value]
+    if not isinstance(value, dict):
+        raise SceneError(f"{where}: material={value!r} is not valid; allowed: {SCENE_TABLE_KEYS['material']}")
+    allowed = ("name", "density", "conductivity", "heat_capacity", "youngs_modulus", "poisson_ratio")
+    unknown = sorted(set(value) - set(allowed))
+    if unknown:
+        raise SceneError(f"{where}: material.{unknown[0]} is not a material field; allowed: {', '.join(allowed)}")
+    if "density" not in value:
+        raise SceneError(f"{where}: material.density is missing; allowed: number in (0, 1e6] kg/m^3")
+    fields = {k: float(v) if isinstance(v, int) and not isinstance(v, bool) else v for k, v in value.items()}
+    try:
+        return Material(**{"name": "custom", **fields})
+    except (SceneError, TypeError) as exc:
+        raise SceneError(f"{where}: material: {exc}") from None
+
+
+def _point(value: Any, what: str, where: str) -> tuple[float, float, float]:
+    if not (isinstance(value, list) and len(value) == 3 and all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                                                                 and math.isfinite(v) for v in value)):
+        raise SceneError(f"{where}: {what}={value!r} is not valid; allowed: [x, y, z] in m")
+    return (float(value[0]), float(value[1]), float(value[2]))
+
+
+def _held(items: Any, where: str) -> tuple[Any, ...]:
+    if not isinstance(items, list) or not all(isinstance(i, dict) for i in items):
+        raise SceneError(f"{where}: held={items!r} is not valid; allowed: {SCENE_TABLE_KEYS['held']}")
+    out = []
+    for k, item in enumerate(items):
+        at = f"{where} held[{k}]"
+        kinds = [key for key in ("face", "point", "patch") if key in item]
+        unknown = sorted(set(item) - {"face", "point", "patch", "radius", "temperature"})
+        if unknown or len(kinds) != 1 or "temperature" not in item:
+            raise SceneError(f"{at}: {item!r} is not valid; allowed: exactly one of face, point, patch (+ radius), "
+                             "and temperature (K)")
+        value = item["temperature"]
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            raise SceneError(f"{at}: temperature={value!r} is not valid; allowed: a number (K)")
+        if kinds == ["face"]:
+            out.append(FaceTemperature(item["face"], float(value)))
+        elif kinds == ["point"]:
+            out.append(PointTemperature(_point(item["point"], "point", at), float(value)))
+        else:
+            out.append(PatchTemperature(_point(item["patch"], "patch", at), item.get("radius", math.nan), float(value)))
+    return tuple(out)
+
+
+def spec_from_table(table: dict[str, Any], where: str) -> SceneSpec:
+    """A SceneSpec from a study file's [[scene]] table (one line per error, naming the field).
+
+    The scene's only parameters are its box dimensions (width, height, length; the table's values are
+    the defaults), so that groups can vary them; everything else is fixed by the table."""
+    unknown = sorted(set(table) - set(SCENE_TABLE_KEYS))
+    if unknown:
+        raise SceneError(f"{where}: {unknown[0]} is not a scene field; allowed: {', '.join(SCENE_TABLE_KEYS)}")
+    name = table.get("name")
+    if not isinstance(name, str) or not name.strip() or len(name) > 80:
+        raise SceneError(f"{where}: name={name!r} is not valid; allowed: text of 1 to 80 characters")
+    box_table = table.get("box", {})
+    if not isinstance(box_table, dict) or set(box_table) - {"width", "height", "length"}:
+        raise SceneError(f"{where}: box={box_table!r} is not valid; allowed: {SCENE_TABLE_KEYS['box']}")
+    try:
+        box = Box(**{"width": BOX.width, "height": BOX.height, "length": BOX.length, **box_table})
+        material = _material(table.get("material", "aluminium"), where)
+        heat = any(k in table for k in HEAT_KEYS)
+        elastic = any(k in table for k in ELASTIC_KEYS)
+        constraints = list(_held(table.get("held", []), where))
+        for k, item in enumerate(table.get("supports", [])):
+            if not isinstance(item, dict) or set(item) - {"face", "displacement"} or "face" not in item:
+                raise SceneError(f"{where} supports[{k}]: {item!r} is not valid; allowed: {{ face, displacement }}")
+            constraints.append(FaceSupport(item["face"], float(item.get("displacement", 0.0))))
+        for face in table.get("clamps", []):
+            constraints.append(FaceClamp(face))
+        conduction = Conduction(**{k: table[k] for k in HEAT_KEYS if k in table and k != "held"}) if heat else None
+        elasticity = Elasticity(modes=table.get("modes", 0)) if elastic else None
+    except (TypeError, ValueError) as exc:
+        raise SceneError(f"{where}: {exc}") from None
+    if not heat and not elastic:
+        raise SceneError(f"{where}: the scene has no physics; allowed: heat fields ({', '.join(HEAT_KEYS)}) or "
+                         f"elasticity fields ({', '.join(ELASTIC_KEYS)})")
+    physics = {"conduction"} if heat else set()
+    physics |= {"heat-source"} if conduction is not None and conduction.source != 0 else set()
+    physics |= {"elasticity"} if elastic else set()
+    physics |= {"modes"} if elasticity is not None and elasticity.modes > 0 else set()
+    description = table.get("description", f"scene {name} (defined in a study file)")
+    dims = tuple(Param(p.name, getattr(box, p.name), p.unit, p.description, low=p.low, high=p.high,
+                       low_open=p.low_open) for p in DIMENSIONS)
+
+    def build(p: dict[str, Any]) -> Scene:
+        return Scene(name, str(description), box_of(p), material, frozenset(physics), tuple(constraints),
+                     conduction=conduction, elasticity=elasticity, params=tuple(sorted(p.items())))
+
+    spec = SceneSpec(name, str(description), dims, build)
+    spec.make()  # the scene at its defaults is valid now, not when a cell runs
+    return spec

@@ -1,4 +1,4 @@
-"""Command line `pcverify`: scenes, solvers, run, study, report.
+"""Command line `pcverify`: scenes, solvers, run, study, report, bench.
 
 Every bad input ends in one line `pcverify: error: ...` naming the parameter and the
 allowed range, with exit code 2; never a traceback (unless --debug).
@@ -11,14 +11,26 @@ import contextlib
 import json
 import sys
 import threading
+import time
 from collections.abc import Iterator
+from pathlib import Path
 from typing import Any
 
 import numpy as np
+from tqdm import tqdm
 
-from pcverify.harness import __version__
-from pcverify.harness.catalogue import CATALOGUE, make_scene
-from pcverify.harness.scene import Param, SceneError
+from pcverify import __version__
+from pcverify.harness.cache import Cache
+from pcverify.harness.catalogue import entries as scene_entries
+from pcverify.harness.catalogue import get_spec
+from pcverify.harness.execution import cached_results, execute
+from pcverify.harness.interrupt import remember_sigint
+from pcverify.harness.report import write_index, write_study_report
+from pcverify.harness.study import load_study, study_files
+from pcverify.scene import Param, Resolution, SceneError
+from pcverify.solvers.protocol import skipped
+from pcverify.solvers.registry import SolverUnavailable, get_solver
+from pcverify.solvers.registry import entries as solver_entries
 
 EPILOG = """\
 examples:
@@ -73,30 +85,15 @@ def _param_rows(params: tuple[Param, ...]) -> list[dict[str, Any]]:
 
 
 def cmd_scenes(args: argparse.Namespace) -> int:
-    rows = [{"name": s.name, "description": s.description, "parameters": _param_rows(s.parameters)}
-            for s in CATALOGUE.values()]
-    if args.json:
-        print(json.dumps(rows, indent=1))
-        return 0
-    for row in rows:
-        print(f"{row['name']}\n  {row['description']}")
-        for p in row["parameters"]:
-            print(f"    {p['name']:<12} default {p['default']!s:<10} {p['allowed']:<40} {p['description']}")
-    return 0
-
-
-def cmd_solvers(args: argparse.Namespace) -> int:
-    from pcverify.solvers.registry import REGISTRY, SolverUnavailable, get_solver
-
     rows = []
-    for name in REGISTRY:
+    for name, entry in scene_entries().items():
         try:
-            solver = get_solver(name)
-            rows.append({"name": name, "available": True, "version": solver.version,
-                         "description": (solver.__doc__ or "").strip().splitlines()[0],
-                         "parameters": _param_rows(solver.parameters)})
-        except SolverUnavailable as exc:
-            rows.append({"name": name, "available": False, "reason": str(exc), "parameters": []})
+            spec = get_spec(name)
+            rows.append({"name": name, "available": True, "origin": entry.origin, "description": spec.description,
+                         "parameters": _param_rows(spec.parameters)})
+        except SceneError as exc:
+            rows.append({"name": name, "available": False, "origin": entry.origin, "reason": str(exc),
+                         "parameters": []})
     if args.json:
         print(json.dumps(rows, indent=1))
         return 0
@@ -104,7 +101,35 @@ def cmd_solvers(args: argparse.Namespace) -> int:
         if not row["available"]:
             print(f"{row['name']}  (unavailable: {row['reason']})")
             continue
-        print(f"{row['name']}  {row['description']}")
+        origin = "" if row["origin"] == "pcverify" else f"  [{row['origin']}]"
+        print(f"{row['name']}{origin}\n  {row['description']}")
+        for p in row["parameters"]:
+            print(f"    {p['name']:<12} default {p['default']!s:<10} {p['allowed']:<40} {p['description']}")
+    return 0
+
+
+def cmd_solvers(args: argparse.Namespace) -> int:
+    rows = []
+    for name, entry in sorted(solver_entries().items()):
+        try:
+            solver = get_solver(name)
+            doc = (type(solver).__doc__ or "").strip()
+            rows.append({"name": name, "available": True, "kind": solver.kind, "origin": entry.origin,
+                         "description": doc.splitlines()[0] if doc else "",
+                         "stability_probe": hasattr(solver, "stability_probe"),
+                         "parameters": _param_rows(solver.parameters)})
+        except (SolverUnavailable, SceneError) as exc:
+            rows.append({"name": name, "available": False, "origin": entry.origin, "reason": str(exc),
+                         "parameters": []})
+    if args.json:
+        print(json.dumps(rows, indent=1))
+        return 0
+    for row in rows:
+        if not row["available"]:
+            print(f"{row['name']}  (unavailable: {row['reason']})")
+            continue
+        origin = "" if row["origin"] == "pcverify" else f"  [{row['origin']}]"
+        print(f"{row['name']}  ({row['kind']}) {row['description']}{origin}".rstrip())
         for p in row["parameters"]:
             print(f"    {p['name']:<16} default {p['default']!s:<14} {p['allowed']:<40} {p['description']}")
     return 0
@@ -147,8 +172,6 @@ def split_settings(settings: list[str], scene_params: tuple[Param, ...], solver_
 @contextlib.contextmanager
 def working(label: str, enabled: bool = True) -> Iterator[None]:
     """An elapsed-time indicator on stderr for a solve that runs in one call (shown after 2 s)."""
-    from tqdm import tqdm
-
     bar = tqdm(total=None, desc=label, bar_format="{desc}: {elapsed} elapsed", delay=2.0, disable=not enabled,
                leave=False)
     done = threading.Event()
@@ -171,16 +194,11 @@ def working(label: str, enabled: bool = True) -> Iterator[None]:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    from pcverify.harness.scene import Resolution
-    from pcverify.solvers.protocol import skipped
-    from pcverify.solvers.registry import get_solver
-
-    if args.scene not in CATALOGUE:
-        raise SceneError(f"scene={args.scene!r} is unknown; allowed: one of {', '.join(CATALOGUE)}")
+    spec = get_spec(args.scene)
     resolution = Resolution(args.n, args.refine)
     solver = get_solver(args.solver)
-    scene_vals, solver_vals = split_settings(args.set or [], CATALOGUE[args.scene].parameters, solver.parameters)
-    scene = make_scene(args.scene, **scene_vals)
+    scene_vals, solver_vals = split_settings(args.set or [], spec.parameters, solver.parameters)
+    scene = spec.make(**scene_vals)
     ok, reason = solver.supports(scene)
     with working(f"{solver.name} on {scene.name} n={resolution.n} refine={resolution.refine}", not args.json):
         solution = solver.solve(scene, resolution, **solver_vals) if ok else skipped(scene, solver, resolution, reason)
@@ -204,24 +222,59 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 
 def cmd_study(args: argparse.Namespace) -> int:
-    from pcverify.harness.interrupt import remember_sigint
-    from pcverify.harness.study import run_study_cli
-
+    """`pcverify study NAME`: run (or dry-run) one study, or all shipped ones for `default`."""
     with remember_sigint():
-        return run_study_cli(args)
+        names = sorted(study_files()) if args.name == "default" else [args.name]
+        studies = [load_study(n) for n in names]  # validate all before running any
+        out = Path(args.out)
+        cache = Cache(args.cache or out / "cache")
+        summary = []
+        for study in studies:
+            t0 = time.perf_counter()
+            results, counts = execute(study, cache, dry_run=args.dry_run, jobs=args.jobs, progress=not args.json,
+                                      scheduler=args.scheduler)
+            if args.dry_run:
+                summary.append({"study": study.name, **counts})
+                continue
+            write_study_report(study, results, out)
+            summary.append({"study": study.name, **counts, "wall_s": round(time.perf_counter() - t0, 3)})
+            if not args.json:
+                print(f"{study.name}: {counts['cells']} cells, {counts['cached']} cached, {counts['done']} run, "
+                      f"{counts['failed']} failed, {counts['corrupt']} corrupt entries recomputed "
+                      f"-> {out / study.name}/")
+        if not args.dry_run:
+            index = write_index(out)
+            if not args.json:
+                print(f"report: {index}")
+        if args.json:
+            print(json.dumps(summary))
+        return 0
 
 
 def cmd_report(args: argparse.Namespace) -> int:
-    from pcverify.harness.report import report_cli
-
-    return report_cli(args)
+    """`pcverify report`: rebuild every study's tables from the cache, then index.html."""
+    out = Path(args.out)
+    cache = Cache(out / "cache")
+    rebuilt = []
+    for name in sorted(study_files()):
+        study = load_study(name)
+        results = cached_results(study, cache)
+        if results:
+            write_study_report(study, results, out)
+            rebuilt.append({"study": name, "cells_cached": len(results)})
+    index = write_index(out)
+    if args.json:
+        print(json.dumps({"index": str(index), "studies": rebuilt}))
+    else:
+        for r in rebuilt:
+            print(f"{r['study']}: rebuilt from {r['cells_cached']} cached cells")
+        print(f"report: {index}")
+    return 0
 
 
 def cmd_bench(args: argparse.Namespace) -> int:
     """Run tests/bench with pytest-benchmark, save under --storage, compare with the previous saved run."""
-    from pathlib import Path
-
-    import pytest
+    import pytest  # optional dependency (the test extra): only `pcverify bench` needs it
 
     storage = Path(args.storage).resolve()
     previous = sorted(storage.glob("*/*.json"))
@@ -256,9 +309,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_solvers)
 
     p = sub.add_parser("run", help="solve one scene with one solver and print the solution",
-                       description="Solve SCENE with --solver at lattice resolution n (n x n x (3n-2) nodes).")
+                       description="Solve SCENE with --solver at lattice resolution n (one spacing a = width / (n-1) "
+                       "on every axis: n x n x (3n-2) nodes on the paper's bar).")
     p.add_argument("scene", help="scene name (see `pcverify scenes`)")
-    p.add_argument("--solver", required=True, help="solver name (see `pcverify solvers`)")
+    p.add_argument("--solver", required=True, help="solver name (see `pcverify solvers`) or module:Class of a solver "
+                   "that is not installed as a plugin")
     p.add_argument("--n", type=int_in("n", 2, 1000), default=4,
                    help="lattice resolution n >= 2 (default 4: 160 nodes)")
     p.add_argument("--refine", type=int_in("refine", 1, 1000), default=1,
@@ -304,8 +359,6 @@ def main(argv: list[str] | None = None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return 0
-    from pcverify.solvers.registry import SolverUnavailable
-
     try:
         return args.func(args)
     except (SceneError, CliError, SolverUnavailable, FileNotFoundError) as exc:

@@ -1,7 +1,9 @@
-"""Report figures (PNG and SVG): convergence, cost, work-precision, edge profiles, 3-D renders, benchmarks.
+"""Report figures (PNG and SVG): convergence, cost, work-precision, stability, edge profiles, 3-D renders,
+benchmarks.
 
 Each function takes tables or cached results and a path without suffix, and writes `path.png` and
-`path.svg`; it returns True when it drew something.  Nothing here runs a solver.
+`path.svg`; it returns True when it drew something.  Nothing here runs a solver.  `GROUP_FIGURES` is
+the registry of the figures a study group can ask for by name (its `figures` list).
 """
 
 from __future__ import annotations
@@ -179,6 +181,70 @@ def render_3d(results: list[dict[str, Any]], path: Path, title: str) -> bool:
         fig.colorbar(sc, ax=ax, shrink=0.6, label="relative hotness")
     fig.suptitle(_wrap(title, 120), fontsize=9)
     return _save(fig, path)
+
+
+STATUS_STYLE = {"ok": ("o", "tab:green"), "unstable": ("x", "tab:red"), "defect": ("s", "tab:orange"),
+                "non-stationary": ("^", "tab:blue")}
+
+
+def stability_limits(limits: pd.DataFrame, meta: dict[tuple[str, str], dict[str, str]], path: Path,
+                     title: str) -> bool:
+    """Measured limits against each probe's own theory: one panel per (solver, scene) probe, the limit in the
+    probe's quantity against its x axis (damping ratio, or n), the theory's limit per case and, where
+    computed, the linear-discrete limit.  `meta` gives each probe's quantity, theory label and x axis."""
+    if limits.empty:
+        return False
+    keys = sorted(meta)
+    fig, axes = plt.subplots(1, len(keys), figsize=(5.2 * len(keys), 3.8), squeeze=False)
+    for ax, key in zip(axes[0], keys, strict=True):
+        solver, scene = key
+        info = meta[key]
+        part = limits[(limits["solver"] == solver) & (limits["scene"] == scene)]
+        x = info["x_axis"]
+        theory = part[[x, "safety_theory"]].drop_duplicates().sort_values(x)
+        ax.plot(theory[x], theory["safety_theory"], "k-", lw=1.5, label=info["theory_label"])
+        groups = ["n", "drive_amplitude"] if x != "n" else ["drive_amplitude"]
+        for values, seq in part.groupby(groups, dropna=False):
+            values = values if isinstance(values, tuple) else (values,)
+            label = " ".join(f"{g}={v:g}" if isinstance(v, float) else f"{g}={v}" for g, v in zip(groups, values,
+                             strict=True) if not (isinstance(v, float) and np.isnan(v)))
+            seq = seq.sort_values(x)
+            ax.plot(seq[x], seq["measured_safety"], "o--", label=f"measured {label}".strip())
+        if "linear_safety" in part and part["linear_safety"].notna().any():
+            lin = part.dropna(subset=["linear_safety"]).drop_duplicates([x, "n", "linear_safety"]).sort_values(x)
+            ax.plot(lin[x], lin["linear_safety"], ":", color="grey", marker=".", label="linear-discrete limit")
+        ax.set_xlabel(x.replace("_", " "))
+        ax.set_ylabel(f"limit of {info['quantity']}")
+        ax.set_title(f"{solver} on {scene}", fontsize=8)
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=6)
+    fig.suptitle(_wrap(title, 120), fontsize=9)
+    return _save(fig, path)
+
+
+def stability_map(part: pd.DataFrame, path: Path, title: str) -> bool:
+    """Status of each map run over (dt / dt_theory, damping ratio), one panel per drive amplitude."""
+    if part.empty:
+        return False
+    amps = sorted(part["drive_amplitude"].unique())
+    fig, axes = plt.subplots(1, len(amps), figsize=(3.2 * len(amps), 3.4), sharey=True, squeeze=False)
+    for ax, D in zip(axes[0], amps, strict=True):
+        sub = part[part["drive_amplitude"] == D]
+        for status, (marker, colour) in STATUS_STYLE.items():
+            pick = sub[sub["status"] == status]
+            ax.scatter(pick["dt_ratio"], pick["damping_ratio"].clip(lower=1e-5), marker=marker, c=colour,
+                       label=status)
+        ax.axvline(1.0, color="k", lw=0.8)
+        ax.set_yscale("log")
+        ax.set_xlabel("dt / dt_theory")
+        ax.set_title(f"D = {D:g} a", fontsize=8)
+    axes[0][0].set_ylabel("damping ratio (0 drawn at 1e-5)")
+    axes[0][-1].legend(fontsize=6)
+    fig.suptitle(_wrap(title, 120), fontsize=9)
+    return _save(fig, path)
+
+
+GROUP_FIGURES = {"edge-profiles": edge_profiles, "render-3d": render_3d}
 
 
 def benchmark_runs(storage: Path) -> pd.DataFrame:

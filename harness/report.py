@@ -5,7 +5,6 @@ The report reads study results (or the cache through them); it never runs a solv
 
 from __future__ import annotations
 
-import argparse
 import base64
 import datetime as dt
 import html
@@ -20,8 +19,9 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from pcverify.harness import analysis, figures, verdict
-from pcverify.harness.scene import SceneError
+from pcverify.harness import figures, verdict
+from pcverify.harness.analyses import group_report
+from pcverify.harness.tables import cells_table
 from pcverify.harness.vtu import write_vtu
 
 PACKAGES = ("numpy", "scipy", "numba", "fipy", "scikit-fem", "pyamg", "pandas", "matplotlib")
@@ -56,60 +56,6 @@ def _write_vtus(results: list[dict[str, Any]], folder: Path) -> list[str]:
     return names
 
 
-def _reference_values(g: Any, done: dict[str, pd.DataFrame]) -> dict[str, float] | None:
-    """Reference value per quantity from an earlier group's table (option reference_table, e.g. the
-    Richardson fits of a converged continuum sequence: its `extrapolated` column by `quantity`)."""
-    name = g.options.get("reference_table")
-    if not name:
-        return None
-    table = done.get(name)
-    if table is None or table.empty:
-        return {}
-    metric = g.options.get("reference_metric", "extrapolated")
-    rows = table.dropna(subset=[metric]) if metric in table else table.iloc[0:0]
-    return {str(q): float(v) for q, v in zip(rows["quantity"], rows[metric], strict=True)}
-
-
-def _group_tables(g: Any, res: list[dict[str, Any]], cells: pd.DataFrame, folder: Path,
-                  done: dict[str, pd.DataFrame]) -> tuple[dict[str, pd.DataFrame], list[str]]:
-    """Tables and figures of one group (its cells table given), by its analysis and its `figures` option."""
-    figs: list[str] = []
-    stem = folder / g.id
-    if g.analysis == "convergence":
-        quantities = list(g.options.get("quantities", ["volume_mean", "bulk_median"]))
-        levels, fits = analysis.convergence(res, quantities, _reference_values(g, done))
-        tables = {f"{g.id}-levels": levels, f"{g.id}-fits": fits}
-        err_cols = [c for c in levels.columns if c.endswith(".linf") or c.startswith("err.")]
-        if not levels.empty and figures.convergence(levels, err_cols or quantities, stem, g.title, fits):
-            figs.append(f"{g.id}.png")
-    elif g.analysis == "timing":
-        df = analysis.timing(res)
-        tables = {f"{g.id}-timing": df}
-        if not df.empty and figures.cost(df, stem, g.title):
-            figs.append(f"{g.id}.png")
-    elif g.analysis == "work-precision":
-        error = g.options.get("error", "nodes.l2")
-        df = analysis.work_precision(res, error)
-        tables = {f"{g.id}-work-precision": df}
-        if figures.work_precision(df, f"err.{error}", stem, g.title):
-            figs.append(f"{g.id}.png")
-    elif g.analysis == "stability":
-        from pcverify.harness.stability import report_tables
-
-        tables, more = report_tables(res, folder, g.id, g.title)
-        figs += more
-    else:
-        tables = {}
-    tables.setdefault(f"{g.id}-cells", cells)
-    for kind in g.options.get("figures", []):
-        draw = {"edge-profiles": figures.edge_profiles, "render-3d": figures.render_3d}.get(kind)
-        if draw is None:
-            raise SceneError(f"group {g.id}: figures entry {kind!r} is unknown; allowed: edge-profiles, render-3d")
-        if draw(res, folder / f"{g.id}-{kind}", g.title):
-            figs.append(f"{g.id}-{kind}.png")
-    return tables, figs
-
-
 def write_study_report(study: Any, results: list[dict[str, Any]], out: Path) -> Path:
     """Write tables, plots, VTU files and verdicts of one study into out/<study>/ and its manifest."""
     folder = out / study.name
@@ -119,8 +65,8 @@ def write_study_report(study: Any, results: list[dict[str, Any]], out: Path) -> 
     group_cells = []
     for g in study.groups:
         res = [r for r in results if r.get("group") == g.id]
-        group_cells.append(analysis.cells_table(res))
-        tables, figs = _group_tables(g, res, group_cells[-1], folder, all_tables)
+        group_cells.append(cells_table(res))
+        tables, figs = group_report(g, res, group_cells[-1], folder, all_tables)
         skipped = [r for r in res if r.get("status") in ("skipped", "failed")]
         if skipped:
             tables[f"{g.id}-skipped"] = pd.DataFrame(
@@ -248,27 +194,3 @@ def write_index(out: Path) -> Path:
     tmp.write_text("\n".join(parts))
     tmp.replace(index)
     return index
-
-
-def report_cli(args: argparse.Namespace) -> int:
-    """`pcverify report`: rebuild every study's tables from the cache, then index.html."""
-    from pcverify.harness.cache import Cache
-    from pcverify.harness.study import cached_results, load_study, study_files
-
-    out = Path(args.out)
-    cache = Cache(out / "cache")
-    rebuilt = []
-    for name in sorted(study_files()):
-        study = load_study(name)
-        results = cached_results(study, cache)
-        if results:
-            write_study_report(study, results, out)
-            rebuilt.append({"study": name, "cells_cached": len(results)})
-    index = write_index(out)
-    if args.json:
-        print(json.dumps({"index": str(index), "studies": rebuilt}))
-    else:
-        for r in rebuilt:
-            print(f"{r['study']}: rebuilt from {r['cells_cached']} cached cells")
-        print(f"report: {index}")
-    return 0

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from pcverify.harness.scene import SceneError
+from pcverify.scene import SceneError
 
 REFERENCE_KINDS = ("analytic", "extrapolated", "mesh-dependent", "same-grid", "theory", "paper")
 SENSES = ("within", "at-most", "at-least")

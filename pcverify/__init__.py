@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from importlib import metadata
 
-from pcverify.harness.scene import Param, Resolution, Scene, SceneError
+from pcverify.scene import Param, Resolution, Scene, SceneError
 from pcverify.solvers.protocol import Solution, Solver, skipped
 
 try:

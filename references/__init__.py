@@ -9,19 +9,21 @@ from __future__ import annotations
 
 import numpy as np
 
-from pcverify.harness.scene import FaceTemperature, Scene
 from pcverify.references import heat_faces
+from pcverify.scene import FaceTemperature, Scene
 
 
 def analytic(scene: Scene, points: np.ndarray) -> np.ndarray | None:
     """Exact relative temperature at `points`, or None if the scene has no analytic solution."""
+    heat = scene.conduction
     faces = {c.face: c.value for c in scene.constraints if isinstance(c, FaceTemperature)}
-    if len(scene.constraints) != 2 or faces.get("z0") != scene.conduction.t_max or faces.get("zL") != 0.0:
+    if heat is None or heat.source != 0.0 or len(scene.constraints) != 2 or faces.get("z0") != heat.t_max \
+            or faces.get("zL") != 0.0:
         return None
     z = np.asarray(points, dtype=float)[:, 2]
     length = scene.box.length
-    if scene.conduction.mode == "steady":
+    if heat.mode == "steady":
         return heat_faces.steady(z, length, 1.0)
-    if scene.conduction.initial_temperature != 0.0:
+    if heat.initial_temperature != 0.0:
         return None
-    return heat_faces.transient(z, scene.conduction.t_end, length, scene.material.diffusivity, 1.0)
+    return heat_faces.transient(z, heat.t_end, length, scene.material.diffusivity, 1.0)

@@ -14,18 +14,14 @@ Analytic (PHYSICS.md §5):
   one pressure mode omega = c_L |k| and (d - 1) shear modes omega = c_T |k| per index triple with d nonzero
   indices.  A smooth problem: it shows the elements' full convergence order.
 
-Continuum reference: `converged_frequencies` refines bar-modes with scikit-fem Q2 and extrapolates the lowest
-frequency of each mode kind by Richardson (Celik et al. 2008) with its GCI; cached on disk.
+The converged continuum reference of bar-modes (scikit-fem Q2 refined, Richardson with its GCI) is a study
+group (`modes-q2-convergence` of the elasticity study), not a formula: it lives in the study's tables.
 """
 
 from __future__ import annotations
 
 import itertools
-import json
 import math
-import os
-from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -103,64 +99,3 @@ def roller_box_hz(youngs_modulus: float, poisson_ratio: float, density: float, e
         freqs.extend([c_t * k / (2 * math.pi)] * (d - 1))
     freqs.sort()
     return np.array(freqs[:count])
-
-
-# -- the converged continuum reference for bar-modes ---------------------------------------------------
-
-KIND_KEYS = ("f_bending_x_hz", "f_bending_y_hz", "f_torsion_hz", "f_axial_hz")
-DEFAULT_REFINES = (4, 5, 6)
-
-
-def _cache_dir() -> Path:
-    root = os.environ.get("PCVERIFY_CACHE") or os.path.join(os.path.expanduser("~"), ".cache", "pcverify")
-    return Path(root) / "references"
-
-
-def converged_frequencies(refines: tuple[int, ...] = DEFAULT_REFINES, n: int = 2, modes: int = 8,
-                          use_cache: bool = True) -> dict[str, Any]:
-    """Mesh-converged lowest bending-x, bending-y, torsion and axial frequencies of bar-modes (Hz).
-
-    scikit-fem Q2 on the grids (n, refine) for `refines` (h = a / refine), three-grid Richardson
-    extrapolation with the GCI (factor of safety 1.25) per kind.  Returns
-    {kind_key: {"extrapolated", "gci_fine", "uncertainty_hz", "order", "kind", "values", "h"}} plus
-    "meta".  Stored as JSON under $PCVERIFY_CACHE/references (default ~/.cache/pcverify) keyed by the
-    inputs and the solver version, so the fine solves (Q2, 18 759 unknowns at refine 6; ~20 s on a quiet
-    2-core machine, minutes under load) run once.  The clamped edges are singular, so the apparent order
-    is ~1.5 (falling towards 2 x 0.54 = 1.1): the GCI, not the extrapolated value alone, is the reference.
-    """
-    from pcverify.harness.catalogue import make_scene
-    from pcverify.harness.metrics import richardson
-    from pcverify.harness.scene import Resolution
-    from pcverify.solvers.continuum.skfem_elastic import SkfemElastic
-
-    solver = SkfemElastic()
-    scene = make_scene("bar-modes", modes=modes)
-    key = f"bar-modes-q2-n{n}-r{'-'.join(map(str, refines))}-m{modes}-{scene.content_hash()}-v{solver.version}"
-    path = _cache_dir() / f"{key}.json"
-    if use_cache and path.exists():
-        try:
-            return json.loads(path.read_text())
-        except (json.JSONDecodeError, OSError):
-            pass  # corrupt: recompute and overwrite
-    hs, values = [], {k: [] for k in KIND_KEYS}
-    for r in refines:
-        sol = solver.solve(scene, Resolution(n, r), element="q2")
-        hs.append(sol.resolution["h"])
-        for k in KIND_KEYS:
-            values[k].append(sol.summary.get(k, math.nan))
-    out: dict[str, Any] = {"meta": {"n": n, "refines": list(refines), "element": "q2", "modes": modes,
-                                    "solver_version": solver.version}}
-    for k in KIND_KEYS:
-        f = np.asarray(values[k], dtype=float)
-        entry: dict[str, Any] = {"values": f.tolist(), "h": hs}
-        if np.all(np.isfinite(f)) and len(f) >= 3:
-            rr = richardson(np.asarray(hs), f)
-            entry.update({"extrapolated": rr.extrapolated, "gci_fine": rr.gci_fine, "uncertainty_hz": rr.uncertainty,
-                          "order": rr.order, "kind": rr.kind})
-        out[k] = entry
-    if use_cache:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_suffix(".tmp")
-        tmp.write_text(json.dumps(out, indent=1))
-        os.replace(tmp, path)
-    return out

@@ -1,8 +1,9 @@
-"""Solver protocol and the Solution every solver returns.
+"""The solver contract: the Solver protocol, the Solution every solver returns, and the optional
+stability probe.
 
-A solver turns (scene, resolution, parameters) into a Solution: values at the
-scene's sample points, the cost, and diagnostics.  Solvers know nothing about
-studies or reports; they may import `harness.scene` and nothing else of the harness.
+A solver turns (scene, resolution, parameters) into a Solution: values at the scene's sample points,
+the cost, and diagnostics.  Solvers know nothing about studies or reports: they import the scene model
+(`pcverify.scene`) and nothing of the harness.
 """
 
 from __future__ import annotations
@@ -13,9 +14,10 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from pcverify.harness.scene import Param, Resolution, Scene, resolve_params
+from pcverify.scene import Param, Resolution, Scene, resolve_params
 
 STATUSES = ("ok", "unstable", "skipped", "non-stationary", "defect", "failed")
+KINDS = ("particle", "continuum")  # a solver's `kind`: the figures draw particles as markers, continua as lines
 
 
 
@@ -97,10 +99,16 @@ def _jsonable(obj: Any) -> Any:
 
 
 class Solver(Protocol):
-    """The solver protocol (see DESIGN.md, Contracts)."""
+    """The solver protocol (DESIGN.md, Contracts).
+
+    name: the registry name.  kind: "particle" or "continuum".  parameters: every parameter `solve`
+    takes, with its default, unit and range (`pcverify solvers` lists them).  A solver may also offer
+    `stability_probe() -> StabilityProbe` (see below); the cache key holds a fingerprint of the
+    solver's code, so no version needs bumping when results change.
+    """
 
     name: str
-    version: str  # bump when results change; part of the cache key
+    kind: str
     parameters: tuple[Param, ...]
 
     def supports(self, scene: Scene) -> tuple[bool, str]:
@@ -115,6 +123,70 @@ class Solver(Protocol):
         **params: Any,
     ) -> Solution:
         """Solve `scene` at `resolution`; report at `samples` (default: scene.sample_sets(n))."""
+        ...
+
+
+@dataclass(frozen=True)
+class ProbeSetup:
+    """A stability probe's prepared case: everything before integration, and where ratio 1 sits.
+
+    dt_theory: the step of ratio 1 (s).  quantity: what the limit is expressed in (e.g. "dt omega_max / 2");
+    theory_limit: the theory's limit in that quantity, so a limiting ratio r is the quantity r *
+    theory_limit; theory_label: the theory's short legend; x_axis: the context key (or "n") the report
+    plots the limit against.  solver_dt_limit: the step the solver's own input guard allows (s; nan if
+    none).  context: scalars that describe the case (damping_ratio, drive_amplitude, omega_max, ...),
+    reported beside the measurement.  state: the model's prepared run (private to the probe).
+    """
+
+    dt_theory: float
+    theory_limit: float
+    quantity: str
+    theory_label: str
+    x_axis: str = "n"
+    solver_dt_limit: float = math.nan
+    context: dict[str, Any] = field(default_factory=dict)
+    state: Any = None
+
+
+@dataclass(frozen=True)
+class ProbeRun:
+    """One probe run at dt = dt_ratio * dt_theory: the solver's status, how far it got, and an independent
+    re-check of the final state (`blown`; `undetected`: blown but not reported unstable by the solver).
+    details: model-specific numbers (hops, stationarity, displacement, ...)."""
+
+    status: str
+    reason: str
+    dt: float
+    dt_ratio: float
+    steps: int
+    steps_planned: int
+    stopped_at_step: int
+    kernel_status: str
+    blown: bool
+    undetected: bool
+    details: dict[str, Any] = field(default_factory=dict)
+
+
+class StabilityProbe(Protocol):
+    """Measures where a solver's time stepping becomes unstable, beyond the solver's own input guard.
+
+    theory: the stated theory of the limit.  `prepare` validates the parameters (SceneError) and builds
+    the case; `run` integrates it at dt = dt_ratio * dt_theory; `linear_limit` is the exact limit of the
+    linearised scheme in the setup's quantity, nan if the probe has none.
+    """
+
+    theory: str
+
+    def supports(self, scene: Scene) -> tuple[bool, str]:
+        ...
+
+    def prepare(self, scene: Scene, resolution: Resolution, params: dict[str, Any]) -> ProbeSetup:
+        ...
+
+    def run(self, setup: ProbeSetup, dt_ratio: float) -> ProbeRun:
+        ...
+
+    def linear_limit(self, setup: ProbeSetup) -> float:
         ...
 
 

@@ -1,17 +1,28 @@
-"""The solver registry.
+"""The solver registry: solver names to solver classes.
 
-The registry maps a solver name to "module:Class"; a new solver is one module plus
-one line here.  Modules import lazily so a missing optional dependency gives a
-clear error for that solver only.
+Four sources, one table: the shipped solvers; the `pcverify.solvers` entry points of installed plugin
+distributions (name -> "module:Class"); solvers registered at run time by plugin modules (a study
+file's `plugins` list, see `pcverify.harness.plugins`); and "module:Class" given directly (the
+command line's `--solver pkg.mod:Class`, or a study file's solver list).  Modules are imported when a
+solver is asked for, so a broken plugin is one clear error for that solver only.  Two sources that
+give the same name are an error that names both.
 """
 
 from __future__ import annotations
 
 import importlib
+import re
+from dataclasses import dataclass
+from functools import cache
+from importlib import metadata
+from typing import Any
 
-from pcverify.harness.scene import SceneError
+from pcverify.scene import Param, SceneError, shown
+from pcverify.solvers.protocol import KINDS, Solver
 
-REGISTRY: dict[str, str] = {
+ENTRY_POINT_GROUP = "pcverify.solvers"
+MODULE = re.compile(r"^[A-Za-z_]\w*(\.[A-Za-z_]\w*)*$")
+SHIPPED: dict[str, str] = {
     "skfem": "pcverify.solvers.continuum.skfem_heat:SkfemHeat",
     "fipy": "pcverify.solvers.continuum.fipy_heat:FipyHeat",
     "macromolecule": "pcverify.solvers.particles.macromolecule.solver:Macromolecule",
@@ -21,20 +32,124 @@ REGISTRY: dict[str, str] = {
 
 
 class SolverUnavailable(RuntimeError):
-    """A registered solver whose module or dependency cannot be imported."""
+    """A registered solver whose module or dependency cannot be imported (one line, names it)."""
+
+
+@dataclass(frozen=True)
+class Entry:
+    """Where a solver name comes from: a "module:Class" target (or the class itself) and its origin."""
+
+    name: str
+    target: Any
+    origin: str
+
+
+_REGISTERED: dict[str, Entry] = {}
+
+
+@cache
+def _entry_points() -> dict[str, Entry]:
+    """The `pcverify.solvers` entry points of the installed distributions, read once per process."""
+    out: dict[str, Entry] = {}
+    for ep in metadata.entry_points(group=ENTRY_POINT_GROUP):
+        dist = ep.dist
+        origin = f"entry point of {dist.name} {dist.version}" if dist is not None else "an entry point"
+        entry = Entry(ep.name, ep.value, origin)
+        _add(out, entry)
+    return out
+
+
+def _add(table: dict[str, Entry], entry: Entry) -> None:
+    old = table.get(entry.name)
+    if old is not None and old.origin != entry.origin and old.target != entry.target:
+        raise SceneError(f"solver name {entry.name!r} is registered twice: by {old.origin} ({_show(old.target)}) and "
+                         f"by {entry.origin} ({_show(entry.target)}); allowed: one solver per name")
+    table[entry.name] = entry
+
+
+def _show(target: Any) -> str:
+    return target if isinstance(target, str) else f"{target.__module__}:{target.__qualname__}"
+
+
+def entries() -> dict[str, Entry]:
+    """Every known solver by name (shipped, entry points, registered at run time)."""
+    table = {name: Entry(name, target, "pcverify") for name, target in SHIPPED.items()}
+    for entry in (*_entry_points().values(), *_REGISTERED.values()):
+        _add(table, entry)
+    return table
 
 
 def solver_names() -> list[str]:
-    return sorted(REGISTRY)
+    return sorted(entries())
 
 
-def get_solver(name: str):
-    """Instantiate the solver called `name` (SceneError if unknown, SolverUnavailable if not importable)."""
-    if not isinstance(name, str) or name not in REGISTRY:
-        raise SceneError(f"solver={name!r} is unknown; allowed: one of {', '.join(solver_names())}")
-    module_name, cls_name = REGISTRY[name].split(":")
+def register_solver(cls: type, origin: str) -> None:
+    """Make a solver class known under its `name` (e.g. from a plugin module); SceneError on a clash."""
+    check_solver_class(cls, origin)
+    table = entries()
+    entry = Entry(cls.name, cls, origin)
+    _add(table, entry)  # raises on a clash with any other source
+    _REGISTERED[cls.name] = entry
+
+
+def is_solver_class(obj: Any) -> bool:
+    """Whether `obj` looks like a solver class (a class with the protocol's attributes)."""
+    return isinstance(obj, type) and all(hasattr(obj, a) for a in ("name", "kind", "parameters", "supports", "solve"))
+
+
+def check_solver_class(cls: Any, where: str) -> None:
+    """SceneError naming what is missing when `cls` does not follow the Solver protocol."""
+    if not isinstance(cls, type):
+        raise SceneError(f"{where}: {_show(cls) if hasattr(cls, '__module__') else cls!r} is not a class; allowed: "
+                         "a Solver class")
+    missing = [a for a in ("name", "kind", "parameters", "supports", "solve") if not hasattr(cls, a)]
+    if missing:
+        raise SceneError(f"{where}: {cls.__qualname__} lacks {', '.join(missing)}; allowed: a class with the Solver "
+                         "protocol's name, kind, parameters, supports and solve")
+    if not isinstance(cls.name, str) or not cls.name:
+        raise SceneError(f"{where}: {cls.__qualname__}.name={cls.name!r} is not valid; allowed: non-empty text")
+    if cls.kind not in KINDS:
+        raise SceneError(f"{where}: {cls.__qualname__}.kind={cls.kind!r} is not allowed; allowed: {', '.join(KINDS)}")
+    params = cls.parameters
+    if not isinstance(params, tuple) or not all(isinstance(p, Param) for p in params):
+        raise SceneError(f"{where}: {cls.__qualname__}.parameters is not valid; allowed: a tuple of Param")
+
+
+def _load(target: Any, what: str) -> type:
+    if not isinstance(target, str):
+        return target
+    module_name, _, cls_name = target.partition(":")
     try:
         module = importlib.import_module(module_name)
     except ImportError as exc:
-        raise SolverUnavailable(f"solver {name!r} is unavailable: {exc}") from exc
-    return getattr(module, cls_name)()
+        raise SolverUnavailable(f"{what} is unavailable: {type(exc).__name__}: {exc}") from exc
+    except Exception as exc:  # noqa: BLE001 - a plugin's own import-time error, shown as one line
+        raise SolverUnavailable(f"{what} is unavailable: importing {module_name} failed with "
+                                f"{type(exc).__name__}: {exc}") from exc
+    cls = getattr(module, cls_name, None)
+    if cls is None:
+        raise SolverUnavailable(f"{what} is unavailable: module {module_name} has no {cls_name!r}")
+    return cls
+
+
+def get_solver(name: str) -> Solver:
+    """An instance of the solver called `name`, or of "module:Class".
+
+    SceneError if the name is unknown or the class is not a solver; SolverUnavailable if its module
+    (or a dependency of it) cannot be imported."""
+    table = entries()
+    unknown = SceneError(f"solver={shown(name)} is unknown; allowed: one of {', '.join(sorted(table))}, or "
+                         "module:Class")
+    if isinstance(name, str) and ":" in name:
+        module_name, _, cls_name = name.partition(":")
+        if not MODULE.match(module_name) or not cls_name.isidentifier():
+            raise unknown
+        cls = _load(name, f"solver {name!r}")
+        check_solver_class(cls, f"solver {name!r}")
+        return cls()
+    if not isinstance(name, str) or name not in table:
+        raise unknown
+    entry = table[name]
+    cls = _load(entry.target, f"solver {name!r} ({entry.origin})")
+    check_solver_class(cls, f"solver {name!r} ({entry.origin})")
+    return cls()

@@ -15,7 +15,7 @@ import math
 
 import numpy as np
 
-from pcverify.harness.scene import Response
+from pcverify.scene import Response
 from pcverify.solvers.particles.mca import kernel as mk
 from pcverify.solvers.particles.mca.automata import build_automata
 from pcverify.solvers.particles.mca.model import Elastic, Model, relax

@@ -19,9 +19,10 @@ import pytest
 
 from pcverify.harness.cache import Cache
 from pcverify.harness.catalogue import make_scene
-from pcverify.harness.scene import Resolution
-from pcverify.harness.study import execute, load_study, run_cell
-from pcverify.solvers.registry import REGISTRY
+from pcverify.harness.execution import execute, run_cell
+from pcverify.harness.study import load_study
+from pcverify.scene import Resolution
+from pcverify.solvers.registry import SHIPPED
 
 STUDY = """name = "same"
 title = "determinism"
@@ -72,7 +73,7 @@ def _entries(folder: Path) -> dict[str, Any]:
 @pytest.fixture(scope="module")
 def study_path(tmp_path_factory) -> Path:
     path = tmp_path_factory.mktemp("det") / "same.toml"
-    path.write_text(STUDY + (MCA_GROUP if "mca" in REGISTRY else ""))
+    path.write_text(STUDY + (MCA_GROUP if "mca" in SHIPPED else ""))
     return path
 
 

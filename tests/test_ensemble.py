@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pcverify.harness.scene import SceneError
+from pcverify.scene import SceneError
 from pcverify.solvers.particles.macromolecule.ensemble import EnsembleRun
 from pcverify.solvers.particles.macromolecule.force import SevenRoot
 from pcverify.solvers.particles.macromolecule.large_n import (

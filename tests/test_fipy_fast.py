@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from pcverify.harness.catalogue import make_scene
-from pcverify.harness.scene import Resolution
+from pcverify.scene import Resolution
 from pcverify.solvers.continuum.fipy_fast import diffusion_term, tensor_grid3d
 from pcverify.solvers.continuum.fipy_heat import FipyHeat, grid_axes
 from pcverify.solvers.protocol import effective_params

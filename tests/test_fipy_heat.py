@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from pcverify.harness.catalogue import make_scene
-from pcverify.harness.scene import Resolution, SceneError
 from pcverify.references.heat_faces import transient
+from pcverify.scene import Resolution, SceneError
 from pcverify.solvers.continuum.fipy_heat import FipyHeat, grid_axes
 
 fp = pytest.importorskip("fipy")

@@ -23,9 +23,9 @@ from hypothesis import strategies as st
 
 from pcverify.harness.catalogue import CATALOGUE, make_scene
 from pcverify.harness.cli import main
-from pcverify.harness.scene import Param, Resolution, SceneError
+from pcverify.scene import Param, Resolution, SceneError
 from pcverify.solvers.protocol import effective_params
-from pcverify.solvers.registry import REGISTRY, SolverUnavailable, get_solver
+from pcverify.solvers.registry import SHIPPED, SolverUnavailable, get_solver
 
 PROFILE = settings(derandomize=True, database=None, deadline=None, max_examples=150,
                    suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much,
@@ -35,7 +35,7 @@ HOSTILE: collections.Counter = collections.Counter()  # kind -> inputs tried; ki
 
 def _solvers() -> dict:
     out = {}
-    for name in REGISTRY:
+    for name in SHIPPED:
         try:
             out[name] = get_solver(name)
         except SolverUnavailable:
@@ -144,7 +144,7 @@ def test_resolution_rejects_hostile_values(n, refine) -> None:
 @given(name=st.one_of(st.text(max_size=20),
                       st.sampled_from(["", " ", "bar-heat", "BAR-HEAT-PAPER", "bar-heat-paper "])))
 def test_unknown_scene_and_solver_names(name) -> None:
-    assume(name not in CATALOGUE and name not in REGISTRY)
+    assume(name not in CATALOGUE and name not in SHIPPED)
     with pytest.raises(SceneError, match=r"scene=.*allowed: one of bar-heat-paper"):
         make_scene(name)
     with pytest.raises(SceneError, match=r"solver=.*allowed: one of"):

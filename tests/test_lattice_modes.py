@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from pcverify.harness.catalogue import make_scene
-from pcverify.harness.scene import Resolution
+from pcverify.scene import Resolution
 from pcverify.solvers.continuum.skfem_elastic import SkfemElastic
 from pcverify.solvers.particles.macromolecule.elastic_modes import uniaxial_constants
 from pcverify.solvers.particles.macromolecule.force import SevenRoot

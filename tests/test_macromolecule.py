@@ -12,9 +12,10 @@ import pytest
 import scipy.linalg as sla
 
 from pcverify.harness.catalogue import make_scene
-from pcverify.harness.scene import Resolution, SceneError
+from pcverify.scene import Resolution, SceneError
 from pcverify.solvers.particles.macromolecule import kernel_fast as fk
 from pcverify.solvers.particles.macromolecule import kernel_reference as ig
+from pcverify.solvers.particles.macromolecule.fixes import make_fixes
 from pcverify.solvers.particles.macromolecule.force import STABLE, SevenRoot, force_array, force_slope_array
 from pcverify.solvers.particles.macromolecule.lattice import build_lattice
 from pcverify.solvers.particles.macromolecule.modal import (
@@ -25,7 +26,9 @@ from pcverify.solvers.particles.macromolecule.modal import (
     modal_basis,
     top_frequency,
 )
-from pcverify.solvers.particles.macromolecule.solver import Macromolecule, energy_balance_error, make_fixes, simulate
+from pcverify.solvers.particles.macromolecule.setup import prepare
+from pcverify.solvers.particles.macromolecule.simulate import energy_balance_error, simulate
+from pcverify.solvers.particles.macromolecule.solver import Macromolecule
 from pcverify.solvers.protocol import effective_params
 
 SOLVER = Macromolecule()
@@ -34,14 +37,14 @@ PAPER = make_scene("bar-heat-paper")
 
 def _setup(n: int, **given):
     p = effective_params(SOLVER, given)
-    s = SOLVER.setup(PAPER, n, p)
+    s = prepare(PAPER, n, p)
     return p, s
 
 
 def _undriven(n: int, **given):
     """Lattice of bar-heat-paper with the red pair held still (no drive), and its setup."""
     p, s = _setup(n, **given)
-    fx = make_fixes(PAPER, s["lat"], p, 2 * np.pi * s["f_top"])
+    fx = make_fixes(PAPER, s.lattice, p, 2 * np.pi * s.f_top)
     fx.amp[:] = 0.0
     return p, s, fx
 
@@ -115,8 +118,8 @@ def test_hessian_equals_finite_difference() -> None:
 def test_f_top_sets_highest_frequency(n: int) -> None:
     """A from f_top: the highest eigenfrequency of the held lattice equals f_top to 1e-9."""
     p, s = _setup(n, f_top=37.0)
-    lat, fx = s["lat"], s["fx"]
-    w = top_frequency(hessian(lat.positions, lat.pairs, s["model"], lat.a), lat.mass, free_dofs(~fx.held))
+    lat, fx = s.lattice, s.fixes
+    w = top_frequency(hessian(lat.positions, lat.pairs, s.model, lat.a), lat.mass, free_dofs(~fx.held))
     assert w / (2 * np.pi) == pytest.approx(37.0, rel=1e-9)
 
 
@@ -124,15 +127,15 @@ def test_damping_ratio_subspace_and_rough_estimate() -> None:
     """The top-mode damping ratio from the modal subspace equals the full damped eigenproblem's, and
     the rough delta/(2 m omega) underestimates it several-fold (PHYSICS.md pitfall)."""
     p, s = _setup(3, damping_ratio=0.05)
-    lat, fx = s["lat"], s["fx"]
+    lat, fx = s.lattice, s.fixes
     dofs = free_dofs(~fx.held)
-    K = hessian(lat.positions, lat.pairs, s["model"], lat.a)
-    C = damping_matrix(lat.positions, lat.pairs, s["delta"])
+    K = hessian(lat.positions, lat.pairs, s.model, lat.a)
+    C = damping_matrix(lat.positions, lat.pairs, s.delta)
     zeta_sub = damped_top_mode(modal_basis(K, lat.mass, dofs), C, dofs)[0]
     zeta_all = damped_top_mode(modal_basis(K, lat.mass, dofs, subspace=10**6), C, dofs)[0]
     assert zeta_sub == pytest.approx(0.05, rel=1e-9)
     assert zeta_all == pytest.approx(0.05, rel=1e-3)
-    assert s["zeta_rough"] < 0.05 / 3
+    assert s.damping_ratio_rough < 0.05 / 3
 
 
 # ---------------------------------------------------------------- integrator
@@ -141,15 +144,15 @@ def test_energy_conserved_undamped() -> None:
     error stays <= 1e-6; the on-step energy of velocity Verlet oscillates by ~(omega dt)^2/16 but
     does not drift."""
     p, s, fx = _undriven(3, delta=0.0, safety=0.1)
-    lat = s["lat"]
-    w = 2 * np.pi * s["f_top"]
-    assert s["dt"] * w / 2 == pytest.approx(0.1, rel=1e-12)
+    lat = s.lattice
+    w = 2 * np.pi * s.f_top
+    assert s.dt * w / 2 == pytest.approx(0.1, rel=1e-12)
     v0 = np.random.default_rng(1).normal(size=(lat.size, 3)) * 1e-6 * lat.a * w
-    r = simulate(lat, s["model"], fx, 0.0, s["dt"], 1e5 * s["dt"], v0=v0)
+    r = simulate(lat, s.model, fx, 0.0, s.dt, 1e5 * s.dt, v0=v0)
     assert r.steps == 100_000 and r.status_code == ig.DONE
     assert energy_balance_error(r) <= 1e-6
     e_on = r.history[:, ig.H_KIN] + r.history[:, ig.H_POT]
-    wdt = w * s["dt"]
+    wdt = w * s.dt
     assert np.ptp(e_on) / e_on[0] < wdt**2 / 4
     half = len(e_on) // 2
     assert abs(e_on[half:].mean() - e_on[:half].mean()) / e_on[0] < 1e-4  # no drift
@@ -158,13 +161,13 @@ def test_energy_conserved_undamped() -> None:
 def _measured_limit(n: int, zeta: float) -> tuple[float, float, float]:
     """(bisected dt*omega_max/2, linear-discrete limit from the amplification matrix, top-mode zeta)."""
     p, s, fx = _undriven(n, damping_ratio=zeta)
-    lat = s["lat"]
-    w = 2 * np.pi * s["f_top"]
+    lat = s.lattice
+    w = 2 * np.pi * s.f_top
     v0 = np.random.default_rng(1).normal(size=(lat.size, 3)) * 1e-6 * lat.a * w
 
     def unstable(h: float) -> bool:
         dt = 2 * h / w
-        r = simulate(lat, s["model"], fx, s["delta"], dt, 3000 * dt, v0=v0, blowup_factor=100.0, check_every=20)
+        r = simulate(lat, s.model, fx, s.delta, dt, 3000 * dt, v0=v0, blowup_factor=100.0, check_every=20)
         return r.status_code != ig.DONE
 
     lo, hi = 0.6, 1.1
@@ -172,8 +175,8 @@ def _measured_limit(n: int, zeta: float) -> tuple[float, float, float]:
         mid = 0.5 * (lo + hi)
         lo, hi = (lo, mid) if unstable(mid) else (mid, hi)
     dofs = free_dofs(~fx.held)
-    K = hessian(lat.positions, lat.pairs, s["model"], lat.a)[dofs][:, dofs].toarray() / lat.mass
-    C = damping_matrix(lat.positions, lat.pairs, s["delta"])[dofs][:, dofs].toarray() / lat.mass
+    K = hessian(lat.positions, lat.pairs, s.model, lat.a)[dofs][:, dofs].toarray() / lat.mass
+    C = damping_matrix(lat.positions, lat.pairs, s.delta)[dofs][:, dofs].toarray() / lat.mass
     eye = np.eye(len(dofs))
 
     def rho(h: float) -> float:
@@ -185,7 +188,7 @@ def _measured_limit(n: int, zeta: float) -> tuple[float, float, float]:
     for _ in range(20):
         mid = 0.5 * (a + b)
         a, b = (a, mid) if rho(mid) > 1 + 1e-9 else (mid, b)
-    return 0.5 * (lo + hi), 0.5 * (a + b), s["zeta"]
+    return 0.5 * (lo + hi), 0.5 * (a + b), s.damping_ratio
 
 
 def test_stability_limit_undamped() -> None:
@@ -206,12 +209,12 @@ def test_stability_limit_damped(n: int, zeta: float) -> None:
     unstable first (measured 0.752, exact linear 0.758, single-mode 0.820)."""
     measured, linear, z = _measured_limit(n, zeta)
     _, s, _ = _undriven(n, damping_ratio=zeta)
-    solver_limit = s["dt_limit"] * 2 * np.pi * s["f_top"] / 2
+    solver_limit = s.dt_limit * 2 * np.pi * s.f_top / 2
     single = math.sqrt(1 + zeta**2) - zeta
     assert z == pytest.approx(zeta, rel=1e-9)
     assert measured == pytest.approx(linear, rel=0.01)
     assert solver_limit == pytest.approx(linear, rel=1e-6 if n == 2 else 0.01)
-    assert s["dt_limit_single_mode"] * 2 * np.pi * s["f_top"] / 2 == pytest.approx(single, rel=1e-12)
+    assert s.dt_limit_single_mode * 2 * np.pi * s.f_top / 2 == pytest.approx(single, rel=1e-12)
     if n == 2 and zeta == 0.2:
         assert single / measured - 1 > 0.05
     else:

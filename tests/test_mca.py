@@ -13,8 +13,8 @@ import pytest
 from mca_block import block_curve
 
 from pcverify.harness.catalogue import make_scene
-from pcverify.harness.scene import Resolution, Response, SceneError
 from pcverify.references import analytic
+from pcverify.scene import Resolution, Response, SceneError
 from pcverify.solvers.particles.mca import response as rf
 from pcverify.solvers.registry import get_solver
 
@@ -188,7 +188,7 @@ def test_linearised_stiffness_gives_hooke_and_the_macromolecule_lattice_is_scale
     """The assembled MCA stiffness (used for modes and the time step) solved directly in the uniaxial test
     returns E and nu to round-off; the macromolecule lattice scaled to E returns E (by construction) and
     its own central-force Poisson's ratio, far from 0.33."""
-    from pcverify.harness.scene import Box
+    from pcverify.scene import Box
     from pcverify.solvers.particles.macromolecule.elastic_modes import macromolecule_modes, uniaxial_constants
     from pcverify.solvers.particles.mca.automata import bar_automata
     from pcverify.solvers.particles.mca.model import Elastic

@@ -19,8 +19,9 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from pcverify.harness.scene import Box, SceneError
-from pcverify.solvers.particles.macromolecule import solver as mm
+from pcverify.scene import Box, SceneError
+from pcverify.solvers.particles.macromolecule import fixes as mm_fixes
+from pcverify.solvers.particles.macromolecule import simulate as mm
 from pcverify.solvers.particles.macromolecule.force import SevenRoot, force_array
 from pcverify.solvers.particles.macromolecule.large_n import (
     FROZEN,
@@ -213,7 +214,7 @@ def test_run_equals_solver_fixed_pair_kernel(zeta, force_pass):
     v0 = 0.001 * a * w * np.random.default_rng(3).standard_normal(lat.positions.shape)
     v0 -= v0.mean(axis=0)
     N = lat.size
-    fx = mm.Fixes(np.zeros(N, dtype=np.int64), np.zeros((N, 3)), np.zeros(N), np.zeros(N), np.zeros(N))
+    fx = mm_fixes.Fixes(np.zeros(N, dtype=np.int64), np.zeros((N, 3)), np.zeros(N), np.zeros(N), np.zeros(N))
     ref = mm.simulate(lat, MODEL, fx, delta, dt, 300 * dt, v0=v0)
     run = KernelRun.start(lat.positions, m, a, MODEL, delta, dt, v0=v0, force_pass=force_pass)
     run.advance(ref.steps)

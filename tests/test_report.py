@@ -9,9 +9,9 @@ import pandas as pd
 import pytest
 
 from pcverify.harness.cli import main
-from pcverify.harness.scene import SceneError
 from pcverify.harness.verdict import parse_claims, verdicts
 from pcverify.harness.vtu import write_vtu
+from pcverify.scene import SceneError
 
 TABLES = {
     "g-cells": pd.DataFrame({"solver": ["a", "a", "b", "b"], "n": [2, 3, 2, 3], "err": [1e-3, 2e-4, 5e-2, 1e-2],

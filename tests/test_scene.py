@@ -8,7 +8,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from pcverify.harness.catalogue import CATALOGUE, make_scene
-from pcverify.harness.scene import Param, Resolution, SceneError
+from pcverify.scene import Param, Resolution, SceneError
 
 
 @pytest.mark.parametrize("n, count", [(2, 16), (3, 63), (4, 160), (5, 325), (11, 3751)])

@@ -20,12 +20,14 @@ import json
 import numpy as np
 import pytest
 
+from pcverify.harness import tables
 from pcverify.harness.catalogue import make_scene
 from pcverify.harness.metrics import richardson
-from pcverify.harness.scene import FaceSupport, Resolution, SceneError
 from pcverify.references import elasticity as ref
+from pcverify.scene import FaceSupport, Resolution, SceneError
 from pcverify.solvers.registry import get_solver
 
+KIND_KEYS = ("f_bending_x_hz", "f_bending_y_hz", "f_torsion_hz", "f_axial_hz")
 SOLVER = get_solver("skfem-elastic")
 E, NU, RHO = 70e9, 0.33, 2800.0
 W, H, L = 0.01, 0.01, 0.03
@@ -155,19 +157,19 @@ def test_clamped_bar_converges_below_the_smooth_order(modes_q2):
         assert 1.0 < rr.order < 2.6, (key, rr.order)
 
 
-def test_converged_frequencies_cached_and_bracketing(tmp_path, monkeypatch, modes_q2):
-    """Richardson/GCI from Q2 refine 1, 2, 3 (cheap grids): the refine-4 solve falls inside the GCI band."""
-    monkeypatch.setenv("PCVERIFY_CACHE", str(tmp_path))
-    out = ref.converged_frequencies(refines=(1, 2, 3))
-    again = ref.converged_frequencies(refines=(1, 2, 3))
-    assert json.dumps(out, sort_keys=True) == json.dumps(again, sort_keys=True)
-    assert len(list((tmp_path / "references").glob("*.json"))) == 1
-    for key in ref.KIND_KEYS:
-        e = out[key]
-        finest = e["values"][-1]
-        assert e["kind"] == "monotonic" and e["extrapolated"] < finest  # FE frequencies fall under refinement
-        # the finer grid's value is closer to the limit than the refine-3 value: it must lie in the band
-        assert finest - e["uncertainty_hz"] < modes_q2[4].summary[key] < finest, key
+def test_richardson_reference_of_a_convergence_group_brackets_the_finer_grid(modes_q2):
+    """The converged bar-modes reference is a study group (convergence analysis of Q2 refined): from refine
+    1, 2, 3 (cheap grids) its Richardson extrapolation and GCI band hold the refine-4 solve for each mode kind."""
+    sols = {1: SOLVER.solve(make_scene("bar-modes", modes=8), Resolution(2, 1), element="q2")} | modes_q2
+    results = [{"solver": "skfem-elastic", "solver_params": {"element": "q2"}, "n": 2, "refine": r,
+                "scene": "bar-modes", "scene_params": {}} | sols[r].to_dict() for r in (1, 2, 3)]
+    _, fits = tables.convergence(results, list(KIND_KEYS))
+    for key in KIND_KEYS:
+        fit = fits[fits["quantity"] == key].iloc[0]
+        finest = sols[3].summary[key]
+        assert fit["kind"] == "monotonic" and fit["extrapolated"] < finest  # FE frequencies fall under refinement
+        band = fit["gci_fine"] * fit["extrapolated"]  # the GCI as an absolute band of the fine value
+        assert finest - band < modes_q2[4].summary[key] < finest, key
 
 
 # -- contract --------------------------------------------------------------------------------------------

@@ -15,8 +15,8 @@ import pytest
 import scipy.sparse as sp
 
 from pcverify.harness.catalogue import make_scene
-from pcverify.harness.scene import Elasticity, Material, Resolution, SceneError
 from pcverify.references.heat_faces import transient
+from pcverify.scene import Elasticity, Material, Resolution, SceneError
 from pcverify.solvers.continuum.assembly import assemble_q1, split_free, tensor_csr
 from pcverify.solvers.continuum.grid import SphereWarp, StructuredGrid, plan_sphere_warp
 from pcverify.solvers.continuum.skfem_heat import SkfemHeat

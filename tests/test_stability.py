@@ -13,13 +13,15 @@ import pytest
 
 from pcverify.harness.cache import Cache
 from pcverify.harness.catalogue import make_scene
+from pcverify.harness.execution import execute
 from pcverify.harness.report import write_study_report
-from pcverify.harness.scene import SceneError
-from pcverify.harness.stability import MacromoleculeProbe, get_probe, measure_limit, run_probe_cell, split_params
-from pcverify.harness.study import execute, load_study
+from pcverify.harness.stability import StabilityTask, measure_limit, probe_of, split_params
+from pcverify.harness.study import load_study
+from pcverify.scene import Resolution, SceneError
+from pcverify.solvers.registry import get_solver
 
 PAPER = make_scene("bar-heat-paper")
-PROBE = MacromoleculeProbe()
+PROBE = probe_of(get_solver("macromolecule"))
 
 
 @pytest.mark.parametrize("zeta", [0.0, 0.1])
@@ -28,9 +30,9 @@ def test_measured_limit_against_theory(zeta: float) -> None:
     lies within 1.5 % of the linear-discrete limit (spectral radius of the scheme).  Undamped, both equal
     the theory 1 to 1 %.  Damped, the top-mode formula sqrt(1+zeta^2)-zeta is an estimate: measured
     n = 2, zeta = 0.1: 0.886 against 0.905 (the linear-discrete limit is 0.881), so within 3 %."""
-    prep = PROBE.prepare(PAPER, 2, {"damping_ratio": zeta, "drive_amplitude": 0.01, "t_end": 1.0})
+    prep = PROBE.prepare(PAPER, Resolution(2), {"damping_ratio": zeta, "drive_amplitude": 0.01, "t_end": 1.0})
     theory = math.sqrt(1 + zeta**2) - zeta
-    assert prep["safety_theory"] == pytest.approx(theory, rel=1e-9)
+    assert prep.theory_limit == pytest.approx(theory, rel=1e-9)
     lim = measure_limit(PROBE, prep, 0.05, 1.5, 1e-3)
     linear = PROBE.linear_limit(prep)
     assert lim["verdict"] == "bisected" and lim["undetected"] == 0
@@ -48,24 +50,24 @@ def test_every_unstable_run_is_detected() -> None:
     rows = []
     for zeta in (0.0, 0.1):
         for D in (0.01, 0.1):
-            prep = PROBE.prepare(PAPER, 2, {"damping_ratio": zeta, "drive_amplitude": D, "t_end": 1.0})
-            linear = PROBE.linear_limit(prep) / prep["safety_theory"]
+            prep = PROBE.prepare(PAPER, Resolution(2), {"damping_ratio": zeta, "drive_amplitude": D, "t_end": 1.0})
+            linear = PROBE.linear_limit(prep) / prep.theory_limit
             for ratio in (0.5, 1.03 * linear, 1.1, 1.5):
                 out = PROBE.run(prep, ratio)
                 rows.append((zeta, D, ratio, out))
-                assert out["blown"] == (out["status"] == "unstable"), out
-                assert not out["undetected"]
+                assert out.blown == (out.status == "unstable"), out
+                assert not out.undetected
                 if ratio > linear:
-                    assert out["status"] == "unstable" and out["stopped_at_step"] < out["steps_planned"]
-                    assert "stopped at step" in out["reason"]
+                    assert out.status == "unstable" and out.stopped_at_step < out.steps_planned
+                    assert "stopped at step" in out.reason
     stable_small = [o for z, D, r, o in rows if r == 0.5 and D == 0.01]
-    assert all(o["status"] != "unstable" and o["steps"] == o["steps_planned"] for o in stable_small)
+    assert all(o.status != "unstable" and o.steps == o.steps_planned for o in stable_small)
 
 
 def test_large_drive_is_unstable_at_every_dt() -> None:
     """n = 3, D = 0.1a, undamped: the run blows up even at 5 % of dt_theory, so the bisection reports
     that this is no time-step limit (observed in the study: the drive, not dt, is unstable)."""
-    prep = PROBE.prepare(PAPER, 3, {"damping_ratio": 0.0, "drive_amplitude": 0.1, "t_end": 1.0})
+    prep = PROBE.prepare(PAPER, Resolution(3), {"damping_ratio": 0.0, "drive_amplitude": 0.1, "t_end": 1.0})
     lim = measure_limit(PROBE, prep, 0.05, 1.5, 1e-2)
     assert lim["verdict"].startswith("unstable at every dt") and lim["runs"] == 1
 
@@ -76,7 +78,7 @@ def test_probe_parameters_are_validated() -> None:
     with pytest.raises(SceneError, match=r"dt=.*allowed: set dt_ratio"):
         split_params({"dt": 1e-4})
     with pytest.raises(SceneError, match=r"drive_amplitude=.*allowed"):
-        run_probe_cell("map", PROBE, PAPER, 2, {"drive_amplitude": 0.5})
+        StabilityTask("map").run(get_solver("macromolecule"), PAPER, Resolution(2), {"drive_amplitude": 0.5})
 
 
 STUDY = """
@@ -86,7 +88,7 @@ id = "limit"
 analysis = "stability"
 probe = "limit"
 scene = "bar-heat-paper"
-solvers = ["macromolecule", "mca", "not-landed-yet"]
+solvers = ["macromolecule", "mca", "skfem"]
 n = [2]
 solver_params = { t_end = 0.5, ratio_tol = 0.01, drive_amplitude = 0.01 }
 sweep = { damping_ratio = [0.0, 0.2] }
@@ -111,8 +113,8 @@ def test_stability_study_and_report(tmp_path) -> None:
     results, counts = execute(study, Cache(tmp_path / "cache"), progress=False)
     assert counts["cells"] == 10 and counts["failed"] == 0
     skipped = {r["solver"]: r["reason"] for r in results if r["status"] == "skipped"}
-    assert "not registered" in skipped["not-landed-yet"]
-    assert "mca" in skipped and ("probe" in skipped["mca"] or "unavailable" in skipped["mca"])
+    assert "no stability probe" in skipped["skfem"]
+    assert "mca" in skipped and "steady mca heat is a direct solve" in skipped["mca"]
     folder = write_study_report(study, results, tmp_path / "out")
     limits = pd.read_csv(folder / "limit-limits.csv")
     assert list(limits["damping_ratio"]) == [0.0, 0.2]
@@ -130,35 +132,31 @@ def test_unknown_probe_kind_is_a_study_error(tmp_path) -> None:
     path.write_text(STUDY.replace('probe = "map"', 'probe = "sweep"'))
     with pytest.raises(SceneError, match=r"probe='sweep' is unknown; allowed: one of limit, map"):
         load_study(str(path))
-    assert get_probe("macromolecule").theory.startswith("velocity Verlet")
+    assert PROBE.theory.startswith("velocity Verlet")
 
 
 def test_mca_limit_respects_its_gershgorin_guarantee() -> None:
     """MCA (n = 2, bar-compression): dt = cfl * 2 / omega_G with omega_G >= omega_max, so every cfl <= 1
     is stable and the measured limit is >= 1 (measured 1.137); above it the run stops as unstable with
     the step in the reason, and heat scenes are skipped with the reason (heat_cfl <= 1 by range)."""
-    from pcverify.harness.stability import McaProbe
-
-    probe = McaProbe()
+    probe = probe_of(get_solver("mca"))
     scene = make_scene("bar-compression")
-    prep = probe.prepare(scene, 2, {})
+    prep = probe.prepare(scene, Resolution(2), {})
     lim = measure_limit(probe, prep, 0.05, 4.0, 1e-2)
     assert lim["verdict"] == "bisected" and lim["undetected"] == 0
     assert 1.0 <= lim["measured_safety"] < 4.0
     above = probe.run(prep, 2.0)
-    assert above["status"] == "unstable" and "step" in above["reason"]
+    assert above.status == "unstable" and "step" in above.reason
     assert not probe.supports(make_scene("bar-heat-faces"))[0]
 
 
 def test_mca_heat_limit_is_the_exact_forward_euler_limit() -> None:
     """Forward Euler on the automata: the bisected limit equals 2 / lambda_max(C^-1 L) (a linear scheme, so
     to the bisection resolution) and is at least the Gershgorin step the solver uses (ratio 1)."""
-    from pcverify.harness.stability import get_probe, measure_limit
-
-    probe = get_probe("mca")
+    probe = probe_of(get_solver("mca"))
     scene = make_scene("bar-heat-faces", mode="transient", t_end=1.0, dt=0.005)
     assert probe.supports(scene) == (True, "")
-    prep = probe.prepare(scene, 3, {})
+    prep = probe.prepare(scene, Resolution(3), {})
     exact = probe.linear_limit(prep)
     lim = measure_limit(probe, prep, 0.5, 3.0, 1e-3)
     assert lim["verdict"] == "bisected" and exact >= 1.0

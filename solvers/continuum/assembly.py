@@ -38,6 +38,8 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 import scipy.sparse as sp
+from skfem import Basis, ElementHex1, ElementLineP1, MeshHex, MeshLine
+from skfem.models.poisson import laplace, mass, unit_load
 
 from pcverify.solvers.continuum.grid import HEX_CORNERS, StructuredGrid
 
@@ -147,9 +149,6 @@ class LineOperators:
 
 def line_operators(coords: np.ndarray) -> LineOperators:
     """Assemble the 1-D Laplacian, mass and load with scikit-fem (ElementLineP1, intorder=2)."""
-    from skfem import Basis, ElementLineP1, MeshLine
-    from skfem.models.poisson import laplace, mass, unit_load
-
     basis = Basis(MeshLine(np.asarray(coords, dtype=float)), ElementLineP1(), intorder=2)
     return LineOperators(
         laplace.assemble(basis).tocsr(), mass.assemble(basis).tocsr(), unit_load.assemble(basis),
@@ -198,9 +197,6 @@ def assemble_q1(grid: StructuredGrid, with_mass: bool = False, full_pattern: boo
     weights = np.einsum("i,j,k->ijk", lines[0].load, lines[1].load, lines[2].load).ravel()
     warped = grid.warped_cells() if grid.warps else np.zeros(0, dtype=np.int64)
     if warped.size:
-        from skfem import Basis, ElementHex1, MeshHex
-        from skfem.models.poisson import laplace, mass, unit_load
-
         sub = grid.cells[:, warped]
         nodes, local = np.unique(sub, return_inverse=True)
         local = local.reshape(sub.shape)

@@ -63,16 +63,16 @@ PointTemperature report its value.
 from __future__ import annotations
 
 import gc
-import os
 import time
 from typing import Any
 
+import fipy
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from scipy.interpolate import RegularGridInterpolator
 
-from pcverify.harness.scene import (
+from pcverify.scene import (
     FaceTemperature,
     Param,
     PatchTemperature,
@@ -83,19 +83,13 @@ from pcverify.harness.scene import (
 )
 from pcverify.solvers.continuum.assembly import grid_graph, split_free
 from pcverify.solvers.continuum.fipy_fast import diffusion_term, tensor_grid3d
+from pcverify.solvers.continuum.linear_solver import smoothed_aggregation
 from pcverify.solvers.protocol import Solution, effective_params, heat_summary
 
 _FACE_AXIS = {"x0": (0, 0), "xW": (0, 1), "y0": (1, 0), "yH": (1, 1), "z0": (2, 0), "zL": (2, 1)}
 _FIPY_FACES = {"x0": "facesLeft", "xW": "facesRight", "y0": "facesBottom", "yH": "facesTop",
                "z0": "facesFront", "zL": "facesBack"}
 SUBSAMPLES = 8  # per axis and cell, for patch volume fractions
-
-
-def _fipy():
-    os.environ.setdefault("FIPY_SOLVERS", "scipy")
-    import fipy
-
-    return fipy
 
 
 def grid_axes(scene: Scene, resolution: Resolution) -> tuple[list[np.ndarray], list[float]]:
@@ -190,24 +184,15 @@ class _Linear:
         elif method == "direct":
             self.lu = spla.splu(A.tocsc())
         else:
-            import pyamg
-
-            # pyamg's spectral-radius estimate (Jacobi prolongation smoothing) starts from np.random.rand:
-            # seed it so that results are bit-reproducible, and leave the caller's random state as it was.
-            # ('local' Gershgorin weighting needs no random numbers but took 20 CG iterations instead of 15
-            # at 666 000 unknowns, with the same set-up time.)
+            # Jacobi prolongation smoothing with the (seeded) spectral-radius estimate: 'local' Gershgorin
+            # weighting needs no random numbers but took 20 CG iterations instead of 15 at 666 000 unknowns.
             # Aggregation on `graph` (cells sharing a node: 27 neighbours) on the finest level: the 7-point
             # FV stencil alone gave aggregates of ~8 cells, operator complexity 1.55 and a slow second level;
             # with the graph 3x3x3 aggregates, complexity 1.15, set-up + CG 2.7 s instead of 4.6 s (CPU, 673 501
             # cells, same 15 iterations).
             strength = {} if graph is None else {"strength": [("predefined", {"C": graph}),
                                                               ("symmetric", {"theta": 0.0})]}
-            state = np.random.get_state()  # noqa: NPY002  (pyamg draws from the legacy global generator)
-            np.random.seed(20240607)  # noqa: NPY002
-            try:
-                self.ml = pyamg.smoothed_aggregation_solver(A, symmetry="symmetric", max_coarse=500, **strength)
-            finally:
-                np.random.set_state(state)  # noqa: NPY002
+            self.ml = smoothed_aggregation(A, symmetry="symmetric", max_coarse=500, **strength)
 
     def __call__(self, b: np.ndarray, x0: np.ndarray | None = None) -> np.ndarray:
         if self.method == "empty":
@@ -231,7 +216,6 @@ class FipyHeat:
 
     name = "fipy"
     kind = "continuum"
-    version = "1.4"
     parameters = (
         Param("patch", "cut", "", "patch constraint: cut (fixed cells + Shortley-Weller faces), volume-fraction "
               "weighted penalty, or staircase", choices=("cut", "fraction", "staircase"), kind=str),
@@ -337,7 +321,7 @@ class FipyHeat:
 
         Returns plain arrays only: no FiPy object outlives this call (see `_assemble`).
         """
-        fp = _fipy()
+        fp = fipy
         dxyz = [np.diff(e) for e in edges]
         if stock:
             mesh, term = fp.Grid3D(dx=dxyz[0], dy=dxyz[1], dz=dxyz[2]), fp.DiffusionTerm

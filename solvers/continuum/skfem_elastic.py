@@ -51,11 +51,16 @@ from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
+import skfem
+from scipy.linalg import eigh
 from scipy.sparse.linalg import LinearOperator, eigsh
+from skfem import Basis, BilinearForm, ElementVector, FacetBasis, Functional, MeshHex
+from skfem.helpers import dot
+from skfem.models.elasticity import lame_parameters, linear_elasticity
 
-from pcverify.harness.scene import FaceClamp, FaceSupport, Param, Resolution, Scene, SceneError
-from pcverify.solvers.continuum.grid import StructuredGrid
-from pcverify.solvers.continuum.linear_solver import SpdSolver
+from pcverify.scene import FaceClamp, FaceSupport, Param, Resolution, Scene, SceneError
+from pcverify.solvers.continuum.grid import HEX_CORNERS, StructuredGrid
+from pcverify.solvers.continuum.linear_solver import SpdSolver, smoothed_aggregation
 from pcverify.solvers.protocol import Solution, effective_params
 
 PARAMETERS: tuple[Param, ...] = (
@@ -80,14 +85,12 @@ def _linear_solver(a: sp.spmatrix, method: str, rtol: float, near_null: np.ndarr
     (the rigid-body modes) as its near-nullspace."""
 
     def amg(mat: sp.csr_matrix) -> Any:
-        import pyamg
-
         blocked = mat.shape[0] % 3 == 0
         # theta = 0.05: the wide Q2 stencil otherwise makes a single huge-aggregate coarse level (33
         # iterations at 11k unknowns; 21 with it); the rigid-body modes are exact, no candidate improvement
-        return pyamg.smoothed_aggregation_solver(mat.tobsr(blocksize=(3, 3)) if blocked else mat, B=near_null,
-                                                 symmetry="symmetric", max_coarse=500,
-                                                 strength=("symmetric", {"theta": 0.05}), improve_candidates=None)
+        return smoothed_aggregation(mat.tobsr(blocksize=(3, 3)) if blocked else mat, B=near_null,
+                                    symmetry="symmetric", max_coarse=500, strength=("symmetric", {"theta": 0.05}),
+                                    improve_candidates=None)
 
     return SpdSolver(a, method, rtol, amg)
 
@@ -99,13 +102,6 @@ def unit_cell_matrices(element_name: str, intorder: int, lam: float, mu: float, 
     On a cube of side h they scale exactly as K_e(h) = h K_e(1) and M_e(h) = h^3 M_e(1).  Cached: the
     81 x 81 Q2 forms cost about a second of Python overhead per evaluation.
     """
-    import skfem
-    from skfem import Basis, BilinearForm, ElementVector, MeshHex
-    from skfem.helpers import dot
-    from skfem.models.elasticity import linear_elasticity
-
-    from pcverify.solvers.continuum.grid import HEX_CORNERS
-
     @BilinearForm
     def vmass(u, v, _w):
         return rho * dot(u, v)
@@ -196,8 +192,6 @@ def classify_modes(phi: np.ndarray, omega2: np.ndarray, mass: sp.spmatrix, refle
                        for w, (perm, sign) in zip((1.0, 2.0), reflections, strict=True))
             comb = 0.5 * (comb + comb.T)
             gram = block.T @ mb
-            from scipy.linalg import eigh
-
             _, vecs = eigh(comb, gram)
             phi[:, start:stop] = block @ vecs
         start = stop
@@ -227,7 +221,6 @@ class SkfemElastic:
 
     name = "skfem-elastic"
     kind = "continuum"
-    version = "1.1"
     parameters = PARAMETERS
 
     def supports(self, scene: Scene) -> tuple[bool, str]:
@@ -292,10 +285,6 @@ class SkfemElastic:
 
     def solve(self, scene: Scene, resolution: Resolution, samples: dict[str, np.ndarray] | None = None,
               **params: Any) -> Solution:
-        import skfem
-        from skfem import Basis, ElementVector, MeshHex
-        from skfem.models.elasticity import lame_parameters
-
         wall0 = time.perf_counter()
         p = effective_params(self, params)
         ok, why = self.supports(scene)
@@ -389,8 +378,6 @@ class SkfemElastic:
     @staticmethod
     def _static_summary(scene, mesh, basis, element, intorder, stiff, u, locs, extent, h) -> dict[str, Any]:
         """E_eff from the reaction on face zL, nu_eff from the face-averaged lateral displacements."""
-        from skfem import ElementVector, FacetBasis, Functional
-
         supports = {c.face: c.displacement for c in scene.constraints if isinstance(c, FaceSupport)}
         out: dict[str, Any] = {}
         if "zL" not in supports or "z0" not in supports:

@@ -39,7 +39,7 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
-from pcverify.harness.scene import (
+from pcverify.scene import (
     FaceTemperature,
     Param,
     PatchTemperature,
@@ -50,7 +50,7 @@ from pcverify.harness.scene import (
 )
 from pcverify.solvers.continuum.assembly import assemble_q1, grid_graph, split_free
 from pcverify.solvers.continuum.grid import StructuredGrid, plan_sphere_warp
-from pcverify.solvers.continuum.linear_solver import SpdSolver
+from pcverify.solvers.continuum.linear_solver import SpdSolver, smoothed_aggregation
 from pcverify.solvers.protocol import Solution, effective_params, heat_summary
 
 PARAMETERS: tuple[Param, ...] = (
@@ -95,9 +95,7 @@ def _linear_solver(a: sp.spmatrix, method: str, rtol: float, graph: sp.spmatrix 
     """
 
     def amg(mat: sp.csr_matrix) -> Any:
-        import pyamg
-
-        return pyamg.smoothed_aggregation_solver(mat, **amg_options(graph))
+        return smoothed_aggregation(mat, **amg_options(graph))
 
     return SpdSolver(a, method, rtol, amg, error=ArithmeticError)
 
@@ -107,7 +105,6 @@ class SkfemHeat:
 
     name = "skfem"
     kind = "continuum"
-    version = "1.2"
     parameters = PARAMETERS
 
     def supports(self, scene: Scene) -> tuple[bool, str]:

@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 
 from pcverify.harness.catalogue import make_scene
-from pcverify.harness.scene import Resolution
+from pcverify.scene import Resolution
 from pcverify.solvers.continuum.assembly import assemble_q1
 from pcverify.solvers.continuum.fipy_heat import FipyHeat
 from pcverify.solvers.continuum.grid import StructuredGrid

@@ -17,11 +17,13 @@ import pytest
 from numba import njit
 
 from pcverify.harness.catalogue import make_scene
-from pcverify.harness.scene import Resolution
+from pcverify.scene import Resolution
 from pcverify.solvers.particles.macromolecule import kernel_fast as fk
 from pcverify.solvers.particles.macromolecule import kernel_reference as ig
 from pcverify.solvers.particles.macromolecule.force import C_A, C_P, C_ROOTS, C_X0, C_X1, force_tree
-from pcverify.solvers.particles.macromolecule.solver import Macromolecule, simulate
+from pcverify.solvers.particles.macromolecule.setup import prepare
+from pcverify.solvers.particles.macromolecule.simulate import simulate
+from pcverify.solvers.particles.macromolecule.solver import Macromolecule
 from pcverify.solvers.protocol import effective_params
 
 SOLVER = Macromolecule()
@@ -33,12 +35,12 @@ CHECK_EVERY = 59  # what a 15 s run at n = 4 uses (n_steps // 400)
 def _kernel_case(n: int = 4):
     """bar-heat-paper at n = 4 (N = 160), damping ratio 0.01, D = 0.02 a (no hops), default dt."""
     p = effective_params(SOLVER, {"damping_ratio": 0.01, "drive_amplitude": 0.02})
-    s = SOLVER.setup(PAPER, n, p)
+    s = prepare(PAPER, n, p)
     return s, 2 * np.pi * p["drive_frequency"]
 
 
 def _run(s, w, kernel: str):
-    return simulate(s["lat"], s["model"], s["fx"], s["delta"], s["dt"], KERNEL_STEPS * s["dt"], 0.0, w,
+    return simulate(s.lattice, s.model, s.fixes, s.delta, s.dt, KERNEL_STEPS * s.dt, 0.0, w,
                     check_every=CHECK_EVERY, kernel=kernel)
 
 
@@ -49,8 +51,8 @@ def test_bench_kernel(benchmark, kernel: str) -> None:
     s, w = _kernel_case()
     _run(s, w, kernel)  # compile outside the timing
     r = benchmark.pedantic(_run, args=(s, w, kernel), rounds=5, iterations=1)
-    pairs = len(s["lat"].pairs)
-    benchmark.extra_info.update(kernel=kernel, particles=s["lat"].size, pairs=pairs, steps=r.steps,
+    pairs = len(s.lattice.pairs)
+    benchmark.extra_info.update(kernel=kernel, particles=s.lattice.size, pairs=pairs, steps=r.steps,
                                 pair_steps=pairs * r.steps, timer="process_time")
     if benchmark.stats is not None:
         benchmark.extra_info["ns_per_pair_step"] = 1e9 * benchmark.stats.stats.min / (pairs * r.steps)
@@ -64,7 +66,7 @@ def test_bench_kernel_ratio(benchmark) -> None:
     extra_info: ns per pair-step of each, the fast/reference speed-up, the fastmath/fast speed-up
     and the largest relative hotness difference of fastmath from the exact fast kernel."""
     s, w = _kernel_case()
-    pairs = len(s["lat"].pairs)
+    pairs = len(s.lattice.pairs)
     best = {"fast": np.inf, "fastmath": np.inf, "reference": np.inf}
     runs = {}
     for k in best:
@@ -81,7 +83,7 @@ def test_bench_kernel_ratio(benchmark) -> None:
     benchmark.extra_info.update(ns_per_pair_step_fast=ns["fast"], ns_per_pair_step_reference=ns["reference"],
                                 ns_per_pair_step_fastmath=ns["fastmath"], speedup=best["reference"] / best["fast"],
                                 fastmath_speedup=best["fast"] / best["fastmath"],
-                                fastmath_max_rel_hotness_dev=fastmath_dev, particles=s["lat"].size, pairs=pairs)
+                                fastmath_max_rel_hotness_dev=fastmath_dev, particles=s.lattice.size, pairs=pairs)
     # all three integrate the same run: equal to rounding
     for k in ("fast", "fastmath"):
         assert np.max(np.abs(h[k] - h["reference"])) <= 1e-10 * h["reference"].max()
@@ -174,8 +176,8 @@ def test_bench_kernel_floor(benchmark) -> None:
     pair of each; what the 3 ns per pair-step target of issue 7 is up against.  They compute the same
     forces: the full pass's slot forces are bit-identical to the damped floor loop's."""
     s, _ = _kernel_case()
-    lat, c = s["lat"], s["model"].coeffs()
-    g_off, g_base, g_lo, g_hi, mask, _ = fk.stencil(lat.pairs, lat.shell, lat.size, s["model"].basins())
+    lat, c = s.lattice, s.model.coeffs()
+    g_off, g_base, g_lo, g_hi, mask, _ = fk.stencil(lat.pairs, lat.shell, lat.size, s.model.basins())
     rng = np.random.default_rng(0)
     x = lat.positions + 1e-3 * lat.a * rng.standard_normal(lat.positions.shape)
     v = 1e-3 * rng.standard_normal(lat.positions.shape)
@@ -184,7 +186,7 @@ def test_bench_kernel_floor(benchmark) -> None:
     ns = mask.size
     rt, coeffs = c[C_ROOTS:C_ROOTS + 7].copy(), (c[C_A], c[C_P], c[C_X0], 1.0 / (c[C_X1] - c[C_X0]), lat.a)
     floor = [np.zeros(ns) for _ in range(3)]
-    delta = s["delta"]
+    delta = s.delta
     full = [np.zeros(ns) for _ in range(5)] + [np.zeros(ns, np.int8), np.zeros(ns, np.int8),
                                                 np.zeros(9, np.int64)] + [np.zeros(lat.size) for _ in range(3)]
 
@@ -195,7 +197,7 @@ def test_bench_kernel_floor(benchmark) -> None:
         _floor_passes(reps, True, px, py, pz, vx, vy, vz, g_off, g_base, mask, rt, *coeffs, delta, *floor)
 
     def run_full(reps: int) -> None:
-        _pair_passes(reps, px, py, pz, vx, vy, vz, g_off, g_base, g_lo, g_hi, mask, rt, *coeffs, delta, s["dt"],
+        _pair_passes(reps, px, py, pz, vx, vy, vz, g_off, g_base, g_lo, g_hi, mask, rt, *coeffs, delta, s.dt,
                      *full)
 
     run_damped(1)

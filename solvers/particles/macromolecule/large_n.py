@@ -48,7 +48,7 @@ import llvmlite.binding as llvm
 import numpy as np
 from numba import njit, prange
 
-from pcverify.harness.scene import Box, SceneError
+from pcverify.scene import Box, SceneError
 
 from .force import C_A, C_P, C_PINT, C_ROOTS, C_X0, C_X1, SevenRoot, energy_x, force_tree, shell_stiffness
 from .neighbours import NeighbourList, build_neighbours, stencil_offsets

@@ -72,7 +72,8 @@ def top_modes(K: sp.csr_matrix, mass: float, dofs: np.ndarray, k: int | None = N
         if k is not None:
             lam, vec = lam[-k:], vec[:, -k:]
     else:
-        lam, vec = spla.eigsh(Kf.tocsc(), k=k or 24, which="LA", tol=1e-12)
+        v0 = np.random.default_rng(0).standard_normal(nd)  # ARPACK's own start vector depends on earlier calls
+        lam, vec = spla.eigsh(Kf.tocsc(), k=k or 24, which="LA", tol=1e-12, v0=v0)
         order = np.argsort(lam)
         lam, vec = lam[order], vec[:, order]
     omega = np.sqrt(np.clip(lam, 0.0, None) / mass)

@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numba import njit, prange
 
-from pcverify.harness.scene import SceneError
+from pcverify.scene import SceneError
 
 
 @njit(cache=True, error_model="numpy")

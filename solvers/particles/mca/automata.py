@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from pcverify.harness.scene import Box, SceneError
+from pcverify.scene import Box, SceneError
 
 
 @dataclass(frozen=True, eq=False)

@@ -18,6 +18,8 @@ import scipy.sparse as sp
 from numba import njit
 from scipy.sparse.linalg import spsolve
 
+from pcverify.scene import FaceTemperature, PatchTemperature, PointTemperature, Scene, SceneError
+
 from .automata import Automata
 
 
@@ -89,3 +91,25 @@ def steady(aut: Automata, conductivity: float, values: np.ndarray, held: np.ndar
     rhs = -(lap[free][:, fixed] @ temp[fixed])
     temp[free] = spsolve(lap[free][:, free].tocsc(), rhs)
     return temp
+
+
+def held_temperatures(scene: Scene, aut: Automata) -> tuple[np.ndarray, np.ndarray]:
+    """Held mask (1 = held) and values (K; free automata: the initial temperature) of the scene's temperature
+    constraints on the automata.  A patch smaller than the automata holds the one nearest its centre."""
+    held = np.zeros(aut.size, dtype=np.int64)
+    values = np.full(aut.size, scene.conduction.initial_temperature, dtype=float)
+    for c in scene.constraints:
+        if isinstance(c, FaceTemperature):
+            idx = aut.on_face(c.face, scene.box.extent)
+        elif isinstance(c, PointTemperature):
+            idx = aut.node_at(np.asarray(c.point))
+        elif isinstance(c, PatchTemperature):
+            d = np.linalg.norm(aut.positions - np.asarray(c.centre), axis=1)
+            idx = np.flatnonzero(d <= c.radius * (1 + 1e-9))
+            if idx.size == 0:
+                idx = np.array([int(np.argmin(d))])
+        else:
+            raise SceneError(f"mca heat: constraint {type(c).__name__} is not a temperature constraint")
+        held[idx] = 1
+        values[idx] = c.value
+    return held, values

@@ -22,12 +22,13 @@ normal springs along the cube axes has no lateral coupling, so nu_eff = 0 (measu
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.spatial import cKDTree
 
-from pcverify.harness.scene import Response, SceneError
+from pcverify.scene import Response, SceneError
 
 from . import kernel as mk
 from . import response as rf
@@ -185,8 +186,6 @@ class Model:
 
     def advance(self, st: State, nsteps: int, hist: np.ndarray | None = None, record_every: int = 0) -> int:
         """Run up to `nsteps` steps; returns the kernel status (mca_kernel.OK, NAN, GROWTH, MOVED)."""
-        import time
-
         a = self.aut
         if hist is None:
             hist = np.zeros((0, mk.N_H))

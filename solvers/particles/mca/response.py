@@ -26,7 +26,7 @@ import math
 
 import numpy as np
 
-from pcverify.harness.scene import Response, SceneError
+from pcverify.scene import Response, SceneError
 
 KINDS = {"elastic": 0, "degradation": 1, "plastic": 2, "plastic-degradation": 3}
 

@@ -31,16 +31,14 @@ import time
 from typing import Any
 
 import numpy as np
+import scipy.linalg as sla
 import scipy.sparse as sp
 from scipy.sparse.linalg import eigsh
 
-from pcverify.harness.scene import (
+from pcverify.scene import (
     FaceClamp,
     FaceSupport,
-    FaceTemperature,
     Param,
-    PatchTemperature,
-    PointTemperature,
     Resolution,
     Scene,
     SceneError,
@@ -52,6 +50,7 @@ from . import kernel as mk
 from . import response as rf
 from .automata import Automata, bar_automata
 from .model import COEFFICIENTS, Elastic, Model, rebuild_pairs, relax
+from .probe import McaProbe
 from .stiffness import mass_diagonal, stiffness
 
 ENERGY_ALARM = 1e-2  # relative energy-balance error of an undamped elastic phase that flags a run as unstable
@@ -88,8 +87,11 @@ class Mca:
 
     name = "mca"
     kind = "particle"
-    version = "1.2"
     parameters = PARAMETERS
+
+    def stability_probe(self) -> McaProbe:
+        """The probe of this solver's explicit heat and mechanics steps."""
+        return McaProbe(self)
 
     def supports(self, scene: Scene) -> tuple[bool, str]:
         phys = set(scene.physics)
@@ -140,30 +142,9 @@ class Mca:
 
     # -- heat ----------------------------------------------------------------------------------------
 
-    @staticmethod
-    def _held(scene: Scene, aut: Automata) -> tuple[np.ndarray, np.ndarray]:
-        """Held mask and values of the temperature constraints."""
-        held = np.zeros(aut.size, dtype=np.int64)
-        values = np.full(aut.size, scene.conduction.initial_temperature, dtype=float)
-        for c in scene.constraints:
-            if isinstance(c, FaceTemperature):
-                idx = aut.on_face(c.face, scene.box.extent)
-            elif isinstance(c, PointTemperature):
-                idx = aut.node_at(np.asarray(c.point))
-            elif isinstance(c, PatchTemperature):
-                d = np.linalg.norm(aut.positions - np.asarray(c.centre), axis=1)
-                idx = np.flatnonzero(d <= c.radius * (1 + 1e-9))
-                if idx.size == 0:
-                    idx = np.array([int(np.argmin(d))])
-            else:
-                raise SceneError(f"mca heat: constraint {type(c).__name__} is not a temperature constraint")
-            held[idx] = 1
-            values[idx] = c.value
-        return held, values
-
     def _heat(self, scene: Scene, aut: Automata, p: dict[str, Any]) -> dict[str, Any]:
         mat = scene.material
-        held, values = self._held(scene, aut)
+        held, values = mca_heat.held_temperatures(scene, aut)
         t0 = time.perf_counter()
         summary: dict[str, Any] = {}
         work: dict[str, Any] = {"unknowns": aut.size}
@@ -382,8 +363,6 @@ class Mca:
             raise SceneError(f"modes={count} is out of range; allowed: integer in [1, {free.size - 2}] at this "
                              "resolution")
         if free.size <= 1500:
-            import scipy.linalg as sla
-
             vals, vecs = sla.eigh(kff.toarray(), np.diag(m[free]))
         else:
             v0 = np.random.default_rng(4).standard_normal(free.size)

@@ -1,8 +1,8 @@
-"""The scene model: the vocabulary that solvers consume.
+"""The scene model: the vocabulary that solvers consume and plugins are written against.
 
-Geometry and resolution, materials, constraints, the scene with its physics parts, and parameter
-specs.  This package imports nothing else of the project, so solvers may import it (and only it of
-the harness); plugins reach it through the public API, `pcverify`.
+Geometry and resolution, materials, constraints, the scene with its physics parts, scene specs and
+parameter specs.  It is the bottom layer: it imports nothing else of the project, and solvers,
+references and the harness all import it.
 """
 
 from .constraints import (
@@ -20,10 +20,11 @@ from .geometry import Box, Resolution
 from .material import ALUMINIUM, DURALUMIN, MATERIALS, RESPONSES, Material, Response
 from .model import MODES, PHYSICS, Conduction, Elasticity, Scene
 from .params import Param, SceneError, resolve_params, shown
+from .spec import SceneSpec
 
 __all__ = [
     "ALUMINIUM", "DURALUMIN", "FACES", "MATERIALS", "MODES", "PHYSICS", "RESPONSES", "Box", "Conduction", "Constraint",
     "Elasticity", "FaceClamp", "FaceSupport", "FaceTemperature", "Material", "Param", "PatchTemperature",
-    "PointTemperature", "Resolution", "Response", "Scene", "SceneError", "Support", "TemperatureConstraint",
-    "resolve_params", "shown",
+    "PointTemperature", "Resolution", "Response", "Scene", "SceneError", "SceneSpec", "Support",
+    "TemperatureConstraint", "resolve_params", "shown",
 ]

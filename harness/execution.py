@@ -1,0 +1,206 @@
+"""Running a study's cells: one path for every cell, the cache in front of it, local or Dask workers.
+
+Every cell is identified by a content hash of its scene, solver, code fingerprint, resolution, task and
+parameters; a cached result is read back, not recomputed.  Cells run in parallel on joblib workers or
+on a Dask cluster (`--scheduler`), and each finished cell is stored at once, so an interrupted study
+loses nothing.  Cells whose wall times a report compares (timing, work-precision) run last, serially in
+this process, after a warm-up solve per solver.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Iterator
+from typing import Any
+
+from joblib import Parallel, delayed
+from tqdm import tqdm
+
+from pcverify.harness.cache import Cache, cell_key
+from pcverify.harness.fingerprint import code_fingerprint, module_fingerprint
+from pcverify.harness.interrupt import check_interrupted, ignore_sigint_in_worker
+from pcverify.harness.plugins import load_plugins
+from pcverify.harness.study import Cell, Study
+from pcverify.scene import Resolution, SceneError
+from pcverify.solvers.registry import SolverUnavailable, get_solver
+
+try:  # optional dependency: pip install 'pcverify[dask]'
+    from distributed import Client, as_completed
+except ImportError:  # --scheduler then says how to install it
+    Client = as_completed = None
+
+# solve failures that are results of the cell (the input or the numbers), not bugs of the harness
+CELL_ERRORS = (SceneError, ValueError, ArithmeticError, MemoryError)
+
+
+def cell_identity(cell: Cell) -> tuple[dict[str, Any], str | None]:
+    """(key payload, skip reason or None) of a cell.  The payload holds the scene's content hash, the
+    solver's name and code fingerprint (and the task's), the resolution, the task and the parameters."""
+    payload: dict[str, Any] = {"scene": cell.scene.content_hash(), "solver": cell.solver, "n": cell.n,
+                               "refine": cell.refine, "task": cell.task.name}
+    if cell.serial:
+        payload["timing"] = "serial-after-warm-up"
+    try:
+        load_plugins(cell.plugins)
+        solver = get_solver(cell.solver)
+    except SolverUnavailable as exc:
+        return payload | {"unavailable": True, "params": dict(cell.solver_params)}, str(exc)
+    ok, reason = cell.task.supports(solver, cell.scene)
+    if not ok:  # skipped with the reason; its parameters may not even be the solver's
+        return payload | {"params": dict(cell.solver_params), "skipped": True}, reason
+    params = cell.task.check(solver, dict(cell.solver_params))
+    return payload | {"params": params, "code": code_fingerprint(solver),
+                      "task_code": module_fingerprint(type(cell.task).__module__)}, None
+
+
+def run_cell(cell: Cell) -> dict[str, Any]:
+    """Run one cell through its task and return its JSON-ready result (skips and failures are results too)."""
+    base = {"group": cell.group, "scene": cell.scene.name, "solver": cell.solver, "n": cell.n,
+            "refine": cell.refine, "scene_params": dict(cell.scene_params), "solver_params": dict(cell.solver_params)}
+    try:
+        load_plugins(cell.plugins)
+        solver = get_solver(cell.solver)
+    except SolverUnavailable as exc:
+        return base | {"status": "skipped", "reason": str(exc)}
+    ok, reason = cell.task.supports(solver, cell.scene)
+    if not ok:
+        return base | {"status": "skipped", "reason": reason}
+    resolution = Resolution(cell.n, cell.refine)
+    try:
+        out = cell.task.run(solver, cell.scene, resolution, dict(cell.solver_params))
+    except CELL_ERRORS as exc:
+        return base | {"status": "failed", "reason": f"{type(exc).__name__}: {exc}"}
+    res = dict(out.get("resolution") or {})
+    res.setdefault("h", resolution.spacing(cell.scene.box.width))
+    return base | out | {"resolution": res}
+
+
+def _indexed(i: int, cell: Cell) -> tuple[int, dict[str, Any]]:
+    ignore_sigint_in_worker()
+    return i, run_cell(cell)
+
+
+def _parallel(cells: list[Cell], todo: list[int], jobs: int, scheduler: str | None
+              ) -> Iterator[tuple[int, dict[str, Any]]]:
+    """(index, result) pairs in completion order: joblib on local cores, or a Dask cluster at `scheduler`."""
+    if scheduler:
+        if Client is None:
+            raise SceneError("--scheduler needs the optional dependency dask[distributed]; allowed: install it with "
+                             "pip install 'pcverify[dask]', or run without --scheduler")
+        try:
+            client = Client(scheduler, timeout="5s")
+        except OSError as exc:
+            raise SceneError(f"scheduler={scheduler!r} is not reachable ({exc}); allowed: the address of a running "
+                             "Dask scheduler, e.g. tcp://host:8786") from None
+        with client:
+            futures = [client.submit(_indexed, i, cells[i], pure=False) for i in todo]
+            for fut in as_completed(futures):
+                yield fut.result()
+        return
+    # loky replaces a worker whose memory grew (numba, FiPy caches) and says so; the cell is rerun, nothing lost
+    warnings.filterwarnings("ignore", message="A worker stopped while some jobs", category=UserWarning)
+    yield from Parallel(n_jobs=jobs, return_as="generator_unordered")(delayed(_indexed)(i, cells[i]) for i in todo)
+
+
+def _warm_up(cells: list[Cell]) -> None:
+    """Run the cheapest cell of each solver once, uncached, so compilation stays out of the timings."""
+    cheapest: dict[str, Cell] = {}
+    for c in cells:
+        if c.solver not in cheapest or (c.n, c.refine) < (cheapest[c.solver].n, cheapest[c.solver].refine):
+            cheapest[c.solver] = c
+    for c in cheapest.values():
+        run_cell(c)
+
+
+def execute(study: Study, cache: Cache, dry_run: bool = False, jobs: int = 1, progress: bool = True,
+            scheduler: str | None = None) -> tuple[list[dict[str, Any]], dict[str, int]]:
+    """Run every cell not yet cached; return all results in cell order and the counts.
+
+    Cells of timed groups run last, serially in this process, after a warm-up solve per solver;
+    the others run in parallel (joblib with `jobs` > 1, or a Dask cluster at `scheduler`).
+    Each finished cell is written to the cache at once, so an interrupted study loses nothing.
+    """
+    cells = [c for g in study.groups for c in g.cells]
+    identities = [cell_identity(c) for c in cells]
+    keys = [cell_key(ident[0]) for ident in identities]
+    results: list[dict[str, Any] | None] = []
+    counts = {"cells": len(cells), "cached": 0, "done": 0, "failed": 0, "corrupt": 0}
+    todo = []
+    for i, key in enumerate(keys):
+        entry, state = cache.load(key)
+        entry = as_cell(entry, cells[i])
+        if state.startswith("corrupt"):
+            counts["corrupt"] += 1
+            tqdm.write(f"cache entry {key} ({cells[i].describe()}) is {state}; recomputing")
+        if entry is not None:
+            counts["cached"] += 1
+        else:
+            todo.append(i)
+        results.append(entry)
+    if dry_run:
+        for i, c in enumerate(cells):
+            skip = identities[i][1]
+            state = "cached" if results[i] is not None else ("skip" if skip else "to run")
+            print(f"{state:<8} {keys[i]}  {c.describe()}" + (f"  ({skip})" if skip and state == "skip" else ""))
+        return [r for r in results if r is not None], counts
+    bar = tqdm(total=len(cells), initial=counts["cached"], desc=study.name, unit="cell", disable=not progress,
+               dynamic_ncols=True)
+
+    first: dict[str, int] = {}
+    same: dict[int, list[int]] = {}  # cells of other groups with the same key: solved once, shared
+    for i in todo:
+        if keys[i] in first:
+            same[first[keys[i]]].append(i)
+        else:
+            first[keys[i]] = i
+            same[i] = []
+    todo = [i for i in todo if first[keys[i]] == i]
+
+    def finish(i: int, res: dict[str, Any]) -> None:
+        res["cache_key"] = keys[i]
+        cache.store(keys[i], res)
+        results[i] = res
+        counts["failed" if res.get("status") == "failed" else "done"] += 1
+        for j in same[i]:
+            results[j] = as_cell(res, cells[j])
+            counts["cached"] += 1
+        bar.set_postfix(done=counts["done"], cached=counts["cached"], failed=counts["failed"])
+        bar.update(1 + len(same[i]))
+        check_interrupted()  # a Ctrl-C that a library swallowed stops the study here, this cell stored
+
+    free = [i for i in todo if not cells[i].serial]
+    timed = [i for i in todo if cells[i].serial and identities[i][1] is None]
+    timed_skips = [i for i in todo if cells[i].serial and identities[i][1] is not None]
+    if (jobs > 1 or scheduler) and len(free) > 1:
+        for i, res in _parallel(cells, free, jobs, scheduler):
+            finish(i, res)
+    else:
+        timed_skips = free + timed_skips
+    for i in timed_skips:
+        bar.set_description(f"{study.name}: {cells[i].describe()}"[:70])
+        finish(i, run_cell(cells[i]))
+    if timed:
+        bar.set_description(f"{study.name}: warm-up before the timed serial pass")
+        _warm_up([cells[i] for i in timed])
+    for i in timed:
+        bar.set_description(f"{study.name}: timed {cells[i].describe()}"[:70])
+        finish(i, run_cell(cells[i]) | {"timing": "serial after warm-up"})
+    bar.close()
+    return [r for r in results if r is not None], counts
+
+
+def cached_results(study: Study, cache: Cache) -> list[dict[str, Any]]:
+    """The results of a study's cells that are in the cache (corrupt or missing ones left out)."""
+    cells = [c for g in study.groups for c in g.cells]
+    entries = (as_cell(cache.load(cell_key(cell_identity(c)[0]))[0], c) for c in cells)
+    return [e for e in entries if e is not None]
+
+
+def as_cell(entry: dict[str, Any] | None, cell: Cell) -> dict[str, Any] | None:
+    """A cached result seen as the result of `cell`: the same solve may have been cached by another group
+    or study (same content key), so the identity fields are the cell's own, not those of its first run."""
+    if entry is None:
+        return None
+    return entry | {"group": cell.group, "scene": cell.scene.name, "solver": cell.solver, "n": cell.n,
+                    "refine": cell.refine, "scene_params": dict(cell.scene_params),
+                    "solver_params": dict(cell.solver_params)}

@@ -1,0 +1,51 @@
+"""What a study cell computes: a cell task takes a solver, a scene, a resolution and parameters and returns
+the cell's JSON-ready result.  Every cell runs through one path (`pcverify.harness.execution`); the
+task is the only thing that differs: a solve (this module) or a stability measurement
+(`pcverify.harness.stability.StabilityTask`)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+from pcverify.harness.stability import StabilityTask
+from pcverify.scene import Resolution, Scene
+from pcverify.solvers.protocol import Solver, effective_params
+
+
+class CellTask(Protocol):
+    """A task: its name (part of the cache key), whether it can run a scene, a check of the parameters
+    before anything runs (returning the values that identify the work: part of the cache key), and the
+    run."""
+
+    @property
+    def name(self) -> str: ...
+
+    def supports(self, solver: Solver, scene: Scene) -> tuple[bool, str]: ...
+
+    def check(self, solver: Solver, params: dict[str, Any]) -> dict[str, Any]: ...
+
+    def run(self, solver: Solver, scene: Scene, resolution: Resolution, params: dict[str, Any]) -> dict[str, Any]: ...
+
+
+@dataclass(frozen=True)
+class SolveTask:
+    """The default task: `solver.solve`, its Solution as a dict, with the solver's kind."""
+
+    @property
+    def name(self) -> str:
+        return "solve"
+
+    def supports(self, solver: Solver, scene: Scene) -> tuple[bool, str]:
+        return solver.supports(scene)
+
+    def check(self, solver: Solver, params: dict[str, Any]) -> dict[str, Any]:
+        """The solver's effective parameters (SceneError names a bad one)."""
+        return effective_params(solver, params)
+
+    def run(self, solver: Solver, scene: Scene, resolution: Resolution, params: dict[str, Any]) -> dict[str, Any]:
+        return solver.solve(scene, resolution, **params).to_dict() | {"solver_kind": solver.kind}
+
+
+SOLVE = SolveTask()
+TASKS: dict[str, CellTask] = {t.name: t for t in (SOLVE, StabilityTask("limit"), StabilityTask("map"))}

@@ -1,0 +1,113 @@
+"""Stability probe of the macromolecule solver: its own set-up and kernel, at a step chosen by the probe.
+
+Theory: velocity Verlet with radial pair damping lagged half a step.  A mode of frequency omega and
+damping ratio zeta is stable for omega dt / 2 < sqrt(1 + zeta^2) - zeta (Jury criterion of
+x_{n+1} - 2 x_n + x_{n-1} = -h^2 x_n - 2 zeta h (x_n - x_{n-1}), h = omega dt); the top mode (omega_max,
+zeta from the damped modal problem) sets dt_theory.  The linear-discrete limit is where the spectral
+radius of the linearised, held lattice's one-step map crosses 1 (Langevin bath friction left out).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+import scipy.linalg as sla
+
+from pcverify.scene import Resolution, Scene
+from pcverify.solvers.protocol import ProbeRun, ProbeSetup, Solver, effective_params
+
+from . import kernel_reference as ig
+from .modal import damping_matrix, free_dofs, hessian
+from .setup import prepare
+from .simulate import run_status, simulate
+
+THEORY = ("velocity Verlet with radial pair damping lagged half a step: a mode of frequency omega and damping ratio "
+          "zeta is stable for omega dt / 2 < sqrt(1 + zeta^2) - zeta (Jury criterion of x_{n+1} - 2x_n + x_{n-1} = "
+          "-h^2 x_n - 2 zeta h (x_n - x_{n-1}), h = omega dt); the top mode (omega_max, zeta from the damped modal "
+          "problem) sets dt_theory")
+
+_LINEAR_LIMITS: dict[tuple, float] = {}  # by lattice and damping: one dense eigenvalue bisection per process
+
+
+class MacromoleculeProbe:
+    """Runs the macromolecule solver's set-up and kernel at dt = ratio * dt_theory, beyond its input guard."""
+
+    theory = THEORY
+
+    def __init__(self, solver: Solver) -> None:
+        self.solver = solver
+
+    def supports(self, scene: Scene) -> tuple[bool, str]:
+        return self.solver.supports(scene)
+
+    def prepare(self, scene: Scene, resolution: Resolution, params: dict[str, Any]) -> ProbeSetup:
+        """Everything before a run (lattice, fixes, A, delta, zeta); dt_theory from the stated theory."""
+        p = effective_params(self.solver, params)
+        s = prepare(scene, resolution.n, p)
+        w = 2 * math.pi * s.f_top
+        limit = math.sqrt(1 + s.damping_ratio**2) - s.damping_ratio
+        context = {"omega_max": w, "damping_ratio": s.damping_ratio, "drive_amplitude": p["drive_amplitude"],
+                   "scene_hash": scene.content_hash(), "n": resolution.n}
+        return ProbeSetup(dt_theory=2 * limit / w, theory_limit=limit, quantity="dt omega_max / 2",
+                          theory_label="theory sqrt(1+zeta^2) - zeta", x_axis="damping_ratio",
+                          solver_dt_limit=s.dt_limit, context=context, state=(p, s))
+
+    def run(self, setup: ProbeSetup, dt_ratio: float) -> ProbeRun:
+        """One run at dt = dt_ratio * dt_theory over the solver's window; status and an independent check of
+        the final state with three criteria (finite; no particle more than a outside the bar; kinetic
+        energy at most blowup_factor times the energy supplied)."""
+        p, s = setup.state
+        lat, fx = s.lattice, s.fixes
+        dt = dt_ratio * setup.dt_theory
+        w = 2 * math.pi * p["drive_frequency"]
+        run = simulate(lat, s.model, fx, s.delta, dt, p["t_end"], p["t_start"], w, seed=p["seed"],
+                       blowup_factor=p["blowup_factor"], contact_fraction=p["contact_fraction"], kernel=p["kernel"])
+        H = run.hot[0]
+        free = (fx.kind == ig.FREE) & (fx.gamma == 0.0)
+        status, reason, flags = run_status(run, H, free, p)
+        e = run.energy
+        finite = bool(np.isfinite(run.x).all() and np.isfinite(e).all())
+        disp = float(np.max(np.linalg.norm(run.x - lat.positions, axis=1)) / lat.a) if finite else math.inf
+        outside = float(np.max(np.maximum(lat.positions.min(axis=0) - run.x, run.x - lat.positions.max(axis=0)))
+                        / lat.a) if finite else math.inf
+        held = fx.kind != ig.FREE
+        e_scale = 1.5 * fx.kt.sum() + 0.5 * lat.mass * w**2 * float((fx.amp[held] ** 2).sum())
+        supplied = max(e[ig.E_START] + e[ig.E_DRIVE] + e[ig.E_BATH], 0.0) + e_scale
+        ke_ratio = float(e[ig.E_KIN_END] / supplied) if finite else math.inf
+        blown = (not finite) or outside > 1.0 or ke_ratio > p["blowup_factor"]
+        return ProbeRun(status=status, reason=reason, dt=dt, dt_ratio=dt_ratio, steps=run.steps,
+                        steps_planned=int(round(p["t_end"] / dt)), stopped_at_step=flags["stopped_at_step"],
+                        kernel_status=flags["kernel_status"], blown=blown,
+                        undetected=bool(blown and status != "unstable"),
+                        details={"hops": flags["hops"], "stationarity": flags["stationarity"],
+                                 "max_displacement_over_a": disp, "outside_over_a": outside,
+                                 "kinetic_end_over_supplied": ke_ratio})
+
+    def linear_limit(self, setup: ProbeSetup, tol: float = 1e-5) -> float:
+        """dt omega_max / 2 at which the spectral radius of the linearised scheme (held lattice at rest,
+        lagged pair damping; Langevin bath friction left out) crosses 1.  Independent of the drive
+        amplitude and the run length, so it is memoised per lattice and damping."""
+        p, s = setup.state
+        w = setup.context["omega_max"]
+        key = (setup.context["scene_hash"], setup.context["n"], w, s.delta,
+               tuple(p[k] for k in ("p", "s", "unstable_fraction", "pairs_at_2a")), tol)
+        if key not in _LINEAR_LIMITS:
+            lat, fx = s.lattice, s.fixes
+            dofs = free_dofs(~fx.held)
+            K = hessian(lat.positions, lat.pairs, s.model, lat.a)[dofs][:, dofs].toarray() / lat.mass
+            C = damping_matrix(lat.positions, lat.pairs, s.delta)[dofs][:, dofs].toarray() / lat.mass
+            eye = np.eye(len(dofs))
+
+            def rho(h: float) -> float:
+                dt = 2 * h / w
+                amp = np.block([[2 * eye - dt * C - dt * dt * K, -eye + dt * C], [eye, 0 * eye]])
+                return float(np.abs(sla.eigvals(amp)).max())
+
+            lo, hi = 0.05, 1.5
+            while hi - lo > tol:
+                mid = 0.5 * (lo + hi)
+                lo, hi = (lo, mid) if rho(mid) > 1 + 1e-9 else (mid, hi)
+            _LINEAR_LIMITS[key] = 0.5 * (lo + hi)
+        return _LINEAR_LIMITS[key]
