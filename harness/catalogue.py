@@ -150,8 +150,8 @@ CATALOGUE: dict[str, SceneSpec] = {
             "Uniaxial stress of the duralumin bar (E = 70 GPa, nu = 0.33): face z=0 on frictionless supports, "
             "face z=L displaced by strain * L along z, lateral faces free (analytic: sigma = E eps, "
             "lateral strain -nu eps)",
-            (*DIMENSIONS, Param("strain", -1e-3, "", "nominal axial strain (negative = compression)", low=-0.01,
-                                high=0.0, high_open=True)),
+            (*DIMENSIONS, Param("strain", -1e-3, "", "nominal axial strain (negative = compression; below 1e-12 in "
+                                "magnitude the loads underflow in floating point)", low=-0.01, high=-1e-12)),
             _compression,
         ),
         SceneSpec(

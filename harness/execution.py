@@ -24,8 +24,10 @@ from tqdm import tqdm
 from pcverify.harness.cache import Cache, cell_key
 from pcverify.harness.fingerprint import code_fingerprint, module_fingerprint
 from pcverify.harness.interrupt import check_interrupted, ignore_sigint_in_worker
+from pcverify.harness.limits import check_work
 from pcverify.harness.plugins import load_plugins
 from pcverify.harness.study import Cell, Study
+from pcverify.harness.tasks import SolveTask
 from pcverify.scene import Resolution, SceneError, shown
 from pcverify.solvers.registry import SolverUnavailable, get_solver
 
@@ -160,10 +162,13 @@ def _rerun(cell: Cell, rerun: frozenset[str] | None) -> bool:
 
 
 def execute(study: Study, cache: Cache, jobs: int = 1, progress: bool = True, scheduler: str | None = None,
-            rerun: frozenset[str] | None = None) -> tuple[list[dict[str, Any]], dict[str, int]]:
+            rerun: frozenset[str] | None = None, allow_large: bool = False
+            ) -> tuple[list[dict[str, Any]], dict[str, int]]:
     """Run every cell not yet cached; return all results in cell order and the counts.
 
-    `rerun` recomputes cached cells too: all of them (an empty set) or those of the named solvers.
+    `rerun` recomputes cached cells too: all of them (an empty set) or those of the named solvers.  A
+    cell beyond the work limits (`limits.check_work`) stops the study before anything runs, unless
+    `allow_large`.
     Cells of timed groups run last, serially in this process, after a warm-up solve per solver;
     the others run in parallel (joblib with `jobs` > 1, or a Dask cluster at `scheduler`).
     Each finished cell is written to the cache at once, so an interrupted study loses nothing.
@@ -185,6 +190,10 @@ def execute(study: Study, cache: Cache, jobs: int = 1, progress: bool = True, sc
         else:
             todo.append(i)
         results.append(entry)
+    for i in todo:  # the work limits, before anything starts
+        if identities[i][1] is None and isinstance(cells[i].task, SolveTask):
+            check_work(get_solver(cells[i].solver), cells[i].scene, Resolution(cells[i].n, cells[i].refine),
+                       dict(cells[i].solver_params), allow_large)
     cache.remove_stray_files()
     client = connect(scheduler) if scheduler is not None else None  # before the progress bar: errors are one line
     bar = tqdm(total=len(cells), initial=counts["cached"], desc=study.name, unit="cell", disable=not progress,
