@@ -1,6 +1,6 @@
 """Ensemble runs: K replicas in one kernel equal K single runs, bit for bit.
 
-The ensemble and the single runs share one kernel (`scaling.advance`; a single run is K = 1).
+The ensemble and the single runs share one kernel (`large_n.kernel.advance_p2`; a single run is K = 1).
 Why bit-identical (not just round-off): each replica performs the single kernel's operations in
 the same order (same pair term, tiles and slab blocks counted in particles, the same group slots,
 residual rows in ascending j with pairs beyond r_cut skipped rather than added as zeros, drive
@@ -16,9 +16,9 @@ import numpy as np
 import pytest
 
 from pcverify.scene import SceneError
-from pcverify.solvers.particles.macromolecule.ensemble import EnsembleRun
 from pcverify.solvers.particles.macromolecule.force import SevenRoot
-from pcverify.solvers.particles.macromolecule.large_n import (
+from pcverify.solvers.particles.macromolecule.large_n.ensemble import EnsembleRun
+from pcverify.solvers.particles.macromolecule.large_n.kernel import (
     FROZEN,
     PRESCRIBED,
     TILE,
