@@ -16,12 +16,10 @@ import numpy as np
 import pytest
 
 from pcverify.scene import SceneError
-from pcverify.solvers.particles.macromolecule.codes import GROUP
+from pcverify.solvers.particles.macromolecule.codes import FROZEN, GROUP, PRESCRIBED
 from pcverify.solvers.particles.macromolecule.force import SevenRoot
 from pcverify.solvers.particles.macromolecule.large_n.ensemble import EnsembleRun
 from pcverify.solvers.particles.macromolecule.large_n.kernel import (
-    FROZEN,
-    PRESCRIBED,
     TILE,
     KernelRun,
     bench_lattice,

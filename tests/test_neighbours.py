@@ -23,10 +23,9 @@ from scipy.spatial import cKDTree
 from pcverify.scene import Box, SceneError
 from pcverify.solvers.particles.macromolecule import fixes as mm_fixes
 from pcverify.solvers.particles.macromolecule import simulate as mm
+from pcverify.solvers.particles.macromolecule.codes import FROZEN, PRESCRIBED
 from pcverify.solvers.particles.macromolecule.force import SevenRoot, force_array
 from pcverify.solvers.particles.macromolecule.large_n.kernel import (
-    FROZEN,
-    PRESCRIBED,
     TILE,
     KernelRun,
     _drift,

@@ -131,14 +131,14 @@ def _floor_group(px, py, pz, vx, vy, vz, o, base, mask, rt, amp_a, p, step_lo, i
 
 @njit(cache=True, boundscheck=False, error_model="numpy")
 def _floor_group_call(px, py, pz, vx, vy, vz, o, base, mask, rt, amp_a, p, step_lo, inv_w, a, delta, fsx, fsy, fsz):
-    """`_floor_group` as a function of its own, called once per group (how issue 7 measured the floor)."""
+    """`_floor_group` as a function of its own, called once per group (the floor as first measured)."""
     _floor_group(px, py, pz, vx, vy, vz, o, base, mask, rt, amp_a, p, step_lo, inv_w, a, delta, fsx, fsy, fsz)
 
 
 @njit(cache=True)
 def _floor_calls(reps, px, py, pz, vx, vy, vz, g_off, g_base, mask, rt, amp_a, p, step_lo, inv_w, a, delta, fsx, fsy,
                  fsz):
-    """The stripped group loop over all groups, a call per group, `reps` times (the issue-7 floor)."""
+    """The stripped group loop over all groups, a call per group, `reps` times (the floor as first measured)."""
     for _ in range(reps):
         for g in range(g_off.shape[0]):
             _floor_group_call(px, py, pz, vx, vy, vz, g_off[g], g_base[g], mask, rt, amp_a, p, step_lo, inv_w, a,
@@ -153,6 +153,39 @@ def _floor_inlined(reps, px, py, pz, vx, vy, vz, g_off, g_base, mask, rt, amp_a,
         for g in range(g_off.shape[0]):
             _floor_group(px, py, pz, vx, vy, vz, g_off[g], g_base[g], mask, rt, amp_a, p, step_lo, inv_w, a, delta,
                          fsx, fsy, fsz)
+
+
+@njit(cache=True, boundscheck=False, error_model="numpy")
+def _floor_accumulated(reps, pos, vel, g_off, g_base, mask, rt, shape, a, delta, fi, fj):
+    """The floor's loops with the fast pass's force accumulation (pair force added to fi[i], subtracted
+    from fj[i + o]): the least work a pass that yields per-particle forces does; no dissipation, no hops."""
+    px, py, pz = pos
+    vx, vy, vz = vel
+    fix, fiy, fiz = fi
+    fjx, fjy, fjz = fj
+    amp_a, p, step_lo, inv_w = shape
+    inv_a = 1.0 / a
+    r0, r1, r2, r3, r4, r5, r6 = rt[0], rt[1], rt[2], rt[3], rt[4], rt[5], rt[6]
+    for _ in range(reps):
+        for i in range(px.shape[0]):
+            fix[i] = fiy[i] = fiz[i] = fjx[i] = fjy[i] = fjz[i] = 0.0
+        for g in range(g_off.shape[0]):
+            o, base = g_off[g], g_base[g]
+            for i in range(px.shape[0] - o):
+                s, iu, j = np.uint64(base + i), np.uint64(i), np.uint64(i + o)
+                m = mask[s]
+                dx, dy, dz = px[j] - px[iu], py[j] - py[iu], pz[j] - pz[iu]
+                r = math.sqrt(dx * dx + dy * dy + dz * dz)
+                ir = 1.0 / r
+                ex, ey, ez = dx * ir, dy * ir, dz * ir
+                f = force_tree(r * inv_a, a * ir, r0, r1, r2, r3, r4, r5, r6, amp_a, p, step_lo, inv_w, True) * m
+                f += delta * ((vx[j] - vx[iu]) * ex + (vy[j] - vy[iu]) * ey + (vz[j] - vz[iu]) * ez) * m
+                fix[iu] += f * ex
+                fiy[iu] += f * ey
+                fiz[iu] += f * ez
+                fjx[j] -= f * ex
+                fjy[j] -= f * ey
+                fjz[j] -= f * ez
 
 
 @njit(cache=True, boundscheck=False, error_model="numpy")
@@ -179,11 +212,12 @@ def _accumulated(fs: list[np.ndarray], la, n: int) -> list[np.ndarray]:
 @pytest.mark.benchmark(timer=time.process_time)
 def test_bench_kernel_floor(benchmark) -> None:
     """The fast kernel against its floor, side by side at N = 160 (best of 5 CPU time, interleaved): the
-    stripped group loop computing only the damped slot forces (a call per group, as issue 7 measured
-    it, and inlined into one function, as the kernel inlines its pass), the kernel's full pair pass
-    (dissipation terms, hop flags, force accumulation) and its full step (`simulate`, 2000 steps, checks
-    every 59 steps).  extra_info: ns per listed pair of each and the full step over either floor.  The
-    full pass computes the floor's forces: accumulated in the pass's order they are bit-identical."""
+    stripped group loop computing only the damped slot forces (a call per group, as the floor was first
+    measured, and inlined into one function, as the kernel inlines its pass), the same with the forces
+    accumulated per particle, the kernel's full pair pass (that plus the exact dissipation terms and hop
+    flags) and its full step (`simulate`, 2000 steps, checks every 59 steps).  extra_info: ns per listed
+    pair of each and the full step over the floors.  The full pass computes the floor's forces:
+    accumulated in the pass's order they are bit-identical."""
     s, w = _kernel_case()
     lat, c = s.lattice, s.model.coeffs()
     la = lattice_arrays(lat.positions, lat.mass, lat.a, lat.pairs, lat.r0, lat.shell, s.model.basins())
@@ -213,8 +247,12 @@ def test_bench_kernel_floor(benchmark) -> None:
             return time.process_time() - c0
         return run
 
+    acc_args = (pos, vel, la.g_off, la.g_base, la.mask, rt, shape, lat.a, s.delta,
+                tuple(np.zeros(n) for _ in range(3)), tuple(np.zeros(n) for _ in range(3)))
+    _floor_accumulated(1, *acc_args)
     cases = {"floor_calls": timed(lambda: _floor_calls(KERNEL_STEPS, *floor_args, *fs)),
              "floor_inlined": timed(lambda: _floor_inlined(KERNEL_STEPS, *floor_args, *fs)),
+             "floor_accumulated": timed(lambda: _floor_accumulated(KERNEL_STEPS, *acc_args)),
              "full_pass": timed(lambda: _pair_passes(KERNEL_STEPS, *pass_args)),
              "full_step": lambda: _run(s, w, "fast").cpu_s}
     cases["full_step"]()
@@ -227,7 +265,9 @@ def test_bench_kernel_floor(benchmark) -> None:
     ns_pair = {k: 1e9 * v / (KERNEL_STEPS * pairs) for k, v in best.items()}
     benchmark.extra_info.update(
         ns_per_pair_floor_damped=ns_pair["floor_calls"], ns_per_pair_floor_inlined=ns_pair["floor_inlined"],
-        ns_per_pair_full_pass=ns_pair["full_pass"], ns_per_pair_step_full_step=ns_pair["full_step"],
-        full_step_over_floor=best["full_step"] / best["floor_calls"],
-        full_step_over_inlined_floor=best["full_step"] / best["floor_inlined"], pairs=pairs, slots=ns, particles=n)
+        ns_per_pair_floor_accumulated=ns_pair["floor_accumulated"], ns_per_pair_full_pass=ns_pair["full_pass"],
+        ns_per_pair_step_full_step=ns_pair["full_step"], full_step_over_floor=best["full_step"] / best["floor_calls"],
+        full_step_over_inlined_floor=best["full_step"] / best["floor_inlined"],
+        full_step_over_accumulated_floor=best["full_step"] / best["floor_accumulated"], pairs=pairs, slots=ns,
+        particles=n)
     assert best["full_pass"] > best["floor_inlined"]  # the full pass does strictly more work on the same slots
