@@ -13,7 +13,8 @@ rounding).  What differs is how the work is laid out:
   the hop flag, and adds the pair force to particle i in one accumulator and subtracts it from
   i + o in another (two arrays, so the loop carries no dependence and vectorises; their sum is the
   force).  The whole pair pass, every group loop included, is inlined into the step loop: a call
-  per group costs numba's reference counting of every array argument, about a third of the pass;
+  per group costs numba's per-call set-up (reference counts of every array argument) and keeps LLVM
+  from optimising across the groups;
 - dissipation is exact every step and kept per slot: over n -> n+1 a slot dissipates
   1/2 dt (G_n . dv_{n+1/2} + delta rdot_{n+1}^2), G_n the slot's damping force of the previous pass,
   kept as one scalar q = g/r (G_n . dv = q d_n . dv, d_n = d_{n+1} - dt dv_{n+1/2}, so
@@ -49,7 +50,7 @@ from .kernel_state import FixArrays, LatticeArrays, RunOutputs, RunParams, RunSt
 
 __all__ = ["FASTMATH", "run_any", "run_p2", "run_p2_fastmath"]
 
-# The group loop reads 14 and writes 9 arrays; LLVM's default limit on the runtime alias checks this
+# The group loop reads 16 and writes 8 arrays; LLVM's default limit on the runtime alias checks this
 # needs ("too many memory checks needed") keeps it scalar.  Raising the limit only changes which loops
 # get vectorised, never a result: no fastmath, no reassociation (the vectorised loops have no
 # floating-point reductions), so vector and scalar code give the same bits.
@@ -57,7 +58,8 @@ llvm.set_option("", "-vectorize-memory-check-threshold=4096")
 
 # The fastmath variant: FMA contraction, reciprocal and function approximations, no signed zeros.
 # Not nnan/ninf: blow-ups are detected through NaN and inf, which those flags would let LLVM assume
-# away.  Tests hold it to the reference kernel's results to 1e-10.
+# away.  The flags apply to the whole kernel (numba sets them per compiled function).  Tests hold it
+# to the reference kernel's results to 1e-10.
 FASTMATH = {"contract", "arcp", "afn", "nsz"}
 
 
