@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import dataclasses
 import json
 import signal
 import sys
@@ -24,7 +25,7 @@ from pcverify import __version__
 from pcverify.harness.cache import Cache
 from pcverify.harness.catalogue import entries as scene_entries
 from pcverify.harness.catalogue import get_spec
-from pcverify.harness.execution import cached_results, execute, plan
+from pcverify.harness.execution import CELL_ERRORS, cached_results, execute, plan
 from pcverify.harness.interrupt import received, remember_sigint
 from pcverify.harness.limits import check_work
 from pcverify.harness.report import write_index, write_study_report
@@ -205,13 +206,21 @@ def cmd_run(args: argparse.Namespace) -> int:
     if ok:
         check_work(solver, scene, resolution, solver_vals, args.allow_large)
     with working(f"{solver.name} on {scene.name} n={resolution.n} refine={resolution.refine}", not args.json):
-        solution = solver.solve(scene, resolution, **solver_vals) if ok else skipped(scene, solver, resolution, reason)
+        try:
+            solution = solver.solve(scene, resolution, **solver_vals) if ok else skipped(scene, solver, resolution,
+                                                                                         reason)
+        except SceneError:
+            raise  # bad input: one error line
+        except CELL_ERRORS as exc:  # the solve itself failed: a result with that status, as in a study
+            solution = dataclasses.replace(skipped(scene, solver, resolution, ""), status="failed",
+                                           reason=f"{type(exc).__name__}: {' '.join(str(exc).split())}")
     out = solution.to_dict()
     out["scene_params"] = scene.param_dict
     out["scene_hash"] = scene.content_hash()
+    code = 1 if solution.status == "failed" else 0
     if args.json:
         print(json.dumps(out))
-        return 0
+        return code
     print(f"scene    {scene.name}  {scene.param_dict}")
     print(f"solver   {solver.name}  {out['params']}")
     print(f"grid     n={resolution.n} refine={resolution.refine} unknowns={out['unknowns']}  "
@@ -222,7 +231,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     for name, s in solution.samples.items():
         v = np.asarray(s["values"])
         print(f"  {name:<24} {v.size} points, {solution.quantity} in [{v.min():.6g}, {v.max():.6g}]")
-    return 0
+    return code
 
 
 def cmd_study(args: argparse.Namespace) -> int:

@@ -36,8 +36,7 @@ from .simulate import energy_balance_error, run_status, simulate
 BYTES_PER_PARTICLE = 3_000
 
 PARAMETERS: tuple[Param, ...] = (
-    Param("f_top", 50.0, "Hz", "target highest natural frequency of the held lattice; sets A", low=0.0, high=1e5,
-          low_open=True),
+    Param("f_top", 50.0, "Hz", "target highest natural frequency of the held lattice; sets A", low=1e-3, high=1e5),
     Param("stiffness", None, "N", "force scale A (overrides f_top)", low=0.0, high=1e12, low_open=True, optional=True),
     Param("p", 2.0, "", "envelope exponent of (a/r)^p", low=0.0, high=12.0),
     Param("s", 0.9, "", "STEP start 2 s a (STEP ends at 2a)", low=0.5, high=0.99),
