@@ -23,7 +23,7 @@ from pcverify import __version__
 from pcverify.harness.cache import Cache
 from pcverify.harness.catalogue import entries as scene_entries
 from pcverify.harness.catalogue import get_spec
-from pcverify.harness.execution import cached_results, execute
+from pcverify.harness.execution import cached_results, execute, plan
 from pcverify.harness.interrupt import remember_sigint
 from pcverify.harness.report import study_verdicts, write_index, write_study_report
 from pcverify.harness.reproduce import select_groups
@@ -232,14 +232,18 @@ def cmd_study(args: argparse.Namespace) -> int:
         studies = selected_groups(studies, args.name, args.group)
         out = Path(args.out)
         cache = Cache(args.cache or out / "cache")
+        rerun = None if args.rerun is None else frozenset(args.rerun)
         summary = []
         for study in studies:
-            t0 = time.perf_counter()
-            results, counts = execute(study, cache, dry_run=args.dry_run, jobs=args.jobs, progress=not args.json,
-                                      scheduler=args.scheduler)
             if args.dry_run:
-                summary.append({"study": study.name, **counts})
+                rows = plan(study, cache, rerun)
+                summary.append({"study": study.name, "cells": rows})
+                for r in [] if args.json else rows:
+                    print(f"{r['state']:<8} {r['key']}  {r['cell']}" + (f"  ({r['reason']})" if r["reason"] else ""))
                 continue
+            t0 = time.perf_counter()
+            results, counts = execute(study, cache, jobs=args.jobs, progress=not args.json, scheduler=args.scheduler,
+                                      rerun=rerun)
             write_study_report(study, results, out)
             summary.append({"study": study.name, **counts, "wall_s": round(time.perf_counter() - t0, 3),
                             "verdicts": study_verdicts(out, study.name)})
@@ -283,13 +287,18 @@ def cmd_report(args: argparse.Namespace) -> int:
     """`pcverify report`: rebuild every study's tables from the cache, then index.html."""
     out = Path(args.out)
     cache = Cache(out / "cache")
+    sources: dict[str, str | None] = dict.fromkeys(str(p) for p in sorted(study_files().values()))
+    for path in sorted(out.glob("*/manifest.json")):  # user study files, with the command that ran them
+        manifest = json.loads(path.read_text())
+        if manifest.get("study_file") and Path(manifest["study_file"]).is_file():
+            sources[manifest["study_file"]] = manifest.get("command")
     rebuilt = []
-    for name in sorted(study_files()):
-        study = load_study(name)
+    for source, run_command in sources.items():
+        study = load_study(source)
         results = cached_results(study, cache)
         if results:
-            write_study_report(study, results, out)
-            rebuilt.append({"study": name, "cells_cached": len(results)})
+            write_study_report(study, results, out, run_command)
+            rebuilt.append({"study": study.name, "study_file": source, "cells_cached": len(results)})
     index = write_index(out)
     if args.json:
         print(json.dumps({"index": str(index), "studies": rebuilt}))
@@ -360,8 +369,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="parallel cells on local cores (default 1)")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="hand the cells to a Dask cluster (e.g. tcp://host:8786; needs pcverify[dask])")
-    p.add_argument("--json", action="store_true", help="print a JSON summary per study, with its verdicts (the "
-                   "records of verdicts.json)")
+    p.add_argument("--rerun", nargs="*", default=None, metavar="SOLVER",
+                   help="recompute cached cells: all of them, or those of the named solvers (put it last)")
+    p.add_argument("--json", action="store_true", help="print a JSON summary per study with its verdicts (the records "
+                   "of verdicts.json; with --dry-run: the plan of every cell), nothing else on stdout")
     p.add_argument("--group", action="append", metavar="ID", help="run only this group of the study (repeatable; "
                    "the groups it reads tables from are included)")
     p.add_argument("--strict", action="store_true", help="exit 1 when any claim fails, listing the failed claims on "

@@ -112,10 +112,28 @@ def _warm_up(cells: list[Cell]) -> None:
         run_cell(c)
 
 
-def execute(study: Study, cache: Cache, dry_run: bool = False, jobs: int = 1, progress: bool = True,
-            scheduler: str | None = None) -> tuple[list[dict[str, Any]], dict[str, int]]:
+def plan(study: Study, cache: Cache, rerun: frozenset[str] | None = None) -> list[dict[str, Any]]:
+    """What `execute` would do, cell by cell: key, state (cached, to run, skip) and the skip reason."""
+    rows = []
+    for c in (c for g in study.groups for c in g.cells):
+        payload, skip = cell_identity(c)
+        key = cell_key(payload)
+        cached = cache.load(key)[0] is not None and not _rerun(c, rerun)
+        rows.append({"key": key, "state": "cached" if cached else ("skip" if skip else "to run"),
+                     "cell": c.describe(), "group": c.group, "solver": c.solver, "reason": skip or ""})
+    return rows
+
+
+def _rerun(cell: Cell, rerun: frozenset[str] | None) -> bool:
+    """Whether `--rerun` asks for this cell again (an empty set: every cell)."""
+    return rerun is not None and (not rerun or cell.solver in rerun)
+
+
+def execute(study: Study, cache: Cache, jobs: int = 1, progress: bool = True, scheduler: str | None = None,
+            rerun: frozenset[str] | None = None) -> tuple[list[dict[str, Any]], dict[str, int]]:
     """Run every cell not yet cached; return all results in cell order and the counts.
 
+    `rerun` recomputes cached cells too: all of them (an empty set) or those of the named solvers.
     Cells of timed groups run last, serially in this process, after a warm-up solve per solver;
     the others run in parallel (joblib with `jobs` > 1, or a Dask cluster at `scheduler`).
     Each finished cell is written to the cache at once, so an interrupted study loses nothing.
@@ -127,7 +145,7 @@ def execute(study: Study, cache: Cache, dry_run: bool = False, jobs: int = 1, pr
     counts = {"cells": len(cells), "cached": 0, "done": 0, "failed": 0, "corrupt": 0}
     todo = []
     for i, key in enumerate(keys):
-        entry, state = cache.load(key)
+        entry, state = cache.load(key) if not _rerun(cells[i], rerun) else (None, "rerun")
         entry = as_cell(entry, cells[i])
         if state.startswith("corrupt"):
             counts["corrupt"] += 1
@@ -137,12 +155,6 @@ def execute(study: Study, cache: Cache, dry_run: bool = False, jobs: int = 1, pr
         else:
             todo.append(i)
         results.append(entry)
-    if dry_run:
-        for i, c in enumerate(cells):
-            skip = identities[i][1]
-            state = "cached" if results[i] is not None else ("skip" if skip else "to run")
-            print(f"{state:<8} {keys[i]}  {c.describe()}" + (f"  ({skip})" if skip and state == "skip" else ""))
-        return [r for r in results if r is not None], counts
     bar = tqdm(total=len(cells), initial=counts["cached"], desc=study.name, unit="cell", disable=not progress,
                dynamic_ncols=True)
 

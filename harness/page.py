@@ -260,7 +260,7 @@ def study_section(folder: Path, man: dict[str, Any], records: list[dict[str, Any
     counts = ", ".join(f"{sum(r['verdict'] == s for r in mine)} {s}" for s in ("fail", "not-applicable", "pass"))
     parts = [f"<section class='study' id='{anchor(name)}'><h2>{e(man['title'])}</h2>",
              f"<p class='meta'>study <b>{e(name)}</b> · {counts if mine else 'no claims'} · rerun: "
-             f"<code>{e(man.get('command') or 'pcverify study ' + name)}</code></p>"]
+             f"<code>{e(man.get('rerun') or 'pcverify study ' + name)}</code></p>"]
     if man.get("verdicts"):
         parts.append(table_details(read(folder / man["verdicts"]), f"{name}/{man['verdicts']}",
                                    anchor(name, "verdicts")))

@@ -7,13 +7,8 @@ carries the command that reproduces its number; `verdicts.json` beside index.htm
 
 from __future__ import annotations
 
-import datetime as dt
 import html
 import json
-import platform
-import subprocess
-import sys
-from importlib import metadata
 from pathlib import Path
 from typing import Any
 
@@ -23,11 +18,10 @@ import pandas as pd
 from pcverify.harness import figures, page, verdict
 from pcverify.harness.analyses import group_report
 from pcverify.harness.findings import findings, summary_lines
+from pcverify.harness.provenance import command, provenance
 from pcverify.harness.reproduce import study_command, table_group, verdict_commands
 from pcverify.harness.tables import cells_table
 from pcverify.harness.vtu import write_vtu
-
-PACKAGES = ("numpy", "scipy", "numba", "fipy", "scikit-fem", "pyamg", "pandas", "matplotlib")
 
 
 def _markdown(df: pd.DataFrame) -> str:
@@ -87,12 +81,16 @@ def _lattice_nodes(study: Any, claims: list[verdict.Claim], table: pd.DataFrame)
     return nodes
 
 
-def write_study_report(study: Any, results: list[dict[str, Any]], out: Path) -> Path:
-    """Write tables, plots, VTU files and verdicts of one study into out/<study>/ and its manifest."""
+def write_study_report(study: Any, results: list[dict[str, Any]], out: Path, run_command: str | None = None) -> Path:
+    """Write tables, plots, VTU files and verdicts of one study into out/<study>/ and its manifest (with the
+    study file, its plugin modules and the command that ran it: this process's, unless `run_command`; and
+    `rerun`, the command that reruns it from the cache)."""
     folder = out / study.name
     folder.mkdir(parents=True, exist_ok=True)
     manifest: dict[str, Any] = {"name": study.name, "title": study.title, "sections": [], "verdicts": None,
-                                "command": study_command(study, []),
+                                "study_file": str(study.path) if study.path else None,
+                                "plugins": list(study.plugins), "command": run_command or command(),
+                                "rerun": study_command(study, []),
                                 "solvers": sorted({c.solver for g in study.groups for c in g.cells})}
     all_tables: dict[str, pd.DataFrame] = {}
     group_cells = []
@@ -137,22 +135,6 @@ def _write_table(df: pd.DataFrame, stem: Path) -> None:
     stem.with_suffix(".md").write_text(_markdown(df))
 
 
-def provenance() -> dict[str, str]:
-    """Package versions, git commit, machine and time, for the report's footer."""
-    try:
-        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
-                                timeout=5, check=False).stdout.strip() or "unknown"
-    except (OSError, subprocess.SubprocessError):
-        commit = "unknown"
-    info = {"generated": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"), "git commit": commit,
-            "machine": f"{platform.node()} {platform.machine()} {platform.processor()}".strip(),
-            "python": platform.python_version(), "command": " ".join([Path(sys.argv[0]).name, *sys.argv[1:]])}
-    for pkg in PACKAGES:
-        try:
-            info[pkg] = metadata.version(pkg)
-        except metadata.PackageNotFoundError:
-            info[pkg] = "absent"
-    return info
 
 
 def _read_csv(path: Path) -> pd.DataFrame:
@@ -191,7 +173,7 @@ def write_index(out: Path) -> Path:
     manifests = _manifests(out)
     records = [r for _, man in manifests for r in study_verdicts(out, man["name"])]
     _atomic_write(out / "verdicts.json", json.dumps(records, indent=1))
-    prov = provenance()
+    prov = provenance([man for _, man in manifests])
     studies = [{"name": m["name"], "title": m["title"], "solvers": m.get("solvers", []), "orders": m.get("orders", [])}
                for _, m in manifests]
     meta = f"generated {prov['generated']} · commit {prov['git commit']} · {len(manifests)} studies"

@@ -95,7 +95,7 @@ def load_study(name_or_path: str) -> Study:
     check_study_document(doc, path)  # one-line errors for bad fields, before any cell is built
     groups = [_group(g, f"{path.name} group {gi + 1}", gi, plugins) for gi, g in enumerate(doc["group"])]
     claims = parse_claims(doc.get("claim", []), path.name)
-    return Study(doc.get("name", path.stem), doc.get("title", path.stem), groups, claims, plugins, path)
+    return Study(doc.get("name", path.stem), doc.get("title", path.stem), groups, claims, plugins, path.resolve())
 
 
 def _group(g: dict[str, Any], where: str, gi: int, plugins: tuple[str, ...]) -> Group:

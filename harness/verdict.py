@@ -145,9 +145,12 @@ def judge(study: str, claim: Claim, tables: dict[str, pd.DataFrame], command: Co
         error = abs(value - target)
         ok = {"within": error <= claim.tolerance, "at-most": value <= target + claim.tolerance,
               "at-least": value >= target - claim.tolerance}[claim.sense]
-        note = "" if claim.sense == "within" else f"{claim.sense} target"
+        notes = [] if claim.sense == "within" else [f"{claim.sense} target"]
+        if "monotone" in part and not part["monotone"].fillna(True).astype(bool).all():
+            notes.append("pre-asymptotic: the errors do not decrease with every refinement, so the fitted order "
+                         "is not yet the asymptotic rate")
         out.append(row | {"value": value, "target": target, "error": error, "uncertainty": unc,
-                          "verdict": "pass" if ok else "fail", "note": note})
+                          "verdict": "pass" if ok else "fail", "note": "; ".join(notes)})
     return out
 
 
