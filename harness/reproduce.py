@@ -21,6 +21,7 @@ from pcverify.harness.study import Group, Study, study_files
 from pcverify.harness.verdict import Claim, Command
 from pcverify.scene import SceneError
 from pcverify.solvers.registry import SolverUnavailable, get_solver
+from pcverify.solvers.registry import entries as solver_entries
 
 
 def table_group(study: Study, table: str) -> str | None:
@@ -73,19 +74,27 @@ def _text(value: Any) -> str:
     return repr(value) if isinstance(value, float) else str(value)
 
 
+def _installed(origin: str) -> bool:
+    """Whether a name of this origin is known to every `pcverify` process: shipped or an entry point (not
+    one registered by a study file or a plugin module that only a study loads)."""
+    return origin == "pcverify" or "entry point" in origin
+
+
 def run_command(result: dict[str, Any]) -> str | None:
     """`pcverify run ...` that recomputes one cell's solve, or None when the command line cannot reach it
-    (a scene from a study file, a solver that is not installed)."""
-    scene = result["scene"]
-    entry = scene_entries().get(scene)
-    if entry is None or entry.origin.startswith("study file"):
+    (a scene or solver that only a study file or its plugin modules define)."""
+    scene, solver = result["scene"], result["solver"]
+    scene_entry, solver_entry = scene_entries().get(scene), solver_entries().get(solver)
+    if scene_entry is None or not _installed(scene_entry.origin):
+        return None
+    if ":" not in solver and (solver_entry is None or not _installed(solver_entry.origin)):
         return None
     try:
         scene_names = {p.name for p in get_spec(scene).parameters}
-        solver_names = {p.name for p in get_solver(result["solver"]).parameters}
+        solver_names = {p.name for p in get_solver(solver).parameters}
     except (SceneError, SolverUnavailable):
         return None
-    parts = ["pcverify", "run", scene, "--solver", result["solver"], "--n", str(result["n"])]
+    parts = ["pcverify", "run", scene, "--solver", solver, "--n", str(result["n"])]
     if int(result.get("refine") or 1) != 1:
         parts += ["--refine", str(result["refine"])]
     for where, params, own, other in (("scene", result.get("scene_params") or {}, scene_names, solver_names),

@@ -128,3 +128,15 @@ def test_a_verdict_command_reproduces_its_value(study, tmp_path, capsys):
     err = max(abs(v - (1 - z / 0.03)) for v, (_, _, z) in zip(solved["samples"]["nodes"]["values"],
                                                                  solved["samples"]["nodes"]["points"], strict=True))
     assert err == record["value"]  # the same number, bit for bit
+
+
+def test_run_command_only_for_what_every_pcverify_process_knows():
+    from pcverify.harness.reproduce import run_command
+
+    cell = {"scene": "bar-heat-patch", "solver": "fipy", "n": 3, "refine": 4, "scene_params": {"rho": 0.002},
+            "solver_params": {}}
+    assert run_command(cell) == "pcverify run bar-heat-patch --solver fipy --n 3 --refine 4 --set rho=0.002"
+    assert run_command(cell | {"scene_params": {"t_max": 400.0}, "solver_params": {"scheme": "crank-nicolson"}}) == (
+        "pcverify run bar-heat-patch --solver fipy --n 3 --refine 4 --set t_max=400.0 --set scheme=crank-nicolson")
+    assert run_command(cell | {"solver": "not-installed"}) is None  # e.g. registered by a study's plugin module
+    assert run_command(cell | {"scene": "not-in-the-catalogue"}) is None  # e.g. a study file's [[scene]]
