@@ -122,7 +122,7 @@ def sentence(claim: list[dict[str, Any]]) -> tuple[str, str]:
         targets = sorted({target_text(r) for r in judged})
         at = f" at {key} = {_joined(c for c, r in zip(cases, claim, strict=True) if r in judged)}" if key else ""
         against = targets[0] if len(targets) == 1 else _joined(target_text(r) for r in judged)
-        text += (f" {first['metric']}{at}: {values}, against {against} "
+        text += (f" {first.get('metric') or 'value'}{at}: {values}, against {against} "
                  f"({REFERENCE_WORDS.get(first['reference'], first['reference'])}).")
     missing = [r for r in claim if r["verdict"] == "not-applicable"]
     if missing:

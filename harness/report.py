@@ -125,9 +125,13 @@ def write_study_report(study: Any, results: list[dict[str, Any]], out: Path, run
 
 
 def study_verdicts(out: Path, study: str) -> list[dict[str, Any]]:
-    """The verdict records a study's report wrote (empty when it has no claims)."""
+    """The verdict records a study's report wrote (from verdicts.csv for a report written before verdicts.json
+    existed; empty when the study has no claims)."""
     path = out / study / "verdicts.json"
-    return json.loads(path.read_text()) if path.exists() else []
+    if path.exists():
+        return json.loads(path.read_text())
+    table = _read_csv(path.with_suffix(".csv")) if path.with_suffix(".csv").exists() else pd.DataFrame()
+    return verdict.records(table.astype(object).where(table.notna(), None)) if not table.empty else []
 
 
 def _write_table(df: pd.DataFrame, stem: Path) -> None:
