@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
+import signal
 import sys
 import threading
 import time
@@ -24,11 +25,11 @@ from pcverify.harness.cache import Cache
 from pcverify.harness.catalogue import entries as scene_entries
 from pcverify.harness.catalogue import get_spec
 from pcverify.harness.execution import cached_results, execute, plan
-from pcverify.harness.interrupt import remember_sigint
+from pcverify.harness.interrupt import received, remember_sigint
 from pcverify.harness.report import study_verdicts, write_index, write_study_report
 from pcverify.harness.reproduce import select_groups
-from pcverify.harness.study import load_study, study_files
-from pcverify.scene import Param, Resolution, SceneError
+from pcverify.harness.study import MAX_CELLS, load_study, study_files
+from pcverify.scene import Param, Resolution, SceneError, shown
 from pcverify.solvers.protocol import skipped
 from pcverify.solvers.registry import SolverUnavailable, get_solver
 from pcverify.solvers.registry import entries as solver_entries
@@ -147,7 +148,7 @@ def split_settings(settings: list[str], scene_params: tuple[Param, ...], solver_
     solver_vals: dict[str, Any] = {}
     for item in settings:
         if "=" not in item:
-            raise CliError(f"--set {item!r}: expected KEY=VALUE")
+            raise CliError(f"--set {shown(item)}: expected KEY=VALUE")
         key, text = item.split("=", 1)
         key = key.strip()
         target = None
@@ -156,7 +157,7 @@ def split_settings(settings: list[str], scene_params: tuple[Param, ...], solver_
         elif key.startswith("solver."):
             key, target = key[7:], "solver"
         elif key in scene_spec and key in solver_spec:
-            raise CliError(f"--set {key}: both the scene and the solver have {key!r}; "
+            raise CliError(f"--set {shown(key)}: both the scene and the solver have it; "
                            f"write scene.{key} or solver.{key}")
         elif key in scene_spec:
             target = "scene"
@@ -164,10 +165,10 @@ def split_settings(settings: list[str], scene_params: tuple[Param, ...], solver_
             target = "solver"
         else:
             known = sorted(set(scene_spec) | set(solver_spec))
-            raise CliError(f"--set {key}: unknown parameter; known: {', '.join(known)}")
+            raise CliError(f"--set {shown(key)}: unknown parameter; known: {', '.join(known)}")
         spec = scene_spec if target == "scene" else solver_spec
         if key not in spec:
-            raise CliError(f"--set {target}.{key}: unknown {target} parameter; known: {', '.join(sorted(spec))}")
+            raise CliError(f"--set {target}.{shown(key)}: unknown {target} parameter; known: {', '.join(sorted(spec))}")
         (scene_vals if target == "scene" else solver_vals)[key] = spec[key].parse(text)
     return scene_vals, solver_vals
 
@@ -228,7 +229,7 @@ def cmd_study(args: argparse.Namespace) -> int:
     """`pcverify study NAME`: run (or dry-run) one study, or all shipped ones for `default`."""
     with remember_sigint():
         names = sorted(study_files()) if args.name == "default" else [args.name]
-        studies = [load_study(n) for n in names]  # validate all before running any
+        studies = [load_study(n, args.allow_large) for n in names]  # validate all before running any
         studies = selected_groups(studies, args.name, args.group)
         out = Path(args.out)
         cache = Cache(args.cache or out / "cache")
@@ -369,6 +370,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="parallel cells on local cores (default 1)")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="hand the cells to a Dask cluster (e.g. tcp://host:8786; needs pcverify[dask])")
+    p.add_argument("--allow-large", action="store_true", help=f"run a study of more than {MAX_CELLS} cells")
     p.add_argument("--rerun", nargs="*", default=None, metavar="SOLVER",
                    help="recompute cached cells: all of them, or those of the named solvers (put it last)")
     p.add_argument("--json", action="store_true", help="print a JSON summary per study with its verdicts (the records "
@@ -418,7 +420,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"pcverify: error: {' '.join(where.split())}{hint if 'rerun' not in where else ''}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print("pcverify: interrupted (finished cells are kept in the cache)", file=sys.stderr)
+        if received() == signal.SIGTERM:
+            print("\npcverify: terminated (finished cells are kept in the cache)", file=sys.stderr)
+            return 128 + signal.SIGTERM
+        print("\npcverify: interrupted (finished cells are kept in the cache)", file=sys.stderr)
         return 130
 
 

@@ -3,9 +3,10 @@
 This package is the public API a solver or scene plugin is written against (API_VERSION; what is
 stable is listed in the README):
 
-- the scene model: `Scene` and its parts (`Box`, `Material`, `Conduction`, `Elasticity`, the
-  constraints `FaceTemperature`, `PointTemperature`, `PatchTemperature`, `FaceSupport`, `FaceClamp`),
-  `Resolution`, `Param` and `SceneError`, and `SceneSpec` (a named, parameterised scene);
+- the scene model: `Scene` and its parts (`Box`, `Material`, `Conduction` with a volumetric `source` and
+  an `InterfaceFlux`, `Elasticity`, the constraints `FaceTemperature`, `PointTemperature`,
+  `PatchTemperature`, `FaceSupport`, `FaceClamp`), `Resolution`, `Param` and `SceneError`, and
+  `SceneSpec` (a named, parameterised scene);
 - the solver contract: the `Solver` protocol (name, kind in KINDS, parameters, supports, solve),
   `Solution`, `skipped`, `effective_params`, and the optional stability probe (`StabilityProbe`,
   `ProbeSetup`, `ProbeRun`).
@@ -30,6 +31,7 @@ from pcverify.scene import (
     FaceClamp,
     FaceSupport,
     FaceTemperature,
+    InterfaceFlux,
     Material,
     Param,
     PatchTemperature,
@@ -61,7 +63,7 @@ except metadata.PackageNotFoundError:  # a source tree that is not installed
 
 __all__ = [
     "ALUMINIUM", "API_VERSION", "DURALUMIN", "FACES", "KINDS", "PHYSICS", "STATUSES", "Box", "Conduction",
-    "Elasticity", "FaceClamp", "FaceSupport", "FaceTemperature", "Material", "Param", "PatchTemperature",
-    "PointTemperature", "ProbeRun", "ProbeSetup", "Resolution", "Response", "Scene", "SceneError", "SceneSpec",
-    "Solution", "Solver", "StabilityProbe", "__version__", "effective_params", "skipped",
+    "Elasticity", "FaceClamp", "FaceSupport", "FaceTemperature", "InterfaceFlux", "Material", "Param",
+    "PatchTemperature", "PointTemperature", "ProbeRun", "ProbeSetup", "Resolution", "Response", "Scene",
+    "SceneError", "SceneSpec", "Solution", "Solver", "StabilityProbe", "__version__", "effective_params", "skipped",
 ]
