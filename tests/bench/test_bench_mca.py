@@ -41,14 +41,14 @@ def test_bench_time_stepping(benchmark, many_body: bool) -> None:
 
     def run():
         st = model.new_state()
-        model.fp[mk.F_T] = 0.0
+        before = model.kernel_s
         model.advance(st, STEPS)
-        return st
+        return st, model.kernel_s - before
 
-    st = benchmark.pedantic(run, rounds=3, iterations=1)
+    st, kernel_s = benchmark.pedantic(run, rounds=3, iterations=1)
     pairs = len(model.aut.pairs)
     benchmark.extra_info.update(many_body=many_body, automata=model.aut.size, pairs=pairs, steps=STEPS,
-                                ns_per_pair_step=1e9 * st.kernel_s / (pairs * STEPS))
+                                ns_per_pair_step=1e9 * kernel_s / (pairs * STEPS))
     assert int(st.counters[mk.C_STEPS]) == STEPS and int(st.counters[mk.C_STATUS]) == mk.OK
 
 

@@ -12,6 +12,7 @@ Held automata (temperature constraints) keep their value from t = 0+.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 import scipy.sparse as sp
@@ -34,22 +35,47 @@ def stable_step(aut: Automata, cap: np.ndarray, g: np.ndarray, free: np.ndarray)
     return float(np.min(cap[free] / rowsum[free]))
 
 
+class HeatState(NamedTuple):
+    """Arrays of the explicit heat kernel: temperatures (advanced), heat capacities C_i, the conducting pairs
+    and their conductances G_p, the held mask (1 = held), and a scratch array for the net heat flows."""
+
+    temp: np.ndarray
+    cap: np.ndarray
+    pi: np.ndarray
+    pj: np.ndarray
+    g: np.ndarray
+    held: np.ndarray
+    flow: np.ndarray
+
+
+class HeatParams(NamedTuple):
+    """Scalars of the explicit heat kernel: the time step (s)."""
+
+    dt: float
+
+
+def heat_state(aut: Automata, temp: np.ndarray, cap: np.ndarray, g: np.ndarray, held: np.ndarray) -> HeatState:
+    """The kernel state of the automata's pairs (a copy of temp is advanced)."""
+    return HeatState(temp=np.asarray(temp, dtype=float).copy(), cap=cap, pi=aut.pairs[:, 0].copy(),
+                     pj=aut.pairs[:, 1].copy(), g=g, held=np.asarray(held, dtype=np.int64), flow=np.zeros(aut.size))
+
+
 @njit(cache=True)
-def explicit_run(temp, cap, pi, pj, g, held, dt, nsteps):
+def explicit_run(st, par, nsteps):
     """Forward Euler: T_i += dt / C_i sum_j G_ij (T_j - T_i) for the free automata, `nsteps` times."""
+    temp, cap, pi, pj, g, held, flow = st.temp, st.cap, st.pi, st.pj, st.g, st.held, st.flow
     n = temp.shape[0]
-    flux = np.zeros(n)
+    dt = par.dt
     for _ in range(nsteps):
         for i in range(n):
-            flux[i] = 0.0
+            flow[i] = 0.0
         for p in range(pi.shape[0]):
             q = g[p] * (temp[pj[p]] - temp[pi[p]])
-            flux[pi[p]] += q
-            flux[pj[p]] -= q
+            flow[pi[p]] += q
+            flow[pj[p]] -= q
         for i in range(n):
             if held[i] == 0:
-                temp[i] += dt * flux[i] / cap[i]
-    return temp
+                temp[i] += dt * flow[i] / cap[i]
 
 
 def explicit_system(aut: Automata, conductivity: float, rho_c: float, held: np.ndarray
@@ -69,15 +95,13 @@ def laplacian(aut: Automata, g: np.ndarray) -> sp.csr_matrix:
 
 
 def transient(aut: Automata, conductivity: float, rho_c: float, temp0: np.ndarray, held: np.ndarray, t_end: float,
-              cfl: float) -> tuple[np.ndarray, float, int]:
-    """Temperatures at t_end from temp0 (held automata keep theirs); returns (T, dt, steps)."""
+              cfl: float) -> tuple[HeatState, HeatParams, int]:
+    """The explicit run from temp0 to t_end (held automata keep theirs): (state, params, steps); the step is
+    cfl times the Gershgorin step, shortened so that a whole number of steps lands on t_end."""
     cap, g, dt_g = explicit_system(aut, conductivity, rho_c, held)
     dt_max = cfl * dt_g
     steps = max(1, math.ceil(t_end / dt_max * (1 - 1e-12)))
-    dt = t_end / steps
-    temp = explicit_run(temp0.astype(float).copy(), cap, aut.pairs[:, 0].copy(), aut.pairs[:, 1].copy(), g,
-                        held.astype(np.int64), dt, steps)
-    return temp, dt, steps
+    return heat_state(aut, temp0, cap, g, held), HeatParams(t_end / steps), steps
 
 
 def steady(aut: Automata, conductivity: float, values: np.ndarray, held: np.ndarray) -> np.ndarray:

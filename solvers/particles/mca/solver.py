@@ -1,11 +1,11 @@
 """The movable cellular automaton (MCA) solver: elasticity, fracture, eigenfrequencies and heat of the bar.
 
-Pieces: `mca_lattice` (automata: Voronoi cells of the bar's simple-cubic lattice, d = a), `mca_kernel`
-(numba: incremental pair and many-body stresses, rotations, response functions, unlinking, velocity
-Verlet), `mca_model` (constants, state, dynamic relaxation; the derivation of the many-body coefficient
-is in its docstring), `mca_stiffness` (the linearised model: modes, stable step), `mca_heat` (conduction
-between linked automata), `response` (sigma = f(eps) and its exact uniaxial curve).  This module maps a
-scene onto them and turns the results into a Solution.
+Pieces: `automata` (Voronoi cells of the bar's simple-cubic lattice, d = a), `kernel` (numba: incremental
+pair and many-body stresses, rotations, response functions, unlinking, velocity Verlet), `kernels` (the
+kernel family by name, one signature), `model` (constants, rest state, dynamic relaxation; the derivation of
+the many-body coefficient is in its docstring), `stiffness` (the linearised model: modes, stable step),
+`heat` (conduction between linked automata), `response` (sigma = f(eps) and its exact uniaxial curve).  This
+module maps a scene onto them and turns the results into a Solution.
 
 Scenes:
 - conduction (bar-heat-*): steady by a direct solve of the automata's heat balance, transient by explicit
@@ -49,6 +49,7 @@ from . import heat as mca_heat
 from . import kernel as mk
 from . import response as rf
 from .automata import Automata, bar_automata
+from .kernels import timed
 from .model import COEFFICIENTS, Elastic, Model, rebuild_pairs, relax
 from .probe import McaProbe
 from .stiffness import mass_diagonal, stiffness
@@ -145,18 +146,19 @@ class Mca:
     def _heat(self, scene: Scene, aut: Automata, p: dict[str, Any]) -> dict[str, Any]:
         mat = scene.material
         held, values = mca_heat.held_temperatures(scene, aut)
-        t0 = time.perf_counter()
         summary: dict[str, Any] = {}
         work: dict[str, Any] = {"unknowns": aut.size}
         if scene.conduction.mode == "steady":
+            t0 = time.perf_counter()
             temp = mca_heat.steady(aut, mat.conductivity, values, held)
-            work["time_steps"] = 0
+            work.update(time_steps=0, kernel_s=time.perf_counter() - t0)
         else:
-            temp, dt, steps = mca_heat.transient(aut, mat.conductivity, mat.density * mat.heat_capacity, values,
-                                                 held, scene.conduction.t_end, p["heat_cfl"])
-            summary.update(dt=dt, steps=steps)
+            st, par, steps = mca_heat.transient(aut, mat.conductivity, mat.density * mat.heat_capacity, values, held,
+                                                scene.conduction.t_end, p["heat_cfl"])
+            work["kernel_s"] = timed("heat", st, par, steps)
+            temp = st.temp
+            summary.update(dt=par.dt, steps=steps)
             work.update(time_steps=steps, pair_steps=steps * len(aut.pairs))
-        work["kernel_s"] = time.perf_counter() - t0
         rel = temp / scene.conduction.t_max
         status, reason = ("ok", "") if np.all(np.isfinite(rel)) else ("unstable", "non-finite temperature")
         summary.update(heat_summary(rel, float((rel * aut.volume).sum() / aut.volume.sum())))
@@ -251,12 +253,12 @@ class Mca:
                            nu_eff=-lateral / axial)
         kstat, reason = self._status(status, res, p["relax_tol"], steps, p["max_steps"])
         return {"field": u, "unknowns": 6 * aut.size, "quantity": "u (m)", "summary": summary, "status": kstat,
-                "reason": reason, "work": self._work(st, aut), "diagnostics": {"notes": notes}}
+                "reason": reason, "work": self._work(model, st), "diagnostics": {"notes": notes}}
 
     @staticmethod
-    def _work(st, aut: Automata) -> dict[str, Any]:
+    def _work(model: Model, st: mk.State) -> dict[str, Any]:
         return {"pair_steps": int(st.counters[mk.C_PAIRSTEPS]), "time_steps": int(st.counters[mk.C_STEPS]),
-                "kernel_s": st.kernel_s, "unknowns": 6 * aut.size}
+                "kernel_s": model.kernel_s, "unknowns": 6 * model.aut.size}
 
     @staticmethod
     def _status(code: int, res: float, tol: float, steps: int, max_steps: int) -> tuple[str, str]:
@@ -285,8 +287,7 @@ class Mca:
         t_end = 1.5 * eps_fail / scene.elasticity.strain_rate
         steps_total = min(p["max_steps"], math.ceil(t_end / model.dt))
         every = max(1, steps_total // p["records"])
-        hist = np.zeros((steps_total // every + 2, mk.N_H))
-        st = model.new_state()
+        st = model.new_state(hist_rows=steps_total // every + 2)
         area = scene.box.width * scene.box.height
         ke0 = 0.5 * float((aut.mass[:, None] * st.v**2).sum())
         rows = []
@@ -295,11 +296,12 @@ class Mca:
         chunk = max(every, 2000 // every * every)
         rebuilds = added = 0
         while done < steps_total:
-            code = model.advance(st, min(chunk, steps_total - done), hist, every)
-            rows.append(hist[: st.counters[mk.C_ROWS]].copy())
+            code = model.advance(st, min(chunk, steps_total - done), every)
+            rows.append(st.hist[: st.counters[mk.C_ROWS], :mk.H_LOAD].copy())
             done = int(st.counters[mk.C_STEPS])
             if code == mk.MOVED:
-                added += rebuild_pairs(model, st)
+                st, more = rebuild_pairs(model, st)
+                added += more
                 rebuilds += 1
                 code = mk.OK
                 continue
@@ -309,7 +311,7 @@ class Mca:
             peak = h[:, mk.H_R1].max()
             if st.counters[mk.C_UNLINK] > 0 and h[-1, mk.H_R1] < 0.05 * peak:
                 break
-        h = np.concatenate(rows) if rows else np.zeros((0, mk.N_H))
+        h = np.concatenate(rows) if rows else np.zeros((0, mk.H_LOAD))
         n_pairs = len(aut.pairs)
         summary: dict[str, Any] = {"dt": model.dt, "steps": done, "damping": gamma}
         if len(h):
@@ -339,11 +341,9 @@ class Mca:
         elif st.counters[mk.C_UNLINK] == 0:
             status, reason = "failed", f"no pair unlinked up to strain {h[-1, mk.H_U1] / length:.3g}"
         aut = model.aut
-        diag = {"notes": notes, "history": {"columns": ["t", "kinetic", "potential", "work", "dissipated",
-                                                        "reaction_zL", "reaction_z0", "u_zL", "linked",
-                                                        "kinetic_rot"], "rows": h}}
+        diag = {"notes": notes, "history": {"columns": list(mk.HISTORY_COLUMNS[:mk.H_LOAD]), "rows": h}}
         return {"field": st.x - aut.positions, "unknowns": 6 * aut.size, "quantity": "u (m)", "summary": summary,
-                "status": status, "reason": reason, "work": self._work(st, aut), "diagnostics": diag}
+                "status": status, "reason": reason, "work": self._work(model, st), "diagnostics": diag}
 
     # -- modes ---------------------------------------------------------------------------------------
 
