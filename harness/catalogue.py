@@ -23,6 +23,7 @@ from pcverify.scene import (
     RESPONSES,
     Box,
     Conduction,
+    Contact,
     Elasticity,
     FaceClamp,
     FaceSupport,
@@ -116,6 +117,23 @@ def _fracture(p: dict[str, Any]) -> Scene:
                  params=tuple(sorted(p.items())))
 
 
+def _contact_compression(p: dict[str, Any]) -> Scene:
+    box = box_of(p)
+    cons = (FaceSupport("z0"), FaceSupport("zL", p["strain"] * box.length))
+    return Scene("block-contact-compression", CATALOGUE["block-contact-compression"].description, box, DURALUMIN,
+                 frozenset({"elasticity", "contact"}), cons, elasticity=Elasticity(),
+                 contact=Contact(axis="z", position=box.length / 2), params=tuple(sorted(p.items())))
+
+
+def _sliding(p: dict[str, Any]) -> Scene:
+    box = box_of(p)
+    contact = Contact(axis="y", position=box.height / 2, normal_stress=p["normal_stress"], speed=p["speed"],
+                      direction="z", duration=p["duration"], span=(box.length / 3, 2 * box.length / 3))
+    return Scene("block-sliding", CATALOGUE["block-sliding"].description, box, DURALUMIN,
+                 frozenset({"elasticity", "contact"}), (FaceClamp("y0"),), elasticity=Elasticity(), contact=contact,
+                 params=tuple(sorted(p.items())))
+
+
 CATALOGUE: dict[str, SceneSpec] = {
     spec.name: spec
     for spec in (
@@ -178,6 +196,31 @@ CATALOGUE: dict[str, SceneSpec] = {
                 Param("strain_rate", 10.0, "1/s", "nominal axial strain rate", low=0.0, high=1e4, low_open=True),
             ),
             _fracture,
+        ),
+        SceneSpec(
+            "block-contact-compression",
+            "Two duralumin blocks stacked along z, unlinked at the interface z = L/2 (contact by the segment method), "
+            "compressed between frictionless supports on z=0 and z=L by strain * L (analytic: the uniaxial stress "
+            "E |strain| of the bonded bar crosses the interface uniformly); n even",
+            (*DIMENSIONS, Param("strain", -1e-3, "", "nominal axial strain (negative = compression)", low=-0.01,
+                                high=0.0, high_open=True)),
+            _contact_compression,
+        ),
+        SceneSpec(
+            "block-sliding",
+            "A duralumin slider (the middle third of the upper half, y > H/2) pressed by normal_stress on a base "
+            "(y < H/2, clamped at y=0) and driven along z at speed for duration after a smooth start: the macroscopic "
+            "friction coefficient mu_dr = F_dr / F_N (eq. 17) and the energy balance; n even",
+            (
+                *DIMENSIONS,
+                Param("normal_stress", 1e6, "Pa", "pressure on the slider's top face", low=0.0, high=1e9,
+                      low_open=True),
+                Param("speed", 1.0, "m/s", "sliding speed of the slider's top face", low=0.0, high=100.0,
+                      low_open=True),
+                Param("duration", 1e-3, "s", "sliding time at full speed (the averaging window)", low=0.0, high=1.0,
+                      low_open=True),
+            ),
+            _sliding,
         ),
     )
 }

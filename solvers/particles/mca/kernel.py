@@ -21,7 +21,8 @@ intensity) and damage d.
 The kernel family (kernels.py): a kernel takes (state, params, nsteps).  `State` holds every array (the
 automata, their pairs and fixes, and what a step advances) and `Params` the run's scalars, both
 typing.NamedTuple values that numba compiles as structures.  The parts a scene may not need -- rotations,
-the inelastic state (response functions, fracture), loads -- are None in the state; numba prunes the
+the inelastic state (response functions, fracture), loads, contact of two bodies (contact.py), a moving
+damping frame -- are None in the state; numba prunes the
 branches on a None argument, so a scene without rotation compiles and runs no rotation terms.  Each
 combination of parts is compiled (and cached) once.
 """
@@ -34,23 +35,26 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
+from . import contact as ct
+
 # fix kinds of a degree of freedom (State.fixm)
 FREE, PRESCRIBED = 0, 1
 # counters
 C_STEPS, C_STATUS, C_UNLINK, C_RELINK, C_PAIRSTEPS, C_ROWS = range(6)
 N_C = 6
-# energy accumulators: work of the prescribed motions, energy removed by damping, work of the loads
-E_WORK, E_DISS, E_LOAD = range(3)
-N_E = 3
+# energy accumulators: work of the prescribed motions, energy removed by damping, work of the loads, energy
+# dissipated by contact friction
+E_WORK, E_DISS, E_LOAD, E_FRIC = range(4)
+N_E = 4
 # status codes
 OK, NAN, GROWTH, MOVED = 0, 1, 2, 3
 STATUS_TEXT = {OK: "ok", NAN: "non-finite state", GROWTH: "kinetic energy above the blow-up limit",
                MOVED: "an automaton moved further than the skin: pair list to be rebuilt"}
 # history columns
-H_T, H_KE, H_U, H_WORK, H_DISS, H_R1, H_R2, H_U1, H_LINKED, H_KEROT, H_LOAD = range(11)
-N_H = 11
+H_T, H_KE, H_U, H_WORK, H_DISS, H_R1, H_R2, H_U1, H_LINKED, H_KEROT, H_LOAD, H_FRIC, H_FT, H_FN, H_NC = range(15)
+N_H = 15
 HISTORY_COLUMNS = ("t", "kinetic", "potential", "work", "dissipated", "reaction_zL", "reaction_z0", "u_zL", "linked",
-                   "kinetic_rot", "load_work")
+                   "kinetic_rot", "load_work", "friction_heat", "friction_force", "normal_force", "contacts")
 
 
 class Rotation(NamedTuple):
@@ -80,6 +84,13 @@ class Load(NamedTuple):
     """External forces on the automata (N), constant during a run."""
 
     force: np.ndarray  # (N, 3)
+
+
+class Frame(NamedTuple):
+    """Reference velocities (N, 3) that damping acts relative to (scaled by the drive's ramp): a body driven
+    along at V is damped about its rigid motion at V, not about rest."""
+
+    vel: np.ndarray
 
 
 class State(NamedTuple):
@@ -116,10 +127,13 @@ class State(NamedTuple):
     rot: Rotation | None
     inel: Inelastic | None
     load: Load | None
+    contact: ct.ContactState | None
+    frame: Frame | None = None
 
 
 class Params(NamedTuple):
-    """Scalars of a mechanical run (SI units).  kind: response function code (response.KINDS)."""
+    """Scalars of a mechanical run (SI units).  kind: response function code (response.KINDS); with ramp > 0
+    the prescribed velocities rise smoothly from 0 at ramp_start to fixv at ramp_start + ramp."""
 
     dt: float
     shear: float
@@ -143,6 +157,8 @@ class Params(NamedTuple):
     fracture: bool
     relink_on: bool
     record_every: int
+    ramp_start: float = 0.0
+    ramp: float = 0.0
 
 
 @njit(cache=True)
@@ -155,11 +171,12 @@ def forces(st, par):
     """Forces (and moments) of the current positions for the step's increments st.dx (and dphi): one
     evaluation of the pair-force function, outside time stepping."""
     n_pair = st.pi.shape[0]
-    _forces(st, par, st.rot, st.inel, st.load, np.empty((n_pair, 3)), np.empty(n_pair), np.empty(st.x.shape[0]))
+    _forces(st, par, st.rot, st.inel, st.load, st.contact, np.empty((n_pair, 3)), np.empty(n_pair),
+            np.empty(st.x.shape[0]))
 
 
 @njit(cache=True)
-def _forces(st, par, rot, inel, load, nvec, rr, theta_new):
+def _forces(st, par, rot, inel, load, con, nvec, rr, theta_new):
     """The pair-force function: update every pair's stress for the step's increments and return the forces
     st.f (and moments rot.mom); nvec, rr, theta_new are scratch (pair normals, lengths, new volume strains)."""
     x, pi, pj, r0, area, linked, sig, tau, rprev, theta = (st.x, st.pi, st.pj, st.r0, st.area, st.linked, st.sig,
@@ -194,6 +211,8 @@ def _forces(st, par, rot, inel, load, nvec, rr, theta_new):
             e = 0.5 * area[p] * (r - r0[p])
             theta_new[i] += e / st.vol[i]
             theta_new[j] += e / st.vol[j]
+    if con is not None:
+        ct.geometry(x, st.vol, con, theta_new)
     # pass 2: incremental pair stresses
     dx = st.dx
     for p in range(n_pair):
@@ -287,6 +306,8 @@ def _forces(st, par, rot, inel, load, nvec, rr, theta_new):
                     mr = kr * (rot.phi[j, c] - rot.phi[i, c])
                     mom[i, c] += mr
                     mom[j, c] -= mr
+    if con is not None:
+        ct.forces(x, st.v, f, theta, st.mass, kn, lam, par.dt, con)
     if load is not None:
         for i in range(n_aut):
             for c in range(3):
@@ -437,17 +458,19 @@ def advance(st, par, nsteps):
     entry); the status is left in st.counters[C_STATUS].
 
     Prescribed degrees of freedom (fixm[i, c] = PRESCRIBED; c = 0..2 translation, 3..5 rotation) move with
-    fixv[i, c] until time par.t_stop, then stay (the step across t_stop moves by the remaining fraction, so
-    the prescribed displacement is reached exactly).  Viscous damping gamma (1/s) acts on the free ones
-    (exact exponential decay per half step; the energy removed is accumulated).  Work of the prescribed
-    motions: trapezoid of sum (-f) . v over each step; work of the loads: trapezoid of sum f_load . v.  A
-    history row every par.record_every steps.  Returns when done or when the state is non-finite, blows up,
+    fixv[i, c] (ramped in when par.ramp > 0) until time par.t_stop, then stay (the step across t_stop moves by
+    the remaining fraction, so the prescribed displacement is reached exactly).  Viscous damping gamma (1/s)
+    acts on the free ones (exact exponential decay per half step, of the velocity relative to st.frame's
+    reference velocities when there is a frame; the kinetic energy it removes is accumulated).  Work of
+    the prescribed motions: trapezoid of sum (-f) . v over each step; work of the loads: trapezoid of sum
+    f_load . v; friction dissipation of the contacts: their power times dt.  A history row every
+    par.record_every steps.  Returns when done or when the state is non-finite, blows up,
     or moved beyond the skin."""
-    _advance(st, par, st.rot, st.inel, st.load, nsteps)
+    _advance(st, par, st.rot, st.inel, st.load, st.contact, st.frame, nsteps)
 
 
 @njit(cache=True)
-def _advance(st, par, rot, inel, load, nsteps):
+def _advance(st, par, rot, inel, load, con, frame, nsteps):
     x, v, f, dx, fixm, fixv, mass = st.x, st.v, st.f, st.dx, st.fixm, st.fixv, st.mass
     counters = st.counters
     n_aut = x.shape[0]
@@ -467,11 +490,18 @@ def _advance(st, par, rot, inel, load, nsteps):
     for _ in range(nsteps):
         t = st.clock[0]
         drive = min(1.0, max(0.0, (par.t_stop - t) / dt))  # the last partial step lands on t_stop exactly
+        if par.ramp > 0.0:
+            drive *= _smoothstep((t + 0.5 * dt - par.ramp_start) / par.ramp)
         diss = 0.0
         for i in range(n_aut):
             for c in range(3):
                 if fixm[i, c] == PRESCRIBED:
                     v[i, c] = fixv[i, c] * drive
+                elif frame is not None:
+                    ref = frame.vel[i, c] * drive
+                    un = ref + (v[i, c] - ref) * damp
+                    diss += 0.5 * mass[i] * (v[i, c] * v[i, c] - un * un)
+                    v[i, c] = un + 0.5 * dt * f[i, c] * inv_m[i]
                 else:
                     v[i, c], e = _first_half(v[i, c], f[i, c], damp, mass[i], inv_m[i], dt)
                     diss += e
@@ -487,15 +517,22 @@ def _advance(st, par, rot, inel, load, nsteps):
                     rot.dphi[i, c] = dt * w[i, c]
                     rot.phi[i, c] += rot.dphi[i, c]
         st.clock[0] = t + dt
-        _forces(st, par, rot, inel, load, nvec, rr, theta_new)
+        _forces(st, par, rot, inel, load, con, nvec, rr, theta_new)
         ke = 0.0
         kerot = 0.0
         moved = False
         for i in range(n_aut):
             for c in range(3):
                 if fixm[i, c] == FREE:
-                    v[i, c], e = _second_half(v[i, c], f[i, c], damp, mass[i], inv_m[i], dt)
-                    diss += e
+                    if frame is not None:
+                        ref = frame.vel[i, c] * drive
+                        uh = v[i, c] + 0.5 * dt * f[i, c] * inv_m[i]
+                        vn = ref + (uh - ref) * damp
+                        diss += 0.5 * mass[i] * (uh * uh - vn * vn)
+                        v[i, c] = vn
+                    else:
+                        v[i, c], e = _second_half(v[i, c], f[i, c], damp, mass[i], inv_m[i], dt)
+                        diss += e
                 ke += 0.5 * mass[i] * v[i, c] * v[i, c]
                 if rot is not None:
                     w = rot.w
@@ -514,6 +551,8 @@ def _advance(st, par, rot, inel, load, nsteps):
             load_new = _load_power(st, load)
             st.energy[E_LOAD] += 0.5 * dt * (load_old + load_new)
             load_old = load_new
+        if con is not None:
+            st.energy[E_FRIC] += ct.after_step(con, dt)
         counters[C_STEPS] += 1
         counters[C_PAIRSTEPS] += n_pair
         hist = st.hist
@@ -525,12 +564,19 @@ def _advance(st, par, rot, inel, load, nsteps):
             counters[C_STATUS] = GROWTH
             rec = counters[C_ROWS] < hist.shape[0]
         if rec:
-            _record(st, par, ke, kerot, rr)
+            _record(st, par, con, ke, kerot, rr)
         if counters[C_STATUS] != OK:
             return
         if moved:
             counters[C_STATUS] = MOVED
             return
+
+
+@njit(inline="always")
+def _smoothstep(s):
+    """0 below 0, 1 above 1, s^2 (3 - 2 s) between: a velocity ramp with continuous acceleration."""
+    s = min(1.0, max(0.0, s))
+    return s * s * (3.0 - 2.0 * s)
 
 
 @njit(cache=True)
@@ -560,7 +606,7 @@ def _load_power(st, load):
 
 
 @njit(cache=True)
-def _record(st, par, ke, kerot, rr):
+def _record(st, par, con, ke, kerot, rr):
     hist, counters, f, x, x0, group = st.hist, st.counters, st.f, st.x, st.x0, st.group
     row = counters[C_ROWS]
     r1 = 0.0
@@ -588,4 +634,8 @@ def _record(st, par, ke, kerot, rr):
     hist[row, H_LINKED] = nl
     hist[row, H_KEROT] = kerot
     hist[row, H_LOAD] = st.energy[E_LOAD]
+    if con is not None:
+        hist[row, H_U] += par.kn * ct.energy(con)
+        hist[row, H_FRIC] = st.energy[E_FRIC]
+        hist[row, H_FT], hist[row, H_FN], hist[row, H_NC] = ct.resultants(con)
     counters[C_ROWS] = row + 1

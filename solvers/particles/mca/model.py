@@ -29,6 +29,7 @@ from scipy.spatial import cKDTree
 
 from pcverify.scene import Response, SceneError
 
+from . import contact as ct
 from . import kernel as mk
 from . import response as rf
 from .automata import Automata
@@ -104,6 +105,9 @@ class Model:
     skin: float = 0.25  # in units of the smallest spacing
     ke_limit: float = math.inf  # kinetic energy above which the run stops as blown up (J)
     load: np.ndarray | None = None  # (N, 3) external forces (N), constant
+    contact: ct.ContactLaw | None = None  # the contact law of body 2's surface on body 1's (aut.body set)
+    step_automata: Automata | None = None  # automata whose stiffness bounds the step (default aut)
+    frame: np.ndarray | None = None  # (N, 3) reference velocities of the damping (ramped with the drive)
     params: mk.Params = field(init=False)
     dt: float = field(init=False)
     omega_max: float = field(init=False)
@@ -121,8 +125,9 @@ class Model:
             self.fixm[:, 3:] = mk.PRESCRIBED
             self.fixv[:, 3:] = 0.0
         el = self.elastic
-        k = stiffness(self.aut, el.shear, el.lam, el.kn, self.krot, rotations=True)
-        self.omega_max = omega_max_bound(k, mass_diagonal(self.aut, rotations=True))
+        bound = self.aut if self.step_automata is None else self.step_automata
+        k = stiffness(bound, el.shear, el.lam, el.kn, self.krot, rotations=True)
+        self.omega_max = omega_max_bound(k, mass_diagonal(bound, rotations=True))
         self.dt = 2.0 * self.cfl / self.omega_max
         sc, kdp, sy, hp, sd, hde = rf.kernel_params(self.response, el.youngs)
         self.params = mk.Params(
@@ -157,7 +162,10 @@ class Model:
                         x=a.positions.copy(), v=v.copy(), f=z3.copy(), dx=z3.copy(), xref=a.positions.copy(),
                         linked=np.ones(p, dtype=np.int64), sig=np.zeros(p), tau=np.zeros((p, 3)), rprev=a.r0.copy(),
                         theta=np.zeros(n), clock=np.zeros(1), counters=np.zeros(mk.N_C, dtype=np.int64),
-                        energy=np.zeros(mk.N_E), hist=np.zeros((hist_rows, mk.N_H)), rot=rot, inel=inel, load=load)
+                        energy=np.zeros(mk.N_E), hist=np.zeros((hist_rows, mk.N_H)), rot=rot, inel=inel, load=load,
+                        contact=None if self.contact is None else ct.new_state(a, a.positions, self.contact,
+                                                                               self.params.skin),
+                        frame=None if self.frame is None else mk.Frame(np.asarray(self.frame, dtype=float)))
 
     def advance(self, st: mk.State, nsteps: int, record_every: int = 0) -> int:
         """Run up to `nsteps` steps, a history row every `record_every` steps (rows from 0 in st.hist); returns
@@ -200,9 +208,20 @@ def relax(model: Model, st: mk.State, force_scale: float, tol: float = 1e-8, chu
     return status, res, steps
 
 
+def relax_status(code: int, res: float, tol: float, steps: int, max_steps: int) -> tuple[str, str]:
+    """(Solution status, reason) of a relaxation that ended with kernel status `code` and residual `res`."""
+    if code in (mk.NAN, mk.GROWTH):
+        return "unstable", f"{mk.STATUS_TEXT[code]} after {steps} steps; state at that step kept"
+    if code == mk.MOVED:
+        return "failed", mk.STATUS_TEXT[code]
+    if not res <= tol:
+        return "failed", f"residual {res:.3g} above relax_tol {tol:g} after {steps} steps (max_steps {max_steps})"
+    return "ok", ""
+
+
 def rebuild_pairs(model: Model, st: mk.State) -> tuple[mk.State, int]:
-    """Extend the pair list after automata moved beyond the skin; returns the new state and the number of
-    pairs added.
+    """Extend the pair list (and relist the contact candidates) after automata moved beyond the skin;
+    returns the new state and the number of pairs added.
 
     Listed pairs keep their state (an unlinked pair stays listed: it may come back into contact).  Every
     unlisted pair of automata closer than d (1 + 2 skin) -- d = the smallest spacing, the automata's
@@ -213,11 +232,15 @@ def rebuild_pairs(model: Model, st: mk.State) -> tuple[mk.State, int]:
     d = float(aut.spacing.min())
     cand = cKDTree(st.x).query_pairs(d * (1 + 2 * model.skin), output_type="ndarray").astype(np.int64)
     cand = np.sort(cand, axis=1)
+    if aut.body is not None:  # bodies meet through the contact, never through pairs
+        cand = cand[aut.body[cand[:, 0]] == aut.body[cand[:, 1]]]
     n = aut.size
     listed = np.sort(aut.pairs, axis=1)
     new = cand[~np.isin(cand[:, 0] * n + cand[:, 1], listed[:, 0] * n + listed[:, 1])]
     st.xref[:] = st.x
     st.counters[mk.C_STATUS] = mk.OK
+    if st.contact is not None:
+        st = st._replace(contact=ct.relisted(st.contact, aut, st.x, model.params.skin))
     if len(new) == 0:
         return st, 0
     face = aut.volume ** (2.0 / 3.0)

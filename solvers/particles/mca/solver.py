@@ -49,8 +49,9 @@ from . import heat as mca_heat
 from . import kernel as mk
 from . import response as rf
 from .automata import Automata, bar_automata
+from .contact_scenes import solve_contact
 from .kernels import timed
-from .model import COEFFICIENTS, Elastic, Model, rebuild_pairs, relax
+from .model import COEFFICIENTS, Elastic, Model, rebuild_pairs, relax, relax_status
 from .probe import McaProbe
 from .stiffness import mass_diagonal, stiffness
 
@@ -79,7 +80,28 @@ PARAMETERS: tuple[Param, ...] = (
     Param("max_steps", 5_000_000, "", "largest number of time steps of a run", low=1, high=1e9, kind=int),
     Param("heat_cfl", 0.9, "", "heat: explicit step as a fraction of the Gershgorin-stable step", low=0.0,
           high=1.0, low_open=True),
-    Param("records", 2000, "", "fracture: history rows kept", low=10, high=1e6, kind=int),
+    Param("records", 2000, "", "fracture and sliding: history rows kept", low=10, high=1e6, kind=int),
+    Param("mu0", 0.0, "Pa s/m", "contact friction, viscous part: tau = mu0 |V_t| + ...", low=0.0, high=1e12),
+    Param("mu1", 0.3, "", "contact friction, dry part: mu1 (1 + K_mu) min(sigma_N, sigma0) (Coulomb)", low=0.0,
+          high=5.0),
+    Param("sigma0", None, "Pa", "contact friction: cap of the normal stress that counts (elastic limit; none = no "
+          "cap)", low=0.0, high=1e12, low_open=True, optional=True),
+    Param("v_reg", 0.05, "m/s", "contact friction: below this tangential speed the dry part is regularised "
+          "linearly (no static friction)", low=0.0, high=1e3, low_open=True),
+    Param("roughness_a1", 0.0, "", "micro-roughness K_mu, sinusoid 1: mean amplitude A1/A (0 = no roughness)",
+          low=0.0, high=10.0),
+    Param("roughness_a2", 0.0, "", "micro-roughness K_mu, sinusoid 2: mean amplitude A2/A", low=0.0, high=10.0),
+    Param("roughness_d1", 2e-4, "m", "micro-roughness, sinusoid 1: regularity d1, the mean half-period", low=0.0,
+          high=1.0, low_open=True),
+    Param("roughness_d2", 5e-5, "m", "micro-roughness, sinusoid 2: regularity d2, the mean half-period", low=0.0,
+          high=1.0, low_open=True),
+    Param("roughness_spread", 0.5, "", "micro-roughness: half-periods and amplitudes drawn uniformly within "
+          "(1 +- spread) times their means", low=0.0, high=0.9),
+    Param("seed", 0, "", "micro-roughness: seed of the counter-based generator", low=0, high=2**62, kind=int),
+    Param("slide_ramp", None, "s", "sliding: time over which the drive speed rises smoothly (default: 2 periods "
+          "2 pi / relaxation rate)", low=0.0, high=1e3, low_open=True, optional=True),
+    Param("slide_damping", None, "1/s", "sliding: viscous damping rate of the automata's motion relative to their "
+          "body's drive (default: the relaxation rate; 0 = undamped)", low=0.0, high=1e9, optional=True),
 )
 
 
@@ -100,6 +122,11 @@ class Mca:
             if scene.conduction.mode == "steady" and not scene.constraints:
                 return False, "steady conduction without any prescribed temperature is singular"
             return True, ""
+        if "contact" in phys:
+            extra = phys - {"elasticity", "contact"}
+            if extra:
+                return False, f"mca contact scenes do not model {sorted(extra)} yet"
+            return True, ""
         if "elasticity" in phys:
             extra = phys - {"elasticity", "modes", "fracture"}
             if extra:
@@ -118,7 +145,10 @@ class Mca:
         t_wall = time.perf_counter()
         n = resolution.n
         pts = scene.sample_sets(n) if samples is None else samples
-        if "conduction" in scene.physics:
+        if "contact" in scene.physics:
+            out, aut = solve_contact(scene, n, p)
+            pts = {k: v[aut.holds(v)] for k, v in pts.items()}  # a slider shorter than its base: its automata only
+        elif "conduction" in scene.physics:
             aut = bar_automata(scene.box, n, scene.material.density)
             out = self._heat(scene, aut, p)
         else:
@@ -251,7 +281,7 @@ class Mca:
             area = scene.box.width * scene.box.height
             summary.update(axial_strain=axial, lateral_strain=lateral, E_eff=react / area / axial,
                            nu_eff=-lateral / axial)
-        kstat, reason = self._status(status, res, p["relax_tol"], steps, p["max_steps"])
+        kstat, reason = relax_status(status, res, p["relax_tol"], steps, p["max_steps"])
         return {"field": u, "unknowns": 6 * aut.size, "quantity": "u (m)", "summary": summary, "status": kstat,
                 "reason": reason, "work": self._work(model, st), "diagnostics": {"notes": notes}}
 
@@ -259,16 +289,6 @@ class Mca:
     def _work(model: Model, st: mk.State) -> dict[str, Any]:
         return {"pair_steps": int(st.counters[mk.C_PAIRSTEPS]), "time_steps": int(st.counters[mk.C_STEPS]),
                 "kernel_s": model.kernel_s, "unknowns": 6 * model.aut.size}
-
-    @staticmethod
-    def _status(code: int, res: float, tol: float, steps: int, max_steps: int) -> tuple[str, str]:
-        if code in (mk.NAN, mk.GROWTH):
-            return "unstable", f"{mk.STATUS_TEXT[code]} after {steps} steps; state at that step kept"
-        if code == mk.MOVED:
-            return "failed", mk.STATUS_TEXT[code]
-        if not res <= tol:
-            return "failed", f"residual {res:.3g} above relax_tol {tol:g} after {steps} steps (max_steps {max_steps})"
-        return "ok", ""
 
     # -- fracture ------------------------------------------------------------------------------------
 
