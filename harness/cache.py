@@ -1,8 +1,11 @@
-"""Result cache: one JSON file per study cell, keyed by a content hash.
+"""Result cache: one JSON file per study cell, keyed by a content hash, shared safely between processes.
 
-Writes are atomic (temporary file, fsync, rename), so an interrupted study never
-leaves a half-written entry; an entry that fails to parse or whose stored key or
-checksum does not match is reported as corrupt and recomputed.
+Writes are atomic (a temporary file named for its writer, fsync, rename), so an interrupted study never
+leaves a half-written entry, and temporary files whose writer has died are removed.  An entry that fails
+to parse, whose stored key or checksum does not match, or whose result lacks the fields every result
+has, is reported as corrupt and recomputed.  A cell being computed holds a lock file (`<key>.lock`, its
+holder's pid and host): another process running the same cell waits for the entry instead of computing
+it twice, and a lock whose holder has died on this host is taken over.
 """
 
 from __future__ import annotations
@@ -10,14 +13,50 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import socket
 import tempfile
+import time
 from pathlib import Path
 from typing import Any
 
+from pcverify.solvers.protocol import STATUSES
+
+# the fields every cell result has (identity and status), with their types: an entry without them is corrupt
+RESULT_FIELDS: dict[str, type | tuple[type, ...]] = {"status": str, "group": str, "scene": str, "solver": str,
+                                                    "n": int, "refine": int}
+HOST = socket.gethostname()
+
 
 def cell_key(payload: dict[str, Any]) -> str:
-    """Stable content hash of a cell description (scene hash, solver, version, resolution, params)."""
+    """Stable content hash of a cell description (scene hash, solver, code fingerprint, resolution, params)."""
     return hashlib.sha256(json.dumps(payload, sort_keys=True, default=str).encode()).hexdigest()[:20]
+
+
+def schema_problem(result: Any) -> str:
+    """Why `result` is not a cell result ("" if it is one)."""
+    if not isinstance(result, dict):
+        return f"result is a {type(result).__name__}, not a table"
+    for name, kind in RESULT_FIELDS.items():
+        if name not in result:
+            return f"result has no {name}"
+        if not isinstance(result[name], kind) or isinstance(result[name], bool):
+            return f"result {name} is a {type(result[name]).__name__}"
+    if result["status"] not in STATUSES:
+        return f"result status {result['status']!r} is not one of {', '.join(STATUSES)}"
+    return ""
+
+
+def process_alive(pid: int, host: str) -> bool:
+    """Whether process `pid` on `host` may still run (a process on another host is assumed alive)."""
+    if host != HOST:
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # exists, owned by someone else
+        return True
+    return True
 
 
 class CacheWriteError(OSError):
@@ -25,10 +64,11 @@ class CacheWriteError(OSError):
 
 
 class Cache:
-    """A folder of `<key>.json` entries."""
+    """A folder of `<key>.json` entries and the `<key>.lock` files of cells being computed."""
 
     def __init__(self, root: str | os.PathLike) -> None:
         self.root = Path(root)
+        self.locks: set[str] = set()  # keys this process holds
 
     def path(self, key: str) -> Path:
         return self.root / f"{key}.json"
@@ -47,6 +87,9 @@ class Cache:
                 return None, "corrupt: checksum mismatch"
         except (OSError, ValueError, KeyError, TypeError) as exc:
             return None, f"corrupt: {type(exc).__name__}"
+        problem = schema_problem(doc["result"])
+        if problem:
+            return None, f"corrupt: {problem}"
         return doc["result"], "hit"
 
     def store(self, key: str, result: dict[str, Any]) -> None:
@@ -56,7 +99,7 @@ class Cache:
         tmp = None
         try:
             self.root.mkdir(parents=True, exist_ok=True)
-            fd, tmp = tempfile.mkstemp(dir=self.root, prefix=f".{key}.", suffix=".tmp")
+            fd, tmp = tempfile.mkstemp(dir=self.root, prefix=f".{key}.{os.getpid()}.", suffix=".tmp")
             with os.fdopen(fd, "w") as fh:
                 json.dump(doc, fh)
                 fh.flush()
@@ -71,11 +114,76 @@ class Cache:
             _discard(tmp)
             raise
 
+    # -- locks: one process computes a cell, the others wait for its entry
 
-def _discard(tmp: str | None) -> None:
-    """Remove a half-written temporary file (best effort: the folder may be the problem)."""
-    if tmp is not None:
+    def _lock_path(self, key: str) -> Path:
+        return self.root / f"{key}.lock"
+
+    def holder(self, key: str) -> tuple[int, str] | None:
+        """(pid, host) of the live process that holds `key`'s lock, or None (no lock, or its holder died)."""
         try:
-            os.unlink(tmp)
+            doc = json.loads(self._lock_path(key).read_text())
+            pid, host = int(doc["pid"]), str(doc["host"])
+        except FileNotFoundError:
+            return None
+        except (OSError, ValueError, KeyError, TypeError):
+            return (0, "?") if self._young(key) else None  # being written right now, or garbage left behind
+        return (pid, host) if process_alive(pid, host) else None
+
+    def _young(self, key: str, seconds: float = 10.0) -> bool:
+        try:
+            return time.time() - self._lock_path(key).stat().st_mtime < seconds
+        except OSError:
+            return False
+
+    def try_lock(self, key: str) -> bool:
+        """Take `key`'s lock (True), or find it held by a live process (False).  A dead holder's lock is
+        taken over.  Without a writable folder there is nothing to share: True."""
+        if key in self.locks:
+            return True
+        path = self._lock_path(key)
+        for _ in range(2):
+            try:
+                self.root.mkdir(parents=True, exist_ok=True)
+                fd = os.open(path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
+            except FileExistsError:
+                if self.holder(key) is not None:
+                    return False
+                _discard(str(path))  # its holder died: take it over
+                continue
+            except OSError:
+                return True
+            with os.fdopen(fd, "w") as fh:
+                json.dump({"pid": os.getpid(), "host": HOST, "since": time.time()}, fh)
+            self.locks.add(key)
+            return True
+        return False
+
+    def unlock(self, key: str) -> None:
+        if key in self.locks:
+            self.locks.discard(key)
+            _discard(str(self._lock_path(key)))
+
+    def unlock_all(self) -> None:
+        for key in list(self.locks):
+            self.unlock(key)
+
+    def remove_stray_files(self) -> int:
+        """Remove temporary files whose writer has died (a write interrupted by a kill); returns how many."""
+        removed = 0
+        for tmp in self.root.glob(".*.tmp"):
+            parts = tmp.name.split(".")
+            pid = int(parts[2]) if len(parts) > 3 and parts[2].isdigit() else None
+            if pid is None or not process_alive(pid, HOST):
+                _discard(str(tmp))
+                removed += 1
+        return removed
+
+
+def _discard(path: str | None) -> None:
+    """Remove a file (best effort: the folder may be the problem)."""
+    if path is not None:
+        try:
+            os.unlink(path)
         except OSError:
             pass

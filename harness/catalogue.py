@@ -28,6 +28,7 @@ from pcverify.scene import (
     FaceClamp,
     FaceSupport,
     FaceTemperature,
+    InterfaceFlux,
     Material,
     Param,
     PatchTemperature,
@@ -313,11 +314,12 @@ SCENE_TABLE_KEYS = {
     "t_max": "temperature scale of the reported T / t_max (K)", "mode": "steady or transient",
     "t_end": "end time of a transient (s)", "dt": "continuum time step of a transient (s)",
     "initial_temperature": "temperature at t = 0 (K)", "source": "uniform volumetric heat source (W/m^3)",
+    "interface": "{ flux (W/m^2), position (m), axis = z }: a planar heat source on an internal plane",
     "held": "list of { face | point | patch (+ radius), temperature }",
     "supports": "list of { face, displacement = 0 } (frictionless supports)", "clamps": "list of faces",
     "modes": "number of eigenfrequencies asked for",
 }
-HEAT_KEYS = ("t_max", "mode", "t_end", "dt", "initial_temperature", "source", "held")
+HEAT_KEYS = ("t_max", "mode", "t_end", "dt", "initial_temperature", "source", "interface", "held")
 ELASTIC_KEYS = ("supports", "clamps", "modes")
 
 
@@ -340,6 +342,14 @@ def _material(value: Any, where: str) -> Material:
         return Material(**{"name": "custom", **fields})
     except (SceneError, TypeError) as exc:
         raise SceneError(f"{where}: material: {exc}") from None
+
+
+def _interface(value: Any, where: str) -> InterfaceFlux:
+    allowed = ("flux", "position", "axis")
+    if not isinstance(value, dict) or set(value) - set(allowed) or not {"flux", "position"} <= set(value):
+        raise SceneError(f"{where}: interface={value!r} is not valid; allowed: {SCENE_TABLE_KEYS['interface']}")
+    fields = {k: float(v) if isinstance(v, int) and not isinstance(v, bool) else v for k, v in value.items()}
+    return InterfaceFlux(**fields)
 
 
 def _point(value: Any, what: str, where: str) -> tuple[float, float, float]:
@@ -398,7 +408,10 @@ def spec_from_table(table: dict[str, Any], where: str) -> SceneSpec:
             constraints.append(FaceSupport(item["face"], float(item.get("displacement", 0.0))))
         for face in table.get("clamps", []):
             constraints.append(FaceClamp(face))
-        conduction = Conduction(**{k: table[k] for k in HEAT_KEYS if k in table and k != "held"}) if heat else None
+        heat_fields = {k: table[k] for k in HEAT_KEYS if k in table and k != "held"}
+        if "interface" in heat_fields:
+            heat_fields["interface"] = _interface(heat_fields["interface"], where)
+        conduction = Conduction(**heat_fields) if heat else None
         elasticity = Elasticity(modes=table.get("modes", 0)) if elastic else None
     except (TypeError, ValueError) as exc:
         raise SceneError(f"{where}: {exc}") from None
@@ -407,6 +420,8 @@ def spec_from_table(table: dict[str, Any], where: str) -> SceneSpec:
                          f"elasticity fields ({', '.join(ELASTIC_KEYS)})")
     physics = {"conduction"} if heat else set()
     physics |= {"heat-source"} if conduction is not None and conduction.source != 0 else set()
+    plane = conduction.interface if conduction is not None else None
+    physics |= {"interface-flux"} if plane is not None and plane.flux != 0 else set()
     physics |= {"elasticity"} if elastic else set()
     physics |= {"modes"} if elasticity is not None and elasticity.modes > 0 else set()
     description = table.get("description", f"scene {name} (defined in a study file)")

@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
+import signal
 import sys
 import threading
 import time
@@ -23,11 +24,11 @@ from pcverify import __version__
 from pcverify.harness.cache import Cache
 from pcverify.harness.catalogue import entries as scene_entries
 from pcverify.harness.catalogue import get_spec
-from pcverify.harness.execution import cached_results, execute
-from pcverify.harness.interrupt import remember_sigint
+from pcverify.harness.execution import cached_results, execute, plan
+from pcverify.harness.interrupt import received, remember_sigint
 from pcverify.harness.report import write_index, write_study_report
-from pcverify.harness.study import load_study, study_files
-from pcverify.scene import Param, Resolution, SceneError
+from pcverify.harness.study import MAX_CELLS, load_study, study_files
+from pcverify.scene import Param, Resolution, SceneError, shown
 from pcverify.solvers.protocol import skipped
 from pcverify.solvers.registry import SolverUnavailable, get_solver
 from pcverify.solvers.registry import entries as solver_entries
@@ -144,7 +145,7 @@ def split_settings(settings: list[str], scene_params: tuple[Param, ...], solver_
     solver_vals: dict[str, Any] = {}
     for item in settings:
         if "=" not in item:
-            raise CliError(f"--set {item!r}: expected KEY=VALUE")
+            raise CliError(f"--set {shown(item)}: expected KEY=VALUE")
         key, text = item.split("=", 1)
         key = key.strip()
         target = None
@@ -153,7 +154,7 @@ def split_settings(settings: list[str], scene_params: tuple[Param, ...], solver_
         elif key.startswith("solver."):
             key, target = key[7:], "solver"
         elif key in scene_spec and key in solver_spec:
-            raise CliError(f"--set {key}: both the scene and the solver have {key!r}; "
+            raise CliError(f"--set {shown(key)}: both the scene and the solver have it; "
                            f"write scene.{key} or solver.{key}")
         elif key in scene_spec:
             target = "scene"
@@ -161,10 +162,10 @@ def split_settings(settings: list[str], scene_params: tuple[Param, ...], solver_
             target = "solver"
         else:
             known = sorted(set(scene_spec) | set(solver_spec))
-            raise CliError(f"--set {key}: unknown parameter; known: {', '.join(known)}")
+            raise CliError(f"--set {shown(key)}: unknown parameter; known: {', '.join(known)}")
         spec = scene_spec if target == "scene" else solver_spec
         if key not in spec:
-            raise CliError(f"--set {target}.{key}: unknown {target} parameter; known: {', '.join(sorted(spec))}")
+            raise CliError(f"--set {target}.{shown(key)}: unknown {target} parameter; known: {', '.join(sorted(spec))}")
         (scene_vals if target == "scene" else solver_vals)[key] = spec[key].parse(text)
     return scene_vals, solver_vals
 
@@ -225,17 +226,21 @@ def cmd_study(args: argparse.Namespace) -> int:
     """`pcverify study NAME`: run (or dry-run) one study, or all shipped ones for `default`."""
     with remember_sigint():
         names = sorted(study_files()) if args.name == "default" else [args.name]
-        studies = [load_study(n) for n in names]  # validate all before running any
+        studies = [load_study(n, args.allow_large) for n in names]  # validate all before running any
         out = Path(args.out)
         cache = Cache(args.cache or out / "cache")
+        rerun = None if args.rerun is None else frozenset(args.rerun)
         summary = []
         for study in studies:
-            t0 = time.perf_counter()
-            results, counts = execute(study, cache, dry_run=args.dry_run, jobs=args.jobs, progress=not args.json,
-                                      scheduler=args.scheduler)
             if args.dry_run:
-                summary.append({"study": study.name, **counts})
+                rows = plan(study, cache, rerun)
+                summary.append({"study": study.name, "cells": rows})
+                for r in [] if args.json else rows:
+                    print(f"{r['state']:<8} {r['key']}  {r['cell']}" + (f"  ({r['reason']})" if r["reason"] else ""))
                 continue
+            t0 = time.perf_counter()
+            results, counts = execute(study, cache, jobs=args.jobs, progress=not args.json, scheduler=args.scheduler,
+                                      rerun=rerun)
             write_study_report(study, results, out)
             summary.append({"study": study.name, **counts, "wall_s": round(time.perf_counter() - t0, 3)})
             if not args.json:
@@ -255,13 +260,18 @@ def cmd_report(args: argparse.Namespace) -> int:
     """`pcverify report`: rebuild every study's tables from the cache, then index.html."""
     out = Path(args.out)
     cache = Cache(out / "cache")
+    sources: dict[str, str | None] = dict.fromkeys(str(p) for p in sorted(study_files().values()))
+    for path in sorted(out.glob("*/manifest.json")):  # user study files, with the command that ran them
+        manifest = json.loads(path.read_text())
+        if manifest.get("study_file") and Path(manifest["study_file"]).is_file():
+            sources[manifest["study_file"]] = manifest.get("command")
     rebuilt = []
-    for name in sorted(study_files()):
-        study = load_study(name)
+    for source, run_command in sources.items():
+        study = load_study(source)
         results = cached_results(study, cache)
         if results:
-            write_study_report(study, results, out)
-            rebuilt.append({"study": name, "cells_cached": len(results)})
+            write_study_report(study, results, out, run_command)
+            rebuilt.append({"study": study.name, "study_file": source, "cells_cached": len(results)})
     index = write_index(out)
     if args.json:
         print(json.dumps({"index": str(index), "studies": rebuilt}))
@@ -332,7 +342,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="parallel cells on local cores (default 1)")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="hand the cells to a Dask cluster (e.g. tcp://host:8786; needs pcverify[dask])")
-    p.add_argument("--json", action="store_true", help="print a JSON summary of the study")
+    p.add_argument("--allow-large", action="store_true", help=f"run a study of more than {MAX_CELLS} cells")
+    p.add_argument("--rerun", nargs="*", default=None, metavar="SOLVER",
+                   help="recompute cached cells: all of them, or those of the named solvers (put it last)")
+    p.add_argument("--json", action="store_true", help="print a JSON summary of the study (with --dry-run: the "
+                   "plan of every cell), nothing else on stdout")
     p.set_defaults(func=cmd_study)
 
     p = sub.add_parser("bench", help="run the benchmarks, save them, compare with the previous saved run")
@@ -374,7 +388,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"pcverify: error: {' '.join(where.split())}{hint if 'rerun' not in where else ''}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print("pcverify: interrupted (finished cells are kept in the cache)", file=sys.stderr)
+        if received() == signal.SIGTERM:
+            print("\npcverify: terminated (finished cells are kept in the cache)", file=sys.stderr)
+            return 128 + signal.SIGTERM
+        print("\npcverify: interrupted (finished cells are kept in the cache)", file=sys.stderr)
         return 130
 
 

@@ -9,11 +9,15 @@ this process, after a warm-up solve per solver.
 
 from __future__ import annotations
 
+import re
+import threading
+import time
 import warnings
 from collections.abc import Iterator
 from typing import Any
 
 from joblib import Parallel, delayed
+from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
 from pcverify.harness.cache import Cache, cell_key
@@ -21,13 +25,15 @@ from pcverify.harness.fingerprint import code_fingerprint, module_fingerprint
 from pcverify.harness.interrupt import check_interrupted, ignore_sigint_in_worker
 from pcverify.harness.plugins import load_plugins
 from pcverify.harness.study import Cell, Study
-from pcverify.scene import Resolution, SceneError
+from pcverify.scene import Resolution, SceneError, shown
 from pcverify.solvers.registry import SolverUnavailable, get_solver
 
 try:  # optional dependency: pip install 'pcverify[dask]'
     from distributed import Client, as_completed
 except ImportError:  # --scheduler then says how to install it
     Client = as_completed = None
+
+SCHEDULER_ADDRESS = re.compile(r"^(tcp|tls|ws|wss|ucx)://[A-Za-z0-9._\-\[\]:]+:[0-9]{1,5}$|^inproc://[\w./\-]+$")
 
 # solve failures that are results of the cell (the input or the numbers), not bugs of the harness
 CELL_ERRORS = (SceneError, ValueError, ArithmeticError, MemoryError)
@@ -67,7 +73,8 @@ def run_cell(cell: Cell) -> dict[str, Any]:
         return base | {"status": "skipped", "reason": reason}
     resolution = Resolution(cell.n, cell.refine)
     try:
-        out = cell.task.run(solver, cell.scene, resolution, dict(cell.solver_params))
+        with threadpool_limits(limits=1, user_api="blas"):  # results must not depend on --jobs
+            out = cell.task.run(solver, cell.scene, resolution, dict(cell.solver_params))
     except CELL_ERRORS as exc:
         return base | {"status": "failed", "reason": f"{type(exc).__name__}: {exc}"}
     res = dict(out.get("resolution") or {})
@@ -83,16 +90,8 @@ def _indexed(i: int, cell: Cell) -> tuple[int, dict[str, Any]]:
 def _parallel(cells: list[Cell], todo: list[int], jobs: int, scheduler: str | None
               ) -> Iterator[tuple[int, dict[str, Any]]]:
     """(index, result) pairs in completion order: joblib on local cores, or a Dask cluster at `scheduler`."""
-    if scheduler:
-        if Client is None:
-            raise SceneError("--scheduler needs the optional dependency dask[distributed]; allowed: install it with "
-                             "pip install 'pcverify[dask]', or run without --scheduler")
-        try:
-            client = Client(scheduler, timeout="5s")
-        except OSError as exc:
-            raise SceneError(f"scheduler={scheduler!r} is not reachable ({exc}); allowed: the address of a running "
-                             "Dask scheduler, e.g. tcp://host:8786") from None
-        with client:
+    if scheduler is not None:
+        with connect(scheduler) as client:
             futures = [client.submit(_indexed, i, cells[i], pure=False) for i in todo]
             for fut in as_completed(futures):
                 yield fut.result()
@@ -100,6 +99,37 @@ def _parallel(cells: list[Cell], todo: list[int], jobs: int, scheduler: str | No
     # loky replaces a worker whose memory grew (numba, FiPy caches) and says so; the cell is rerun, nothing lost
     warnings.filterwarnings("ignore", message="A worker stopped while some jobs", category=UserWarning)
     yield from Parallel(n_jobs=jobs, return_as="generator_unordered")(delayed(_indexed)(i, cells[i]) for i in todo)
+
+
+def connect(address: str, timeout: float = 5.0) -> Any:
+    """A Dask client of the scheduler at `address`, or a one-line SceneError: a malformed address, no Dask
+    installed, nothing listening, or an endpoint that does not complete the Dask handshake (bounded: the
+    attempt runs in a thread that is abandoned after `timeout` + 5 s)."""
+    allowed = "allowed: the address of a running Dask scheduler, e.g. tcp://host:8786"
+    if not isinstance(address, str) or not SCHEDULER_ADDRESS.match(address):
+        raise SceneError(f"scheduler={shown(address)} is not valid; {allowed}")
+    if Client is None:
+        raise SceneError("--scheduler needs the optional dependency dask[distributed]; allowed: install it with "
+                         "pip install 'pcverify[dask]', or run without --scheduler")
+    box: dict[str, Any] = {}
+
+    def attempt() -> None:
+        try:
+            box["client"] = Client(address, timeout=f"{timeout}s")
+        except BaseException as exc:  # noqa: BLE001 - any failure of a foreign endpoint is one line
+            box["error"] = exc
+
+    thread = threading.Thread(target=attempt, daemon=True, name="pcverify-dask-connect")
+    thread.start()
+    thread.join(timeout + 5.0)
+    if thread.is_alive():
+        raise SceneError(f"scheduler={shown(address)} did not complete the Dask handshake within "
+                         f"{timeout + 5.0:g} s; {allowed}")
+    if "error" in box:
+        exc = box["error"]
+        raise SceneError(f"scheduler={shown(address)} is not reachable ({type(exc).__name__}: "
+                         f"{shown(str(exc))}); {allowed}")
+    return box["client"]
 
 
 def _warm_up(cells: list[Cell]) -> None:
@@ -112,10 +142,28 @@ def _warm_up(cells: list[Cell]) -> None:
         run_cell(c)
 
 
-def execute(study: Study, cache: Cache, dry_run: bool = False, jobs: int = 1, progress: bool = True,
-            scheduler: str | None = None) -> tuple[list[dict[str, Any]], dict[str, int]]:
+def plan(study: Study, cache: Cache, rerun: frozenset[str] | None = None) -> list[dict[str, Any]]:
+    """What `execute` would do, cell by cell: key, state (cached, to run, skip) and the skip reason."""
+    rows = []
+    for c in (c for g in study.groups for c in g.cells):
+        payload, skip = cell_identity(c)
+        key = cell_key(payload)
+        cached = cache.load(key)[0] is not None and not _rerun(c, rerun)
+        rows.append({"key": key, "state": "cached" if cached else ("skip" if skip else "to run"),
+                     "cell": c.describe(), "group": c.group, "solver": c.solver, "reason": skip or ""})
+    return rows
+
+
+def _rerun(cell: Cell, rerun: frozenset[str] | None) -> bool:
+    """Whether `--rerun` asks for this cell again (an empty set: every cell)."""
+    return rerun is not None and (not rerun or cell.solver in rerun)
+
+
+def execute(study: Study, cache: Cache, jobs: int = 1, progress: bool = True, scheduler: str | None = None,
+            rerun: frozenset[str] | None = None) -> tuple[list[dict[str, Any]], dict[str, int]]:
     """Run every cell not yet cached; return all results in cell order and the counts.
 
+    `rerun` recomputes cached cells too: all of them (an empty set) or those of the named solvers.
     Cells of timed groups run last, serially in this process, after a warm-up solve per solver;
     the others run in parallel (joblib with `jobs` > 1, or a Dask cluster at `scheduler`).
     Each finished cell is written to the cache at once, so an interrupted study loses nothing.
@@ -127,7 +175,7 @@ def execute(study: Study, cache: Cache, dry_run: bool = False, jobs: int = 1, pr
     counts = {"cells": len(cells), "cached": 0, "done": 0, "failed": 0, "corrupt": 0}
     todo = []
     for i, key in enumerate(keys):
-        entry, state = cache.load(key)
+        entry, state = cache.load(key) if not _rerun(cells[i], rerun) else (None, "rerun")
         entry = as_cell(entry, cells[i])
         if state.startswith("corrupt"):
             counts["corrupt"] += 1
@@ -137,12 +185,7 @@ def execute(study: Study, cache: Cache, dry_run: bool = False, jobs: int = 1, pr
         else:
             todo.append(i)
         results.append(entry)
-    if dry_run:
-        for i, c in enumerate(cells):
-            skip = identities[i][1]
-            state = "cached" if results[i] is not None else ("skip" if skip else "to run")
-            print(f"{state:<8} {keys[i]}  {c.describe()}" + (f"  ({skip})" if skip and state == "skip" else ""))
-        return [r for r in results if r is not None], counts
+    cache.remove_stray_files()
     bar = tqdm(total=len(cells), initial=counts["cached"], desc=study.name, unit="cell", disable=not progress,
                dynamic_ncols=True)
 
@@ -156,22 +199,49 @@ def execute(study: Study, cache: Cache, dry_run: bool = False, jobs: int = 1, pr
             same[i] = []
     todo = [i for i in todo if first[keys[i]] == i]
 
-    def finish(i: int, res: dict[str, Any]) -> None:
-        res["cache_key"] = keys[i]
-        cache.store(keys[i], res)
-        results[i] = res
-        counts["failed" if res.get("status") == "failed" else "done"] += 1
+    def share(i: int, res: dict[str, Any], done: bool) -> None:
+        results[i] = as_cell(res, cells[i])
+        if done:
+            counts["failed" if res.get("status") == "failed" else "done"] += 1
+        else:
+            counts["cached"] += 1
         for j in same[i]:
             results[j] = as_cell(res, cells[j])
             counts["cached"] += 1
         bar.set_postfix(done=counts["done"], cached=counts["cached"], failed=counts["failed"])
         bar.update(1 + len(same[i]))
+
+    def finish(i: int, res: dict[str, Any]) -> None:
+        res["cache_key"] = keys[i]
+        cache.store(keys[i], res)
+        cache.unlock(keys[i])
+        share(i, res, done=True)
         check_interrupted()  # a Ctrl-C that a library swallowed stops the study here, this cell stored
 
+    try:
+        mine = [i for i in todo if cache.try_lock(keys[i])]  # the others are being computed by another process
+        theirs = [i for i in todo if keys[i] not in cache.locks]
+        _run(study, cells, identities, mine, finish, bar, jobs, scheduler)
+        for i in theirs:
+            bar.set_description(f"{study.name}: waiting for another process: {cells[i].describe()}"[:70])
+            entry = _wait_for(cache, keys[i])
+            if entry is not None:
+                share(i, entry, done=False)
+            else:  # its computing process died or failed to store it: compute it here
+                _run(study, cells, identities, [i], finish, bar, 1, None)
+    finally:
+        cache.unlock_all()
+        bar.close()
+    return [r for r in results if r is not None], counts
+
+
+def _run(study: Study, cells: list[Cell], identities: list[tuple[dict[str, Any], str | None]], todo: list[int],
+         finish: Any, bar: Any, jobs: int, scheduler: str | None) -> None:
+    """Run the cells `todo`: the free ones in parallel, then the timed ones serially after a warm-up."""
     free = [i for i in todo if not cells[i].serial]
     timed = [i for i in todo if cells[i].serial and identities[i][1] is None]
     timed_skips = [i for i in todo if cells[i].serial and identities[i][1] is not None]
-    if (jobs > 1 or scheduler) and len(free) > 1:
+    if (jobs > 1 or scheduler is not None) and len(free) > 1:
         for i, res in _parallel(cells, free, jobs, scheduler):
             finish(i, res)
     else:
@@ -185,8 +255,23 @@ def execute(study: Study, cache: Cache, dry_run: bool = False, jobs: int = 1, pr
     for i in timed:
         bar.set_description(f"{study.name}: timed {cells[i].describe()}"[:70])
         finish(i, run_cell(cells[i]) | {"timing": "serial after warm-up"})
-    bar.close()
-    return [r for r in results if r is not None], counts
+
+
+def _wait_for(cache: Cache, key: str, poll: float = 0.5) -> dict[str, Any] | None:
+    """The entry another process is computing, once it is stored; None if that process stops holding the
+    cell's lock without storing it (it died or failed)."""
+    while True:
+        entry, _ = cache.load(key)
+        if entry is not None:
+            return entry
+        if cache.holder(key) is None:
+            entry, _ = cache.load(key)  # stored just before the lock went
+            if entry is None and cache.try_lock(key):
+                return None
+            if entry is not None:
+                return entry
+        check_interrupted()
+        time.sleep(poll)
 
 
 def cached_results(study: Study, cache: Cache) -> list[dict[str, Any]]:

@@ -1,9 +1,11 @@
-"""Ctrl-C during a study must not be lost.
+"""Ctrl-C and SIGTERM during a study must stop it cleanly, and its workers must not outlive it.
 
 Python raises KeyboardInterrupt wherever the main thread happens to be; inside a library block with a
 bare `except:` (FiPy evaluates its variables under several) the exception is swallowed and the study
-would run on to the end.  While a study runs, SIGINT therefore also sets INTERRUPTED, and the runner
-checks it after every finished cell: it stores that cell, then stops with KeyboardInterrupt.
+would run on to the end.  While a study runs, SIGINT and SIGTERM therefore also set INTERRUPTED (and
+remember which signal came), and the runner checks it after every finished cell: it stores that cell,
+then stops with KeyboardInterrupt.  A worker process watches the study's process and exits when it is
+gone (killed with SIGKILL, say), instead of computing on for minutes.
 """
 
 from __future__ import annotations
@@ -12,16 +14,20 @@ import contextlib
 import os
 import signal
 import threading
+import time
 from collections.abc import Iterator
 
 INTERRUPTED = threading.Event()
 STUDY_PID = "PCVERIFY_STUDY_PID"
+_RECEIVED: list[int] = []  # the signal that interrupted the study
+_WATCHING: list[int] = []  # the study pid a worker's watchdog follows
 
 
 @contextlib.contextmanager
 def remember_sigint() -> Iterator[None]:
-    """Within the block, SIGINT raises KeyboardInterrupt as usual and is also remembered in INTERRUPTED."""
+    """Within the block, SIGINT and SIGTERM raise KeyboardInterrupt and are remembered in INTERRUPTED."""
     INTERRUPTED.clear()
+    _RECEIVED.clear()
     os.environ[STUDY_PID] = str(os.getpid())  # inherited by the worker processes started from here on
     if threading.current_thread() is not threading.main_thread() or \
             signal.getsignal(signal.SIGINT) is not signal.default_int_handler:
@@ -32,27 +38,54 @@ def remember_sigint() -> Iterator[None]:
         return
 
     def handler(signum, frame):  # noqa: ARG001 - the signal-handler signature
+        _RECEIVED.append(signum)
         INTERRUPTED.set()
         raise KeyboardInterrupt
 
-    previous = signal.signal(signal.SIGINT, handler)
+    previous = {sig: signal.signal(sig, handler) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
         yield
     finally:
-        signal.signal(signal.SIGINT, previous)
+        for sig, old in previous.items():
+            signal.signal(sig, old)
         INTERRUPTED.clear()  # the interrupt is handled by whoever catches it; later studies start clean
 
 
+def received() -> int:
+    """The signal that stopped the study (SIGINT if none was recorded: a plain KeyboardInterrupt)."""
+    return _RECEIVED[-1] if _RECEIVED else signal.SIGINT
+
+
 def check_interrupted() -> None:
-    """Raise KeyboardInterrupt if a SIGINT arrived (even one a library swallowed)."""
+    """Raise KeyboardInterrupt if a SIGINT or SIGTERM arrived (even one a library swallowed)."""
     if INTERRUPTED.is_set():
         raise KeyboardInterrupt
 
 
-def ignore_sigint_in_worker() -> None:
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def _watch(pid: int, period: float) -> None:
+    while _alive(pid):
+        time.sleep(period)
+    os._exit(1)  # the study is gone: nobody will read this worker's result
+
+
+def ignore_sigint_in_worker(period: float = 1.0) -> None:
     """In a worker process of a study: leave Ctrl-C to the study's own process, which stops the study and
-    its workers.  An interrupted worker would only print a traceback on the shared terminal (e.g. from
-    numba's object-cache callback, seen in the tests).  No-op in the study's process and in threads."""
+    its workers (an interrupted worker would only print a traceback on the shared terminal), and exit
+    when the study's process has died.  No-op in the study's process and in threads."""
     parent = os.environ.get(STUDY_PID)
-    if parent and parent != str(os.getpid()) and threading.current_thread() is threading.main_thread():
-        signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if not parent or parent == str(os.getpid()) or threading.current_thread() is not threading.main_thread():
+        return
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if not _WATCHING:
+        _WATCHING.append(int(parent))
+        threading.Thread(target=_watch, args=(int(parent), period), daemon=True, name="pcverify-watchdog").start()

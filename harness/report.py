@@ -6,13 +6,8 @@ The report reads study results (or the cache through them); it never runs a solv
 from __future__ import annotations
 
 import base64
-import datetime as dt
 import html
 import json
-import platform
-import subprocess
-import sys
-from importlib import metadata
 from pathlib import Path
 from typing import Any
 
@@ -21,10 +16,9 @@ import pandas as pd
 
 from pcverify.harness import figures, verdict
 from pcverify.harness.analyses import group_report
+from pcverify.harness.provenance import command, provenance
 from pcverify.harness.tables import cells_table
 from pcverify.harness.vtu import write_vtu
-
-PACKAGES = ("numpy", "scipy", "numba", "fipy", "scikit-fem", "pyamg", "pandas", "matplotlib")
 
 
 def _markdown(df: pd.DataFrame) -> str:
@@ -56,11 +50,14 @@ def _write_vtus(results: list[dict[str, Any]], folder: Path) -> list[str]:
     return names
 
 
-def write_study_report(study: Any, results: list[dict[str, Any]], out: Path) -> Path:
-    """Write tables, plots, VTU files and verdicts of one study into out/<study>/ and its manifest."""
+def write_study_report(study: Any, results: list[dict[str, Any]], out: Path, run_command: str | None = None) -> Path:
+    """Write tables, plots, VTU files and verdicts of one study into out/<study>/ and its manifest (with the
+    study file, its plugin modules and the command that ran it: this process's, unless `run_command`)."""
     folder = out / study.name
     folder.mkdir(parents=True, exist_ok=True)
-    manifest: dict[str, Any] = {"name": study.name, "title": study.title, "sections": [], "verdicts": None}
+    manifest: dict[str, Any] = {"name": study.name, "title": study.title, "sections": [], "verdicts": None,
+                                "study_file": str(study.path) if study.path else None,
+                                "plugins": list(study.plugins), "command": run_command or command()}
     all_tables: dict[str, pd.DataFrame] = {}
     group_cells = []
     for g in study.groups:
@@ -92,24 +89,6 @@ def write_study_report(study: Any, results: list[dict[str, Any]], out: Path) -> 
 def _write_table(df: pd.DataFrame, stem: Path) -> None:
     df.to_csv(stem.with_suffix(".csv"), index=False)
     stem.with_suffix(".md").write_text(_markdown(df))
-
-
-def provenance() -> dict[str, str]:
-    """Package versions, git commit, machine and time, for the report's footer."""
-    try:
-        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
-                                timeout=5, check=False).stdout.strip() or "unknown"
-    except (OSError, subprocess.SubprocessError):
-        commit = "unknown"
-    info = {"generated": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"), "git commit": commit,
-            "machine": f"{platform.node()} {platform.machine()} {platform.processor()}".strip(),
-            "python": platform.python_version(), "command": " ".join([Path(sys.argv[0]).name, *sys.argv[1:]])}
-    for pkg in PACKAGES:
-        try:
-            info[pkg] = metadata.version(pkg)
-        except metadata.PackageNotFoundError:
-            info[pkg] = "absent"
-    return info
 
 
 CSS = ("body{font-family:sans-serif;max-width:1150px;margin:auto}table{border-collapse:collapse;font-size:12px;"
@@ -185,7 +164,7 @@ def write_index(out: Path) -> Path:
             if sec.get("vtu"):
                 parts.append(f"<p>VTU (ParaView) under {html.escape(str(folder / 'vtu'))}: {len(sec['vtu'])} files</p>")
     parts += _benchmarks(out)
-    prov = provenance()
+    prov = provenance([man for _, man in manifests])
     parts.append("<h2 id='provenance'>Provenance</h2><table id='provenance-table'>")
     parts += [f"<tr><th>{html.escape(k)}</th><td>{html.escape(v)}</td></tr>" for k, v in prov.items()]
     parts.append("</table></body></html>")

@@ -24,6 +24,8 @@ from pcverify.harness.tasks import SOLVE, CellTask
 from pcverify.harness.verdict import Claim, parse_claims
 from pcverify.scene import Scene, SceneError
 
+MAX_CELLS = 10_000  # a larger study needs --allow-large
+
 
 @dataclass(frozen=True)
 class Cell:
@@ -83,11 +85,16 @@ def study_path(name_or_path: str) -> Path:
     return path
 
 
-def load_study(name_or_path: str) -> Study:
+def load_study(name_or_path: str, allow_large: bool = False) -> Study:
     """Parse and check a study file (by shipped name or by path): plugins imported, scenes registered,
-    every group and claim validated before any cell is built."""
+    every group and claim validated before any cell is built.  A study of more than MAX_CELLS cells is
+    refused unless `allow_large` (counted before anything is built)."""
     path = study_path(name_or_path)
     doc = read_study_document(path)
+    count = cell_count(doc, path)
+    if count > MAX_CELLS and not allow_large:
+        raise SceneError(f"study file {path.name} has {count} cells; allowed: at most {MAX_CELLS} without "
+                         "--allow-large")
     plugins = tuple(values_of(doc.get("plugins", []), "plugins", f"study file {path.name}", allow_empty=True))
     load_plugins(plugins)
     for k, table in enumerate(doc.get("scene", [])):
@@ -95,7 +102,28 @@ def load_study(name_or_path: str) -> Study:
     check_study_document(doc, path)  # one-line errors for bad fields, before any cell is built
     groups = [_group(g, f"{path.name} group {gi + 1}", gi, plugins) for gi, g in enumerate(doc["group"])]
     claims = parse_claims(doc.get("claim", []), path.name)
-    return Study(doc.get("name", path.stem), doc.get("title", path.stem), groups, claims, plugins, path)
+    return Study(doc.get("name", path.stem), doc.get("title", path.stem), groups, claims, plugins, path.resolve())
+
+
+def cell_count(doc: dict[str, Any], path: Path) -> int:
+    """How many cells the study's groups make (solvers x n x refine x the sweep's combinations), from the
+    lengths of the lists alone."""
+    total = 0
+    for gi, g in enumerate(doc.get("group", []) if isinstance(doc.get("group"), list) else []):
+        if not isinstance(g, dict):
+            continue
+        where = f"{path.name} group {gi + 1}"
+        size = 1
+        for key, default in (("solvers", None), ("n", [4]), ("refine", [1])):
+            value = g.get(key, default)
+            size *= len(value) if isinstance(value, list) else 1
+        sweep = g.get("sweep", {})
+        for values in (sweep.values() if isinstance(sweep, dict) else []):
+            size *= len(values) if isinstance(values, list) else 1
+        if size < 0:
+            raise SceneError(f"{where}: cannot count its cells")
+        total += size
+    return total
 
 
 def _group(g: dict[str, Any], where: str, gi: int, plugins: tuple[str, ...]) -> Group:

@@ -70,7 +70,8 @@ def convergence(results: list[dict[str, Any]], quantities: list[str],
                 reference: dict[str, float] | None = None) -> tuple[pd.DataFrame, pd.DataFrame]:
     """(levels, fits): per sequence (solver + params) the values by h, and the fitted orders / GCI.
 
-    With an analytic reference the fit is of the error (L2 and Linf per sample set) against h;
+    With an analytic reference the fit is of the error (L2 and Linf per sample set) against h (`monotone`
+    says whether the fitted errors decrease with every refinement; if not, the order is pre-asymptotic);
     with a `reference` value per quantity (e.g. an extrapolated continuum result) of the relative
     error err.<quantity>; without either, three-grid Richardson extrapolation with the GCI on
     each summary quantity.
@@ -99,11 +100,13 @@ def convergence(results: list[dict[str, Any]], quantities: list[str],
         for col in err_cols:
             e = seq[col].to_numpy(float)
             if len(h) >= 2 and np.all(e > 0):
-                p, _ = observed_order(h, e, finest=min(len(h), 4))
+                finest = min(len(h), 4)
+                p, _ = observed_order(h, e, finest=finest)
                 kind = "extrapolated" if col.startswith("err.") else "analytic"
                 fits.append({"solver": solver, "params": params, "quantity": col, "reference": kind,
                              "levels": len(h), "order": p, "finest": e[-1], "extrapolated": 0.0,
-                             "gci_fine": np.nan, "kind": "error"})
+                             "gci_fine": np.nan, "kind": "error",
+                             "monotone": bool(np.all(np.diff(e[-finest:]) < 0))})
         if err_cols:
             continue
         for q in quantities:
@@ -118,7 +121,7 @@ def convergence(results: list[dict[str, Any]], quantities: list[str],
                 continue
             fits.append({"solver": solver, "params": params, "quantity": q, "reference": "richardson",
                          "levels": len(h), "order": rr.order, "finest": f[-1], "extrapolated": rr.extrapolated,
-                         "gci_fine": rr.gci_fine, "kind": rr.kind})
+                         "gci_fine": rr.gci_fine, "kind": rr.kind, "monotone": rr.kind == "monotonic"})
     return levels, pd.DataFrame(fits)
 
 

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from pcverify.scene import SceneError
+from pcverify.scene import SceneError, shown
 
 REFERENCE_KINDS = ("analytic", "extrapolated", "mesh-dependent", "same-grid", "theory", "paper")
 SENSES = ("within", "at-most", "at-least")
@@ -49,18 +49,49 @@ class Claim:
     sense: str = "within"  # within: |value - target| <= tol; at-most: value <= target + tol; at-least: >= target - tol
 
 
+FIELD_TYPES = {"id": "text", "text": "text", "table": "text", "metric": "text", "reference": "text", "per": "text",
+               "against_table": "text", "against_metric": "text", "aggregate": "text", "sense": "text",
+               "tolerance": "number", "target": "number", "absolute": "true/false", "select": "a table",
+               "against": "a table", "uncertainty": "a number or a column name"}
+
+
+def _type_ok(kind: str, value: Any) -> bool:
+    number = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+    if kind == "text":
+        return isinstance(value, str)
+    if kind == "number":
+        return number
+    if kind == "true/false":
+        return isinstance(value, bool)
+    if kind == "a table":
+        return isinstance(value, dict) and all(
+            isinstance(v, (str, int, float, bool)) or (isinstance(v, list) and all(
+                isinstance(x, (str, int, float, bool)) for x in v)) for v in value.values())
+    return number or isinstance(value, str)
+
+
 def parse_claims(items: list[dict[str, Any]], where: str) -> list[Claim]:
-    """Validate the `[[claim]]` tables of a study file; a bad one raises SceneError naming the field."""
+    """Validate the `[[claim]]` tables of a study file before anything runs; a bad one raises SceneError
+    naming the field, its type and the allowed values."""
     claims = []
     known = {f for f in Claim.__dataclass_fields__}
+    ids: set[str] = set()
     for k, item in enumerate(items):
         at = f"{where} claim {k + 1}"
+        if not isinstance(item, dict):
+            raise SceneError(f"{at}: {shown(item)} is not valid; allowed: a [[claim]] table")
         unknown = sorted(set(item) - known)
         if unknown:
             raise SceneError(f"{at}: {unknown[0]} is not a claim field; allowed: {', '.join(sorted(known))}")
         for name in ("id", "text", "table", "metric", "reference", "tolerance"):
             if name not in item:
                 raise SceneError(f"{at}: {name} is missing")
+        for name, value in item.items():
+            if not _type_ok(FIELD_TYPES[name], value):
+                raise SceneError(f"{at}: {name}={shown(value)} is not valid; allowed: {FIELD_TYPES[name]}")
+        if item["id"] in ids:
+            raise SceneError(f"{at}: id={item['id']!r} is used by another claim; allowed: one id per claim")
+        ids.add(item["id"])
         if item["reference"] not in REFERENCE_KINDS:
             raise SceneError(f"{at}: reference={item['reference']!r} is not allowed; allowed: "
                              f"{', '.join(REFERENCE_KINDS)}")
@@ -99,6 +130,11 @@ def judge(study: str, claim: Claim, tables: dict[str, pd.DataFrame]) -> list[dic
     df = tables.get(claim.table)
     if df is None or df.empty:
         return [base | {"case": "", "verdict": "not-applicable", "note": f"table {claim.table} has no rows"}]
+    missing = [c for c in (claim.metric, claim.per, *claim.select) if c and c not in df.columns]
+    if missing:
+        return [base | {"case": "", "verdict": "not-applicable",
+                        "note": f"column {missing[0]} is not in table {claim.table} (columns: "
+                                f"{', '.join(map(str, df.columns))})"}]
     rows = _rows(df, claim.select)
     others = None
     if claim.against or claim.against_table:
@@ -130,9 +166,12 @@ def judge(study: str, claim: Claim, tables: dict[str, pd.DataFrame]) -> list[dic
         error = abs(value - target)
         ok = {"within": error <= claim.tolerance, "at-most": value <= target + claim.tolerance,
               "at-least": value >= target - claim.tolerance}[claim.sense]
-        note = "" if claim.sense == "within" else f"{claim.sense} target"
+        notes = [] if claim.sense == "within" else [f"{claim.sense} target"]
+        if "monotone" in part and not part["monotone"].fillna(True).astype(bool).all():
+            notes.append("pre-asymptotic: the errors do not decrease with every refinement, so the fitted order "
+                         "is not yet the asymptotic rate")
         out.append(row | {"value": value, "target": target, "error": error, "uncertainty": unc,
-                          "verdict": "pass" if ok else "fail", "note": note})
+                          "verdict": "pass" if ok else "fail", "note": "; ".join(notes)})
     return out
 
 

@@ -1,21 +1,69 @@
 """pcverify: verify particle methods against continuum solvers and analytic solutions.
 
-This package is the public API a solver or scene plugin is written against: the scene model
-(`Scene` and its parts, `Param`, `Resolution`), the `Solver` protocol, `Solution` and `skipped`.
-Everything else (`pcverify.harness`, `pcverify.solvers`, `pcverify.references`) is the product's own
-and may change between versions.
+This package is the public API a solver or scene plugin is written against (API_VERSION; what is
+stable is listed in the README):
+
+- the scene model: `Scene` and its parts (`Box`, `Material`, `Conduction` with a volumetric `source` and
+  an `InterfaceFlux`, `Elasticity`, the constraints `FaceTemperature`, `PointTemperature`,
+  `PatchTemperature`, `FaceSupport`, `FaceClamp`), `Resolution`, `Param` and `SceneError`, and
+  `SceneSpec` (a named, parameterised scene);
+- the solver contract: the `Solver` protocol (name, kind in KINDS, parameters, supports, solve),
+  `Solution`, `skipped`, `effective_params`, and the optional stability probe (`StabilityProbe`,
+  `ProbeSetup`, `ProbeRun`).
+
+Plugins are found through the entry point groups `pcverify.solvers` and `pcverify.scenes`, a study
+file's `plugins = [...]`, or `--solver module:Class`.  Everything else (`pcverify.harness`,
+`pcverify.solvers`, `pcverify.references`) is the product's own and may change between versions.
 """
 
 from __future__ import annotations
 
 from importlib import metadata
 
-from pcverify.scene import Param, Resolution, Scene, SceneError
-from pcverify.solvers.protocol import Solution, Solver, skipped
+from pcverify.scene import (
+    ALUMINIUM,
+    DURALUMIN,
+    FACES,
+    PHYSICS,
+    Box,
+    Conduction,
+    Elasticity,
+    FaceClamp,
+    FaceSupport,
+    FaceTemperature,
+    InterfaceFlux,
+    Material,
+    Param,
+    PatchTemperature,
+    PointTemperature,
+    Resolution,
+    Response,
+    Scene,
+    SceneError,
+    SceneSpec,
+)
+from pcverify.solvers.protocol import (
+    KINDS,
+    STATUSES,
+    ProbeRun,
+    ProbeSetup,
+    Solution,
+    Solver,
+    StabilityProbe,
+    effective_params,
+    skipped,
+)
+
+API_VERSION = "1"  # raised when a name of the public API changes incompatibly
 
 try:
     __version__ = metadata.version("pcverify")
 except metadata.PackageNotFoundError:  # a source tree that is not installed
     __version__ = "0+unknown"
 
-__all__ = ["Param", "Resolution", "Scene", "SceneError", "Solution", "Solver", "skipped", "__version__"]
+__all__ = [
+    "ALUMINIUM", "API_VERSION", "DURALUMIN", "FACES", "KINDS", "PHYSICS", "STATUSES", "Box", "Conduction",
+    "Elasticity", "FaceClamp", "FaceSupport", "FaceTemperature", "InterfaceFlux", "Material", "Param",
+    "PatchTemperature", "PointTemperature", "ProbeRun", "ProbeSetup", "Resolution", "Response", "Scene",
+    "SceneError", "SceneSpec", "Solution", "Solver", "StabilityProbe", "__version__", "effective_params", "skipped",
+]

@@ -9,21 +9,51 @@ from __future__ import annotations
 
 import numpy as np
 
-from pcverify.references import heat_faces
+from pcverify.references.slab import Slab
 from pcverify.scene import FaceTemperature, Scene
+
+
+def slab_of(scene: Scene) -> tuple[Slab, int] | None:
+    """The one-dimensional problem a heat scene reduces to, and its axis, or None.
+
+    It does when every constraint is a FaceTemperature and they hold the two faces of one axis (or there
+    is none: an insulated body), and an interface flux, if any, lies across that axis; the initial
+    temperature and the volumetric source are uniform in every scene.
+    """
+    heat = scene.conduction
+    if heat is None:
+        return None
+    plane = heat.interface if heat.interface is not None and heat.interface.flux != 0.0 else None
+    faces = {c.face: c.value for c in scene.constraints if isinstance(c, FaceTemperature)}
+    if len(faces) != len(scene.constraints):
+        return None
+    if faces:
+        axes = {face[0] for face in faces}
+        if len(faces) != 2 or len(axes) != 1:
+            return None
+        axis = "xyz".index(axes.pop())
+        held: tuple[float, float] | None = (faces["xyz"[axis] + "0"], faces["xyz"[axis] + "WHL"[axis]])
+    else:
+        axis, held = plane.axis_index if plane is not None else 2, None
+    if plane is not None and plane.axis_index != axis:
+        return None
+    mat = scene.material
+    return Slab(float(scene.box.extent[axis]), mat.conductivity, mat.diffusivity, held=held,
+                initial=heat.initial_temperature, source=heat.source,
+                flux=plane.flux if plane is not None else 0.0,
+                plane=plane.position if plane is not None else 0.0), axis
 
 
 def analytic(scene: Scene, points: np.ndarray) -> np.ndarray | None:
     """Exact relative temperature at `points`, or None if the scene has no analytic solution."""
+    found = slab_of(scene)
+    if found is None:
+        return None
+    slab, axis = found
     heat = scene.conduction
-    faces = {c.face: c.value for c in scene.constraints if isinstance(c, FaceTemperature)}
-    if heat is None or heat.source != 0.0 or len(scene.constraints) != 2 or faces.get("z0") != heat.t_max \
-            or faces.get("zL") != 0.0:
-        return None
-    z = np.asarray(points, dtype=float)[:, 2]
-    length = scene.box.length
+    coord = np.asarray(points, dtype=float).reshape(-1, 3)[:, axis]
     if heat.mode == "steady":
-        return heat_faces.steady(z, length, 1.0)
-    if heat.initial_temperature != 0.0:
-        return None
-    return heat_faces.transient(z, heat.t_end, length, scene.material.diffusivity, 1.0)
+        if slab.held is None:
+            return None
+        return slab.steady(coord) / heat.t_max
+    return slab.transient(coord, heat.t_end, tol=1e-12 * heat.t_max) / heat.t_max

@@ -7,8 +7,18 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from pcverify.harness.catalogue import CATALOGUE, make_scene
-from pcverify.scene import Param, Resolution, SceneError
+from pcverify.harness.catalogue import CATALOGUE, make_scene, spec_from_table
+from pcverify.scene import (
+    ALUMINIUM,
+    Box,
+    Conduction,
+    FaceTemperature,
+    InterfaceFlux,
+    Param,
+    Resolution,
+    Scene,
+    SceneError,
+)
 
 
 @pytest.mark.parametrize("n, count", [(2, 16), (3, 63), (4, 160), (5, 325), (11, 3751)])
@@ -109,3 +119,68 @@ def test_catalogue_defaults_build():
         scene = spec.make()
         assert scene.name == name
         assert dict(scene.params) == {p.name: p.default for p in spec.parameters}
+
+
+# -- heat released inside the body: the volumetric source and the interface flux ----------------------------
+
+
+def _heat_scene(physics, **conduction):
+    cons = (FaceTemperature("z0", 0.0), FaceTemperature("zL", 0.0))
+    return Scene("s", "s", Box(), ALUMINIUM, frozenset(physics), cons, conduction=Conduction(**conduction))
+
+
+def test_interface_flux_is_validated_and_hashed():
+    plane = InterfaceFlux(1e4, 0.01)
+    scene = _heat_scene({"conduction", "interface-flux"}, interface=plane)
+    assert scene.conduction.interface.axis == "z"
+    moved = _heat_scene({"conduction", "interface-flux"}, interface=InterfaceFlux(1e4, 0.02))
+    stronger = _heat_scene({"conduction", "interface-flux"}, interface=InterfaceFlux(2e4, 0.01))
+    hashes = {s.content_hash() for s in (scene, moved, stronger, _heat_scene({"conduction"}))}
+    assert len(hashes) == 4
+    assert scene.content_hash() == _heat_scene({"conduction", "interface-flux"}, interface=plane).content_hash()
+    # a zero flux is no load: the physics word goes with a non-zero flux, as "heat-source" with source != 0
+    assert _heat_scene({"conduction"}, interface=InterfaceFlux(0.0, 0.01)).physics == {"conduction"}
+
+
+@pytest.mark.parametrize(
+    "build, word",
+    [
+        (lambda: InterfaceFlux(math.inf, 0.01), "flux"),
+        (lambda: InterfaceFlux(1e4, math.nan), "position"),
+        (lambda: InterfaceFlux(1e4, 0.01, "w"), "axis"),
+        (lambda: InterfaceFlux(True, 0.01), "flux"),
+        (lambda: Conduction(interface=(1e4, 0.01)), "interface"),
+        (lambda: _heat_scene({"conduction", "interface-flux"}, interface=InterfaceFlux(1e4, 0.03)), "position"),
+        (lambda: _heat_scene({"conduction", "interface-flux"}, interface=InterfaceFlux(1e4, 0.0)), "position"),
+        (lambda: _heat_scene({"conduction", "interface-flux"}, interface=InterfaceFlux(1e4, 0.012, "x")), "position"),
+        (lambda: _heat_scene({"conduction"}, interface=InterfaceFlux(1e4, 0.01)), "interface-flux"),
+        (lambda: _heat_scene({"conduction", "interface-flux"}), "interface-flux"),
+        (lambda: _heat_scene({"conduction"}, source=1e6), "heat-source"),
+    ],
+)
+def test_bad_loads_name_the_field(build, word):
+    with pytest.raises(SceneError, match=word) as info:
+        build()
+    assert "allowed" in str(info.value)
+
+
+def test_scene_table_with_source_and_interface():
+    table = {"name": "slab", "box": {"length": 0.06}, "source": 1e6, "interface": {"flux": 5e3, "position": 0.02},
+             "held": [{"face": "z0", "temperature": 0}, {"face": "zL", "temperature": 0}], "t_max": 1.0}
+    scene = spec_from_table(table, "test").make()
+    assert scene.physics == {"conduction", "heat-source", "interface-flux"}
+    assert scene.conduction.interface == InterfaceFlux(5e3, 0.02, "z")
+    assert scene.box.length == 0.06 and scene.conduction.source == 1e6
+    # the box is a parameter of the spec: a plane outside a shorter box is refused when that box is asked for
+    with pytest.raises(SceneError, match="position"):
+        spec_from_table(table, "test").make(length=0.015)
+
+
+@pytest.mark.parametrize("interface, word", [({"flux": 1.0}, "interface="), ({"flux": 1.0, "position": 0.01, "at": 1},
+                                                                             "interface="),
+                                             ({"flux": "hot", "position": 0.01}, "flux"),
+                                             ({"flux": 1.0, "position": 0.5}, "position")])
+def test_bad_scene_table_interface(interface, word):
+    table = {"name": "slab", "interface": interface, "held": [{"face": "z0", "temperature": 0}]}
+    with pytest.raises(SceneError, match=word):
+        spec_from_table(table, "test")

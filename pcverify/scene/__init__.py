@@ -18,6 +18,7 @@ from .constraints import (
 )
 from .contact import Contact
 from .geometry import Box, Resolution
+from .loads import InterfaceFlux
 from .material import ALUMINIUM, DURALUMIN, MATERIALS, RESPONSES, Material, Response
 from .model import MODES, PHYSICS, Conduction, Elasticity, Scene
 from .params import Param, SceneError, resolve_params, shown
@@ -25,7 +26,7 @@ from .spec import SceneSpec
 
 __all__ = [
     "ALUMINIUM", "DURALUMIN", "FACES", "MATERIALS", "MODES", "PHYSICS", "RESPONSES", "Box", "Conduction", "Constraint",
-    "Contact", "Elasticity", "FaceClamp", "FaceSupport", "FaceTemperature", "Material", "Param", "PatchTemperature",
-    "PointTemperature", "Resolution", "Response", "Scene", "SceneError", "SceneSpec", "Support",
+    "Contact", "Elasticity", "FaceClamp", "FaceSupport", "FaceTemperature", "InterfaceFlux", "Material", "Param",
+    "PatchTemperature", "PointTemperature", "Resolution", "Response", "Scene", "SceneError", "SceneSpec", "Support",
     "TemperatureConstraint", "resolve_params", "shown",
 ]

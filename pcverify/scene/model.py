@@ -1,9 +1,9 @@
 """The scene: an immutable, validated value that says what is simulated.
 
 A scene declares its geometry (`Box`), material, constraints, the physics it needs and one part per
-physics: `Conduction` (temperature scale, steady or transient, volumetric source), `Elasticity`
-(eigenfrequencies asked for, loading rate, response function) and `Contact` (two bodies across a plane,
-pressed, possibly sliding and heated by friction).  New physics adds a part; it does not
+physics: `Conduction` (temperature scale, steady or transient, volumetric source, interface flux),
+`Elasticity` (eigenfrequencies asked for, loading rate, response function) and `Contact` (two bodies across
+a plane, pressed, possibly sliding and heated by friction).  New physics adds a part; it does not
 grow the scene.  Solvers read what a scene declares, never its name.
 """
 
@@ -21,12 +21,14 @@ import numpy as np
 from .constraints import Constraint, FaceClamp, FaceSupport, TemperatureConstraint
 from .contact import Contact
 from .geometry import Box
+from .loads import InterfaceFlux
 from .material import Material, Response
 from .params import SceneError, shown
 
 PHYSICS = {
     "conduction": "heat conduction (a Conduction part)",
     "heat-source": "a volumetric heat source (Conduction.source != 0)",
+    "interface-flux": "a planar heat source on an internal plane (Conduction.interface with flux != 0)",
     "elasticity": "linear elasticity (an Elasticity part)",
     "modes": "eigenfrequencies (Elasticity.modes >= 1)",
     "fracture": "loading to failure with a response function (Elasticity.response, strain_rate > 0)",
@@ -48,7 +50,7 @@ def _finite(name: str, v: Any, low: float, high: float, unit: str, low_open: boo
 class Conduction:
     """Heat conduction: temperatures are reported as T / t_max; a transient starts from
     `initial_temperature` and is reported at `t_end` (continuum solvers step with `dt`); `source` is a
-    uniform volumetric heat source in W/m^3."""
+    uniform volumetric heat source in W/m^3; `interface` a planar source on an internal plane (W/m^2)."""
 
     t_max: float = 500.0
     mode: str = "steady"
@@ -56,9 +58,12 @@ class Conduction:
     dt: float = 0.0
     initial_temperature: float = 0.0
     source: float = 0.0
+    interface: InterfaceFlux | None = None
 
     def __post_init__(self) -> None:
         _finite("t_max", self.t_max, 0.0, 1e6, "K", low_open=True)
+        if self.interface is not None and not isinstance(self.interface, InterfaceFlux):
+            raise SceneError(f"interface={shown(self.interface)} is not valid; allowed: an InterfaceFlux or none")
         if self.mode not in MODES:
             raise SceneError(f"mode={shown(self.mode)} is not allowed; allowed: {', '.join(MODES)}")
         _finite("initial_temperature", self.initial_temperature, 0.0, 1e6, "K")
@@ -112,6 +117,7 @@ class Scene:
         self._check_part("contact", self.contact, Contact)
         cond, el = self.conduction, self.elasticity
         derived = {"heat-source": cond is not None and cond.source != 0.0,
+                   "interface-flux": cond is not None and cond.interface is not None and cond.interface.flux != 0.0,
                    "modes": el is not None and el.modes > 0,
                    "fracture": el is not None and el.response is not None and el.strain_rate > 0,
                    "frictional-heating": self.contact is not None and self.contact.heating}
@@ -121,6 +127,11 @@ class Scene:
                                  f"allowed: {word!r} in physics exactly when the scene has {PHYSICS[word]}")
         if cond is not None:
             self.material.require("conductivity", "heat_capacity")
+            plane = cond.interface
+            if plane is not None and not 0.0 < plane.position < self.box.extent[plane.axis_index]:
+                span = self.box.extent[plane.axis_index]
+                raise SceneError(f"interface position={plane.position!r} is out of range; allowed: number in (0, "
+                                 f"{span:g}) m (inside the body along {plane.axis})")
         if el is not None:
             self.material.require("youngs_modulus", "poisson_ratio")
         if self.contact is not None:

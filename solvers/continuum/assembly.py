@@ -227,6 +227,26 @@ def assemble_q1(grid: StructuredGrid, with_mass: bool = False, full_pattern: boo
     return Q1Operators(stiff, weights, mass_m, int(warped.size))
 
 
+def plane_load(grid: StructuredGrid, axis: int, position: float) -> np.ndarray:
+    """Surface load f_i = integral of phi_i over the plane {x_axis = position}, exact for Q1 on box cells.
+
+    On a tensor grid phi_i = phi_a(x_a) phi_b(x_b) phi_c(x_axis), so f is the product of the 1-D loads
+    (scikit-fem's P1 `unit_load`) on the two other axes and the 1-D hat values at `position`: a plane on
+    a grid plane loads those nodes only, one between grid planes is shared linearly.  Warped cells are
+    not boxes: the caller makes sure the plane crosses none (ValueError if it lies outside the grid).
+    """
+    coords = np.linspace(0.0, float(grid.extent[axis]), grid.shape[axis])
+    if not coords[0] <= position <= coords[-1]:
+        raise ValueError(f"plane position {position!r} lies outside the grid along axis {axis}")
+    j = min(int(np.searchsorted(coords, position, side="right")) - 1, coords.size - 2)
+    t = (position - coords[j]) / (coords[j + 1] - coords[j])
+    hat = np.zeros(coords.size)
+    hat[j], hat[j + 1] = 1.0 - t, t
+    factors = [hat if d == axis else line_operators(np.linspace(0.0, float(grid.extent[d]), grid.shape[d])).load
+               for d in range(3)]
+    return np.einsum("i,j,k->ijk", *factors).ravel()
+
+
 @numba.njit(cache=True)
 def _split_kernel(indptr, indices, data, new_index, is_free, n_free, n_fixed):
     """Rows of free nodes, split into the free-free and free-fixed column blocks (order kept)."""

@@ -43,6 +43,15 @@ How constraints reach the equations (all of it FiPy's discretisation):
   The penalty source is added as FiPy's ImplicitSourceTerm discretises it (S_P V_P on the
   diagonal, S_P V_P T_fix on the right); a test checks this against FiPy's own combined build.
 
+Loads: a volumetric source s (W/m^3) adds s V_c to every cell's right-hand side (FiPy's
+explicit source term, a cell-centred constant); an interface flux q on the plane {x_axis = p} adds
+q A_c w_c, A_c the cell's cross-section across the axis and w_c the 1-D hat weights of p between the
+two neighbouring cell centres along the axis (all of it to the cell whose centre lies on the plane, as
+for a plane on a lattice node plane; to the boundary cell when p lies between a face and its centre).
+The plane is a surface load inside one continuous body: conduction divides the flux between its two
+sides (`InterfaceFlux`).  With no temperature held, every row of K sums to zero, so the heat content
+sum rho c V_c T_c grows by exactly dt (s V + q A) per step (energy balance to round-off).
+
 Steady: K T = f with (K, f) the negated matrix / RHS FiPy assembles for DiffusionTerm(k) plus
 sources.  Transient (theta method, C = rho c V the TransientTerm diagonal):
 (C/dt + theta K) T^{n+1} = (C/dt - (1 - theta) K) T^n + f; "implicit-euler" theta = 1,
@@ -90,6 +99,7 @@ _FACE_AXIS = {"x0": (0, 0), "xW": (0, 1), "y0": (1, 0), "yH": (1, 1), "z0": (2, 
 _FIPY_FACES = {"x0": "facesLeft", "xW": "facesRight", "y0": "facesBottom", "yH": "facesTop",
                "z0": "facesFront", "zL": "facesBack"}
 SUBSAMPLES = 8  # per axis and cell, for patch volume fractions
+PHYSICS = frozenset({"conduction", "heat-source", "interface-flux"})  # what this solver implements
 
 
 def grid_axes(scene: Scene, resolution: Resolution) -> tuple[list[np.ndarray], list[float]]:
@@ -136,6 +146,27 @@ def patch_fraction(edges: list[np.ndarray], centre, radius: float, sub: int = SU
         inside = (dx2[i][:, None, None, None, None] + yz[None]) <= r2
         frac[i] = inside.mean(axis=(0, 2, 4))
     return ranges, frac
+
+
+def cell_load(scene: Scene, edges: list[np.ndarray]) -> np.ndarray:
+    """Heat load per cell (W), shape (mx, my, mz): the volumetric source and the interface flux."""
+    heat = scene.conduction
+    widths = [np.diff(e) for e in edges]
+    load = heat.source * np.einsum("i,j,k->ijk", *widths)
+    plane = heat.interface
+    if plane is None or plane.flux == 0.0:
+        return load
+    ax = plane.axis_index
+    cen = _centres(edges[ax])
+    hat = np.zeros(cen.size)
+    j = int(np.searchsorted(cen, plane.position, side="right")) - 1
+    if j < 0 or j >= cen.size - 1:  # between a face and the centre of its boundary cell
+        hat[min(max(j, 0), cen.size - 1)] = 1.0
+    else:
+        t = (plane.position - cen[j]) / (cen[j + 1] - cen[j])
+        hat[j], hat[j + 1] = 1.0 - t, t
+    factors = [hat if d == ax else widths[d] for d in range(3)]
+    return load + plane.flux * np.einsum("i,j,k->ijk", *factors)
 
 
 def _pad_axis(vals: np.ndarray, centres: np.ndarray, edge: np.ndarray, axis: int,
@@ -232,8 +263,11 @@ class FipyHeat:
     )
 
     def supports(self, scene: Scene) -> tuple[bool, str]:
-        if scene.physics != frozenset({"conduction"}):
-            return False, f"fipy heat solver does conduction only; scene needs {sorted(scene.physics)}"
+        if "conduction" not in scene.physics or not scene.physics <= PHYSICS:
+            return False, (f"fipy heat solver does conduction (with {', '.join(sorted(PHYSICS - {'conduction'}))}) "
+                           f"only; scene needs {sorted(scene.physics)}")
+        if scene.conduction.mode == "steady" and not scene.constraints:
+            return False, "steady conduction without any prescribed temperature is singular"
         for c in scene.constraints:
             if not isinstance(c, (FaceTemperature, PointTemperature, PatchTemperature)):
                 return False, f"constraint {type(c).__name__} is not supported"
@@ -375,9 +409,10 @@ class FipyHeat:
         part = frac_f > 0
         B[part] = frac_f[part] / (1.0 - frac_f[part]) * K.diagonal()[part] / vol[part]
         K = (K + sp.diags(B * vol)).tocsr()
-        f = f + B * vol * tfix_f
+        load = to_flat(cell_load(scene, edges))
+        f = f + B * vol * tfix_f + load
         return dict(K=K, f=f, vol=vol, shape=shape, fixed=fixed_f, tfix=tfix_f, B=B, ncut=ncut,
-                    fixed_faces=fixed_faces, point_cells=point_cells, fallback=fallback,
+                    fixed_faces=fixed_faces, point_cells=point_cells, fallback=fallback, heat_input=float(load.sum()),
                     assembly_s=time.perf_counter() - t0)
 
     # ------------------------------------------------------------------ solve
@@ -465,7 +500,7 @@ class FipyHeat:
         iterations = sum(s.iterations for s in solvers)
         return Solution(
             scene=scene.name, solver=self.name, params=p,
-            resolution={"n": resolution.n, "refine": resolution.refine, "h": hs[0]},
+            resolution={"n": resolution.n, "refine": resolution.refine, "h": hs[0], "nodes": int(K.shape[0])},
             samples=out, unknowns=int(K.shape[0]), wall_s=time.perf_counter() - t_wall, status="ok",
             work={"unknowns": int(K.shape[0]), "time_steps": steps_taken, "iterations": iterations,
                   "assembly_s": sysd["assembly_s"], "solve_s": solve_s},
@@ -474,7 +509,7 @@ class FipyHeat:
                          "partial_cells": int(np.count_nonzero((sysd["B"] > 0) & free)), "cut_faces": sysd["ncut"],
                          "patch_fallback_to_fraction": len(sysd["fallback"]) if p["patch"] == "cut" else 0,
                          "patch_at_centre_cell": len(sysd["fallback"]) if p["patch"] == "staircase" else 0,
-                         "cells_per_axis": list(sysd["shape"]),
+                         "cells_per_axis": list(sysd["shape"]), "heat_input_W": sysd["heat_input"],
                          "fixed_max_dev": float(np.max(np.abs(T[fixed] - tfix[fixed])) / t_max) if fixed.any()
                          else 0.0},
         )

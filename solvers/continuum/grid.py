@@ -3,11 +3,12 @@
 Solver-independent helpers for the continuum solvers (scikit-fem here; FiPy may reuse them).
 
 Grid.  The grid of resolution (n, refine) has the particle lattice of resolution n as a subset of its
-nodes: (n - 1) * refine + 1 nodes across x and y, (3n - 3) * refine + 1 along z for the standard bar,
-spacing h = a / refine, a = W / (n - 1).  (`StructuredGrid.for_box` builds it for any box whose sides
-are integer multiples of h.)  Node (i, j, k) has the flat index (i * ny + j) * nz + k: x slowest,
-z fastest, the same order as `Box.lattice_points`.  Cell (i, j, k) spans the nodes
-(i..i+1, j..j+1, k..k+1); `hex_connectivity` lists its 8 nodes in scikit-fem's MeshHex1 order.
+nodes: spacing h = a / refine on every axis, a = W / (n - 1), so (m - 1) * refine + 1 nodes along an
+axis that holds m lattice nodes (`Box.lattice_shape`; the standard bar: n, n and 3n - 2).
+(`StructuredGrid.for_box` builds it for any box whose sides are integer multiples of h.)  Node (i, j, k)
+has the flat index (i * ny + j) * nz + k: x slowest, z fastest, the same order as `Box.lattice_points`.
+Cell (i, j, k) spans the nodes (i..i+1, j..j+1, k..k+1); `hex_connectivity` lists its 8 nodes in
+scikit-fem's MeshHex1 order.
 
 Warp.  `SphereWarp` moves the nodes near a patch centre c (a grid node, usually a box corner) so that
 the cube shell {max_i |x_i - c_i| = s1} of grid faces (s1 = m h) lands exactly on the sphere of radius

@@ -352,7 +352,7 @@ class SkfemElastic:
         post_s = wall - (t1 - wall0) - solve_s
         return Solution(
             scene=scene.name, solver=self.name, params=p,
-            resolution={"n": n, "refine": refine, "h": grid.h},
+            resolution={"n": n, "refine": refine, "h": grid.h, "nodes": len(grid.points)},
             samples=out, unknowns=ndof, wall_s=wall, status="ok",
             quantity="mode-1 shape (max |u| = 1)" if "modes" in scene.physics else "u (m)",
             work={"unknowns": ndof, "iterations": int(solver.iterations), "solves": int(solver.solves),

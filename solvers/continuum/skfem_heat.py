@@ -14,6 +14,13 @@ Discretisation (PHYSICS.md §5):
   grid; "conforming" warps the grid (see `grid.SphereWarp`) so that a closed shell of grid faces lies on
   the sphere, then fixes the nodes on and inside it.  The warp is checked: every warped cell must have a
   positive Jacobian at its corners and centre.
+- Loads: a volumetric source s (W/m^3) enters as s w (w_i = integral of phi_i, the same weights as the
+  volume mean); an interface flux q on the plane {x_axis = p} as q times `assembly.plane_load` (the 1-D
+  hat at p times the 1-D loads across; exact for Q1).  The plane is a surface load inside one continuous
+  body: temperature stays continuous across it and conduction divides the flux between the two sides
+  (`InterfaceFlux`).  A plane that crosses a warped patch band is refused.  Both loads are constant in
+  time: the theta-method adds dt f per step; with no temperature held, 1^T K = 0 and the heat content
+  w^T (rho c T) grows by exactly dt sum(f) per step (energy balance to round-off).
 - Transient: theta-method from `scene.conduction.initial_temperature`, constrained values switched on at t = 0+
   (the state at t = 0+ is the initial field with the constrained nodes at their values, as the analytic
   Fourier series assumes).  `scheme` "implicit-euler" (theta = 1) or "crank-nicolson" (theta = 1/2) with a
@@ -48,10 +55,12 @@ from pcverify.scene import (
     Scene,
     SceneError,
 )
-from pcverify.solvers.continuum.assembly import assemble_q1, grid_graph, split_free
+from pcverify.solvers.continuum.assembly import assemble_q1, grid_graph, plane_load, split_free
 from pcverify.solvers.continuum.grid import StructuredGrid, plan_sphere_warp
 from pcverify.solvers.continuum.linear_solver import SpdSolver, smoothed_aggregation
 from pcverify.solvers.protocol import Solution, effective_params, heat_summary
+
+PHYSICS = frozenset({"conduction", "heat-source", "interface-flux"})  # what this solver implements
 
 PARAMETERS: tuple[Param, ...] = (
     Param("scheme", "crank-nicolson", "", "time integration of transient scenes",
@@ -108,8 +117,9 @@ class SkfemHeat:
     parameters = PARAMETERS
 
     def supports(self, scene: Scene) -> tuple[bool, str]:
-        if set(scene.physics) != {"conduction"}:
-            return False, f"skfem heat solver does conduction only; scene needs {sorted(scene.physics)}"
+        if "conduction" not in scene.physics or not scene.physics <= PHYSICS:
+            return False, (f"skfem heat solver does conduction (with {', '.join(sorted(PHYSICS - {'conduction'}))}) "
+                           f"only; scene needs {sorted(scene.physics)}")
         if scene.conduction.mode == "steady" and not scene.constraints:
             return False, "steady conduction without any prescribed temperature is singular"
         return True, ""
@@ -205,6 +215,7 @@ class SkfemHeat:
         mat = scene.material
         stiff = mat.conductivity * ops.stiffness
         weights = ops.weights
+        load = self._load(scene, grid, weights)
         mss = mat.density * mat.heat_capacity * ops.mass if scene.conduction.mode == "transient" else None
         assembly_s = time.perf_counter() - t0
 
@@ -218,7 +229,7 @@ class SkfemHeat:
             k_ff, k_fb = split_free(stiff, ~is_fixed)
             graph = split_free(grid_graph(grid.shape), ~is_fixed)[0] if method == "amg" else None
             solver = _linear_solver(k_ff, method, p["cg_rtol"], graph)
-            rhs = -(k_fb @ fixed[bnd])
+            rhs = load[free] - k_fb @ fixed[bnd]
             del k_ff, k_fb, graph
             temp[free] = solver.solve(rhs)
             iterations, residual, n_solves = solver.iterations, solver.worst_residual, 1
@@ -233,7 +244,7 @@ class SkfemHeat:
                     a_ff, a_fb = split_free(a, ~is_fixed)
                     solvers[key] = (_linear_solver(a_ff, method, p["cg_rtol"]), b[free], a_fb @ fixed[bnd])
                 ls, b_free, lift = solvers[key]
-                rhs = b_free @ temp - lift
+                rhs = b_free @ temp - lift + dt * load[free]
                 temp[free] = ls.solve(rhs, x0=temp[free])
                 n_solves += 1
             iterations = sum(s[0].iterations for s in solvers.values())
@@ -260,18 +271,35 @@ class SkfemHeat:
         volume = float(weights.sum())
         volume_mean = float(weights @ temp) / volume / scene.conduction.t_max
         summary = heat_summary(node_vals, volume_mean)
+        diag["heat_input_W"] = float(load.sum())
         diag.update({"fixed_nodes": int(bnd.size), "free_nodes": int(free.size), "linear_solver": method,
                      "max_relative_residual": residual, "warped_cells": ops.warped_cells, "mesh_volume": volume,
                      "volume_error": volume / box.volume - 1.0})
         wall = time.perf_counter() - wall0
         return Solution(
             scene=scene.name, solver=self.name, params=p,
-            resolution={"n": n, "refine": refine, "h": grid.h},
+            resolution={"n": n, "refine": refine, "h": grid.h, "nodes": n_nodes},
             samples=out, unknowns=n_nodes, wall_s=wall, status="ok",
             work={"unknowns": n_nodes, "time_steps": n_solves if scene.conduction.mode == "transient" else 0,
                   "iterations": int(iterations), "assembly_s": assembly_s, "solve_s": solve_s},
             summary=summary, diagnostics=diag,
         )
+
+    @staticmethod
+    def _load(scene: Scene, grid: StructuredGrid, weights: np.ndarray) -> np.ndarray:
+        """Nodal heat load (W): the volumetric source and the interface flux (see the module docstring)."""
+        heat = scene.conduction
+        load = heat.source * weights
+        plane = heat.interface
+        if plane is not None and plane.flux != 0.0:
+            ax = plane.axis_index
+            for w in grid.warps:
+                if abs(plane.position - w.centre[ax]) < w.s2:
+                    raise SceneError(f"interface position={plane.position!r} crosses the warped band of the patch at "
+                                     f"{w.centre}; allowed: a plane farther than {w.s2:g} m from a patch centre "
+                                     "along its axis (or patch='staircase')")
+            load = load + plane.flux * plane_load(grid, ax, plane.position)
+        return load
 
     @staticmethod
     def _time_plan(scene: Scene, p: dict[str, Any], steps: int) -> list[tuple[float, float]]:

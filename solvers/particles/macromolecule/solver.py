@@ -175,7 +175,8 @@ class Macromolecule:
         if p["dt_check"]:
             work["pair_steps"] += len(lat.pairs) * 2 * run.steps
             work["time_steps"] += 2 * run.steps
-        return Solution(scene=scene.name, solver=self.name, params=p, resolution={"n": n, "refine": 1}, samples=out,
+        return Solution(scene=scene.name, solver=self.name, params=p, samples=out,
+                        resolution={"n": n, "refine": 1, "h": lat.a, "nodes": lat.size},
                         unknowns=3 * lat.size, wall_s=time.perf_counter() - t_wall, status=status, reason=reason,
                         quantity="relative hotness H/H_max (hottest free particle)", work=work, summary=summary,
                         diagnostics=diagnostics)
@@ -188,7 +189,9 @@ class Macromolecule:
         m = macromolecule_modes(scene.box, n, mat.youngs_modulus, mat.density, scene.elasticity.modes,
                                 model=SevenRoot(1.0, p["p"], p["s"], p["unstable_fraction"]))
         kernel = time.perf_counter() - t0
-        return Solution(scene=scene.name, solver=self.name, params=p, resolution={"n": n, "refine": 1},
+        return Solution(scene=scene.name, solver=self.name, params=p,
+                        resolution={"n": n, "refine": 1, "h": scene.box.lattice_spacing(n),
+                                    "nodes": int(m["particles"])},
                         samples={}, unknowns=3 * int(m["particles"]), wall_s=time.perf_counter() - t_wall,
                         quantity="frequency (Hz)",
                         summary={"frequencies_hz": m["frequencies_hz"], "nu_eff": m["nu_eff"],

@@ -165,7 +165,7 @@ class Mca:
         values = {} if field is None else {k: {"points": np.asarray(v, float), "values": field[aut.node_at(v)]}
                                            for k, v in pts.items()}
         return Solution(scene=scene.name, solver=self.name, params=p,
-                        resolution={"n": n, "refine": 1, "h": float(aut.spacing.min())},
+                        resolution={"n": n, "refine": 1, "h": float(aut.spacing.min()), "nodes": aut.size},
                         samples=values, unknowns=out.pop("unknowns"),
                         wall_s=time.perf_counter() - t_wall, status=out.pop("status", "ok"),
                         reason=out.pop("reason", ""), quantity=out.pop("quantity"), work=out.pop("work"),

@@ -1,0 +1,154 @@
+"""Analytic references for heat flowing along one axis of the bar (a slab 0 <= z <= L).
+
+The field depends on one coordinate z when the other faces are insulated, the initial temperature is
+uniform and every load is uniform across the section:
+- the two faces z = 0 and z = L held at T0 and TL (`held`), or both insulated (`held` None);
+- a uniform volumetric source s (W/m^3);
+- a planar source releasing q (W/m^2) on the plane z = zp (`InterfaceFlux`: temperature continuous
+  across the plane, the split between the sides left to conduction).
+
+    rho c dT/dt = k d2T/dz2 + s + q delta(z - zp),    T(z, 0) = Ti,    alpha = k / (rho c).
+
+Held faces (separation of variables in sin(m pi z / L)):
+    steady  S(z) = T0 + (TL - T0) z/L + s z (L - z) / (2k) + (q/k) G(z),
+            G(z) = z (L - zp)/L for z <= zp, zp (L - z)/L for z >= zp (the Green's function);
+    T(z, t) = S(z) + sum_m b_m sin(m pi z/L) exp(-alpha m^2 pi^2 t / L^2),  b_m the sine coefficients of
+    Ti - S:  b_m = 2 (Ti - T0)(1 - (-1)^m)/(m pi) - 2 (TL - T0)(-1)^(m+1)/(m pi)
+                   - 2 s L^2 (1 - (-1)^m)/(k m^3 pi^3) - 2 q L sin(m pi zp/L)/(k m^2 pi^2).
+    (s = q = 0, T0 = t_max, TL = Ti = 0 is bar-heat-faces; T0 = TL = Ti = 0 with s gives
+    T = s z (L - z)/(2k) minus its Fourier series.)
+Insulated faces (cosine modes; no steady state unless s = q = 0):
+    T(z, t) = Ti + (s + q/L) t / (rho c)
+              + sum_m (2 q L / (k m^2 pi^2)) cos(m pi zp/L) cos(m pi z/L) (1 - exp(-alpha m^2 pi^2 t/L^2)).
+    The time-independent part of the sum is summed in closed form (sum_m cos(m theta)/m^2 =
+    pi^2/6 - pi theta/2 + theta^2/4 on [0, 2 pi]); only the decaying part is a series.  The energy
+    balance holds exactly: the integral of rho c (T - Ti) over the slab is (s L + q) t per unit area.
+
+Every series is summed until a bound on its tail is below `tol` (absolute, in K): each coefficient is
+at most B/m, so the tail beyond K terms is at most B/(K+1) e^{-c (K+1)^2} / (1 - e^{-c (2K+3)}),
+c = alpha pi^2 t / L^2.
+
+Short times (`semi_infinite_rise`): a flux q into a semi-infinite solid raises it by
+dT(x, t) = (2 q / k) sqrt(alpha t) ierfc(x / (2 sqrt(alpha t))), at its surface 2 q sqrt(alpha t / pi) / k
+(Carslaw & Jaeger, Conduction of Heat in Solids, 2nd ed., §2.9).  Two solids in perfect contact share a
+flux generated between them in proportion to their effusivities sqrt(k rho c) (`effusivity_shares`), so
+at a plane inside one material each side takes q / 2.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.special import erfc
+
+MAX_TERMS = 2_000_000  # a guard against t -> 0 (the series then needs ~sqrt(ln(B/tol)/c) terms)
+
+
+def terms_needed(c: float, bound: float, tol: float) -> int:
+    """Terms K of sum_m (B/m) e^{-c m^2} after which the tail is below tol (c > 0)."""
+    if not c > 0:
+        raise ValueError(f"c={c!r} is out of range; allowed: number in (0, inf) (t > 0)")
+    if bound <= 0:
+        return 0
+    k = max(1, int(math.sqrt(max(math.log(bound / tol), 0.0) / c)) - 1)
+    while k < MAX_TERMS:
+        tail = bound / (k + 1) * math.exp(-c * (k + 1) ** 2) / (1.0 - math.exp(-c * (2 * k + 3)))
+        if tail < tol:
+            return k
+        k += 1
+    raise ValueError(f"the series needs more than {MAX_TERMS} terms at c={c:g}; allowed: a later time")
+
+
+@dataclass(frozen=True)
+class Slab:
+    """Heat flow across 0 <= z <= length (see the module docstring); temperatures in K."""
+
+    length: float
+    conductivity: float
+    diffusivity: float
+    held: tuple[float, float] | None = None
+    initial: float = 0.0
+    source: float = 0.0
+    flux: float = 0.0
+    plane: float = 0.0
+
+    def __post_init__(self) -> None:
+        if self.flux != 0.0 and not 0.0 < self.plane < self.length:
+            raise ValueError(f"plane={self.plane!r} is out of range; allowed: number in (0, {self.length:g}) m")
+
+    def _coefficient_bound(self, held: bool) -> float:
+        k, L = self.conductivity, self.length
+        plane = 2.0 * abs(self.flux) * L / (k * math.pi**2)
+        if not held:
+            return plane
+        t0, tl = self.held
+        return (4.0 * abs(self.initial - t0) + 2.0 * abs(tl - t0)) / math.pi \
+            + 2.0 * abs(self.source) * L**2 / (k * math.pi**3) + plane
+
+    def steady(self, z: np.ndarray) -> np.ndarray:
+        """Steady T(z) between held faces (ValueError for insulated faces: there is none with a load)."""
+        if self.held is None:
+            raise ValueError("held=None: an insulated slab has no steady state; allowed: held face temperatures")
+        z = np.asarray(z, dtype=float)
+        k, L = self.conductivity, self.length
+        t0, tl = self.held
+        out = t0 + (tl - t0) * z / L + self.source * z * (L - z) / (2.0 * k)
+        if self.flux != 0.0:
+            zp = self.plane
+            green = np.where(z <= zp, z * (L - zp) / L, zp * (L - z) / L)
+            out = out + self.flux / k * green
+        return out
+
+    def transient(self, z: np.ndarray, t: float, tol: float = 1e-12) -> np.ndarray:
+        """T(z, t) from the uniform initial temperature, accurate to `tol` K."""
+        if not t > 0:
+            raise ValueError(f"t={t!r} is out of range; allowed: number in (0, inf) s")
+        z = np.asarray(z, dtype=float)
+        k, L, alpha = self.conductivity, self.length, self.diffusivity
+        held = self.held is not None
+        c = alpha * math.pi**2 * t / L**2
+        kmax = terms_needed(c, self._coefficient_bound(held), tol)
+        m = np.arange(1, kmax + 1, dtype=float)
+        decay = np.exp(-c * m**2)
+        if held:
+            t0, tl = self.held
+            odd = 1.0 - (-1.0) ** m
+            b = (2.0 * (self.initial - t0) * odd / (m * math.pi) - 2.0 * (tl - t0) * (-1.0) ** (m + 1) / (m * math.pi)
+                 - 2.0 * self.source * L**2 * odd / (k * m**3 * math.pi**3)
+                 - 2.0 * self.flux * L * np.sin(m * math.pi * self.plane / L) / (k * m**2 * math.pi**2))
+            return self.steady(z) + np.sin(np.multiply.outer(z, m) * math.pi / L) @ (b * decay)
+        out = self.initial + (self.source + self.flux / L) * t * alpha / k + 0.0 * z
+        if self.flux != 0.0:
+            a, b = self.plane / L, z / L
+            out = out + self.flux * L / (k * math.pi**2) * (_cos_series(math.pi * np.abs(a - b))
+                                                            + _cos_series(math.pi * (a + b)))
+            coef = 2.0 * self.flux * L / (k * m**2 * math.pi**2) * np.cos(m * math.pi * a) * decay
+            out = out - np.cos(np.multiply.outer(z, m) * math.pi / L) @ coef
+        return out
+
+
+def _cos_series(theta: np.ndarray) -> np.ndarray:
+    """sum_{m >= 1} cos(m theta) / m^2 for 0 <= theta <= 2 pi."""
+    return math.pi**2 / 6.0 - math.pi * theta / 2.0 + theta**2 / 4.0
+
+
+def semi_infinite_rise(flux: float, conductivity: float, diffusivity: float, t: float,
+                       depth: np.ndarray | float = 0.0) -> np.ndarray:
+    """Temperature rise at `depth` below the surface of a semi-infinite solid taking `flux` W/m^2 from t = 0."""
+    x = np.asarray(depth, dtype=float)
+    root = math.sqrt(diffusivity * t)
+    u = x / (2.0 * root)
+    ierfc = np.exp(-u * u) / math.sqrt(math.pi) - u * erfc(u)
+    return 2.0 * flux / conductivity * root * ierfc
+
+
+def effusivity(conductivity: float, density: float, heat_capacity: float) -> float:
+    """Thermal effusivity sqrt(k rho c) in W s^0.5 / (m^2 K)."""
+    return math.sqrt(conductivity * density * heat_capacity)
+
+
+def effusivity_shares(e1: float, e2: float) -> tuple[float, float]:
+    """Shares of a flux generated between two semi-infinite solids in perfect contact: e_i / (e1 + e2)."""
+    return e1 / (e1 + e2), e2 / (e1 + e2)

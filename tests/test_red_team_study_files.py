@@ -1,0 +1,95 @@
+"""Red team, study files read loosely: the whole file is parsed and checked before any cell runs, one line
+per error with the allowed fields and types.  Misspelt or unknown keys (top level, group, claim), a string
+where a list is expected, duplicate group ids, claim fields of the wrong type and a claim's `per`, `select`
+or `metric` naming a column its table does not have are refused or reported, never ignored."""
+
+from __future__ import annotations
+
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from red_team import TALLY, cli, one_line_error, tally
+
+from pcverify.harness.study import load_study
+from pcverify.scene import SceneError
+
+GROUP = 'scene = "bar-heat-faces"\nsolvers = ["skfem"]\nn = [2]\n'
+BASE = f'name = "s"\n[[group]]\nid = "g"\n{GROUP}'
+CLAIM = ('[[claim]]\nid = "c"\ntext = "exact"\ntable = "g-cells"\nmetric = "err.nodes.linf"\nreference = "analytic"\n'
+         'tolerance = 1e-9\n')
+
+REFUSED = [
+    ("top-level key misspelt", 'name = "s"\ngrop = 1\n[[group]]\n' + GROUP, "grop is not a study field"),
+    ("scene_param at top level", 'name = "s"\nscene_param = { t_max = 400.0 }\n[[group]]\n' + GROUP,
+     "scene_param is not a study field"),
+    ("scene_param in a group", BASE + "scene_param = { t_max = 400.0 }\n",
+     "scene_param is not a field of a table group"),
+    ("box in a group", BASE + "box = { width = 0.02 }\n", "box is not a field of a table group"),
+    ("source in a group", BASE + "source = 1e6\n", "source is not a field of a table group"),
+    ("solver instead of solvers", 'name = "s"\n[[group]]\nscene = "bar-heat-faces"\nsolver = "skfem"\n',
+     "solver is not a field"),
+    ("quantities as one string", BASE.replace('id = "g"', 'id = "g"\nanalysis = "convergence"') +
+     'quantities = "volume_mean"\n', "quantities='volume_mean' is not valid; allowed: list of text"),
+    ("duplicate group ids", BASE + '[[group]]\nid = "g"\n' + GROUP, "id='g' is already group 1's"),
+    ("claim target as text", BASE + CLAIM + 'target = "zero"\n', "target='zero' is not valid; allowed: number"),
+    ("claim select as text", BASE + CLAIM + 'select = "solver == skfem"\n',
+     "select='solver == skfem' is not valid; allowed: a table"),
+    ("claim per as a list", BASE + CLAIM + 'per = ["n"]\n', "per=['n'] is not valid; allowed: text"),
+    ("claim field misspelt", BASE + CLAIM + 'tolerence = 1.0\n', "tolerence is not a claim field"),
+    ("duplicate claim ids", BASE + CLAIM + CLAIM, "id='c' is used by another claim"),
+    ("analysis unknown", BASE + 'analysis = "convergance"\n', "analysis='convergance' is unknown"),
+    ("probe unknown", BASE + 'analysis = "stability"\nprobe = "sweep"\n', "probe='sweep' is unknown"),
+    ("figures entry unknown", BASE + 'figures = ["render-4d"]\n', "figures entry 'render-4d' is unknown"),
+    ("unknown solver", BASE.replace('"skfem"', '"skfme"'), "solver='skfme' is unknown"),
+]
+
+
+@pytest.mark.parametrize("case, text, words", REFUSED, ids=[c[0] for c in REFUSED])
+def test_a_bad_study_file_is_refused_before_any_cell_runs(case, text, words, tmp_path) -> None:
+    (tmp_path / "s.toml").write_text(text)
+    line = one_line_error(cli("study", "s.toml", "--out", "out", cwd=tmp_path))
+    assert words in line, line
+    assert not (tmp_path / "out" / "cache").exists()  # nothing ran
+    tally("study files", "rejected")
+
+
+@pytest.mark.parametrize("claim, note", [
+    ('per = "nn"\n', "column nn is not in table g-cells"),
+    ('select = { solvr = "skfem" }\n', "column solvr is not in table g-cells"),
+    ('metric = "err.nodes.l3"\n', "column err.nodes.l3 is not in table g-cells"),
+])
+def test_a_claim_naming_a_missing_column_says_so(claim, note, tmp_path) -> None:
+    """A claim over a column the table does not have is not-applicable with the reason, never a silent
+    single case or a pass."""
+    metric = 'metric = "err.nodes.linf"\n'
+    text = BASE + CLAIM.replace(metric, "" if "metric" in claim else metric)
+    (tmp_path / "s.toml").write_text(text + claim)
+    out = cli("study", "s.toml", "--out", "out", cwd=tmp_path)
+    assert out.returncode == 0, out.stderr[-1500:]
+    verdicts = (tmp_path / "out" / "s" / "verdicts.csv").read_text()
+    assert "not-applicable" in verdicts and note in verdicts, verdicts
+    tally("study files", "accepted")
+
+
+KEYS = st.text(alphabet="abcdefghijklmnopqrstuvwxyz0123456789_", min_size=1, max_size=12)  # TOML bare keys
+
+
+@settings(derandomize=True, database=None, deadline=None, max_examples=25,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(key=KEYS)
+def test_any_unknown_group_key_is_refused(key, tmp_path_factory) -> None:
+    allowed = {"id", "title", "scene", "scene_params", "solvers", "n", "refine", "solver_params", "sweep",
+               "analysis", "serial", "figures", "vtu"}
+    if key in allowed:
+        return
+    where = tmp_path_factory.mktemp("key")
+    (where / "s.toml").write_text(BASE + f"{key} = 1\n")
+    with pytest.raises(SceneError, match=f"{key} is not a field of a table group"):  # in process: fast
+        load_study(str(where / "s.toml"))
+    tally("study files", "rejected")
+
+
+def test_zz_study_file_tally() -> None:
+    tried, rejected, accepted = (TALLY[f"study files {k}"] for k in ("tried", "rejected", "accepted"))
+    print(f"\nstudy files: tried {tried}, rejected cleanly {rejected}, accepted correctly {accepted}")
+    assert tried == rejected + accepted and tried >= len(REFUSED) + 3
