@@ -118,7 +118,7 @@ class Mca:
 
     def supports(self, scene: Scene) -> tuple[bool, str]:
         phys = set(scene.physics)
-        if phys == {"conduction"}:
+        if "conduction" in phys and phys <= {"conduction", "heat-source", "interface-flux"}:
             if scene.conduction.mode == "steady" and not scene.constraints:
                 return False, "steady conduction without any prescribed temperature is singular"
             return True, ""
@@ -178,13 +178,14 @@ class Mca:
         held, values = mca_heat.held_temperatures(scene, aut)
         summary: dict[str, Any] = {}
         work: dict[str, Any] = {"unknowns": aut.size}
+        power = mca_heat.sources(scene, aut)
         if scene.conduction.mode == "steady":
             t0 = time.perf_counter()
-            temp = mca_heat.steady(aut, mat.conductivity, values, held)
+            temp = mca_heat.steady(aut, mat.conductivity, values, held, power)
             work.update(time_steps=0, kernel_s=time.perf_counter() - t0)
         else:
             st, par, steps = mca_heat.transient(aut, mat.conductivity, mat.density * mat.heat_capacity, values, held,
-                                                scene.conduction.t_end, p["heat_cfl"])
+                                                scene.conduction.t_end, p["heat_cfl"], power)
             work["kernel_s"] = timed("heat", st, par, steps)
             temp = st.temp
             summary.update(dt=par.dt, steps=steps)
