@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 
 from pcverify.harness.catalogue import make_scene
+from pcverify.references import analytic
 from pcverify.scene import Box, Contact, Resolution, SceneError
 from pcverify.solvers.particles.mca import contact as ct
 from pcverify.solvers.particles.mca import roughness as rg
@@ -44,7 +45,8 @@ def _one_facet(x_slave: np.ndarray, v_slave: np.ndarray, law: ct.ContactLaw, mas
         slave=np.array([3]), faces=np.array([[False] * 4 + [True, False]]), facets=np.array([[0, 1, 2]]),
         side=np.array([5]), cand_ptr=np.array([0, 1]), cand=np.array([0]), extent=np.full((4, 3), r),
         facet=np.full(1, -1), w=np.zeros((1, 3)), nrm=np.zeros((1, 3)), gap=np.zeros(1), area=np.zeros(1),
-        sigma=np.zeros(1), fric=np.zeros((1, 3)), speed=np.zeros(1), power=np.zeros(1), heat=np.zeros(4),
+        sigma=np.zeros(1), fric=np.zeros((1, 3)), speed=np.zeros(1), power=np.zeros(1), dissipated=np.zeros(1),
+        heat=np.zeros(4),
         rough=rg.new_state(1), law=law)
     theta = np.zeros(4)
     ct.geometry(x, np.full(4, r**3), con, theta)
@@ -204,3 +206,49 @@ def test_roughness_process_mean_and_stationary_start():
     predicted = math.sqrt(rg.variance_of_mean(law, steps * ds))
     assert abs(avg.mean() - rg.mean(law)) < 4 * predicted / math.sqrt(count)
     assert avg.std() == pytest.approx(predicted, rel=0.25)  # the delta-method variance of the mean
+
+
+def test_frictional_heating_couples_mechanics_to_heat(mca):
+    """Viscous friction (its power mu0 V^2 does not depend on the pressure): the power the mechanics dissipates
+    is the declared interface flux, and MCA heat fed by it matches MCA heat fed by the flux itself (the
+    deposits are the same hat weights) and the slab series, converging with n; the automata next to the plane
+    rise as the semi-infinite solid does (each body taking q/2).  Measured L2 errors (of t_max = 10 K): coupled
+    4.0e-3 / 1.55e-3, flux given 3.9e-3 / 1.43e-3 at n = 4 / 6; interface rise 1.2 % / 0.41 %."""
+    coupled = make_scene("frictional-heating")
+    given = make_scene("frictional-heating", source="flux")
+    assert "contact" in coupled.physics and "contact" not in given.physics
+    assert coupled.conduction == given.conduction
+    errs = {}
+    for n in (4, 6):
+        a = mca.solve(coupled, Resolution(n), mu1=0.0, mu0=3e5)
+        b = mca.solve(given, Resolution(n))
+        assert a.status == b.status == "ok"
+        assert a.summary["flux_ratio"] == pytest.approx(1.0, abs=1e-3)
+        assert a.summary["flux_uniformity"] < 1e-3
+        pts = a.samples["nodes"]["points"]
+        exact = analytic(coupled, pts)
+        errs[n] = [np.sqrt(np.mean((s.samples["nodes"]["values"] - exact) ** 2)) for s in (a, b)]
+        assert errs[n][0] == pytest.approx(errs[n][1], rel=0.15)
+        assert abs(a.summary["interface_rise_error"]) < 0.015
+    assert errs[6][0] < 0.5 * errs[4][0]
+
+
+def test_dry_frictional_heating_measures_its_own_flux(mca):
+    """Dry friction under the 15 mm slider: the friction's moment makes the pressure, and so the flux, uneven
+    (measured (max - min) / mean 7.5 %), and the platen's normal force drops as the blocks shear (flux 1.7 %
+    below mu1 sigma_N V); mu_dr stays mu1 against the normal force the contacts carry."""
+    sol = mca.solve(make_scene("frictional-heating"), Resolution(4))
+    s = sol.summary
+    assert sol.status == "ok" and s["mu_dr_mean"] == pytest.approx(0.3, rel=1e-6)
+    assert s["flux_ratio"] == pytest.approx(s["normal_force_ratio"], rel=2e-3)
+    assert s["flux_uniformity"] > 0.02
+
+
+def test_continuum_heat_solvers_decline_the_coupled_scene_and_take_the_flux_one():
+    skfem = get_solver("skfem")
+    ok, why = skfem.supports(make_scene("frictional-heating"))
+    assert not ok and "contact" in why
+    assert skfem.supports(make_scene("frictional-heating", source="flux")) == (True, "")
+    pts = np.array([[0.0, 0.0, 0.0125]])
+    assert analytic(make_scene("frictional-heating"), pts) == pytest.approx(
+        analytic(make_scene("frictional-heating", source="flux"), pts))  # the clamp does not touch the heat

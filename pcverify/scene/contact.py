@@ -31,7 +31,9 @@ def _number(name: str, v: object, low: float, high: float, unit: str, low_open: 
 class Contact:
     """Two bodies across the plane `position` (m) normal to `axis`; body 2 pressed by `normal_stress` (Pa) and
     slid along `direction` at `speed` (m/s) for `duration` (s); `span` = (low, high) in m along `direction`
-    limits body 2 (default: the whole box); `heating`: friction heats the bodies."""
+    limits body 2 (default: the whole box); `heating`: friction heats the bodies; `platen`: once pressed, body
+    2's far face is held at its height along `axis` while it slides (a rigid platen takes the friction's
+    moment), instead of staying under the applied stress."""
 
     axis: str = "z"
     position: float = 0.015
@@ -41,6 +43,7 @@ class Contact:
     duration: float = 0.0
     span: tuple[float, float] | None = None
     heating: bool = False
+    platen: bool = False
 
     def __post_init__(self) -> None:
         for name in ("axis", "direction"):
@@ -61,8 +64,9 @@ class Contact:
                 isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in self.span)
             if not ok or not 0 <= self.span[0] < self.span[1]:
                 raise SceneError(f"span={shown(self.span)} is not valid; allowed: (low, high) with 0 <= low < high m")
-        if not isinstance(self.heating, bool):
-            raise SceneError(f"heating={shown(self.heating)} is not valid; allowed: true/false")
+        for name in ("heating", "platen"):
+            if not isinstance(getattr(self, name), bool):
+                raise SceneError(f"{name}={shown(getattr(self, name))} is not valid; allowed: true/false")
 
     @property
     def axis_index(self) -> int:

@@ -70,8 +70,8 @@ class ContactLaw(NamedTuple):
 class ContactState(NamedTuple):
     """Slaves (automata of body 2 on its surface), master facets (triangles of body 1), the candidate list
     (CSR: cand_ptr, cand), the cells' extents; per slave the current contact (facet or -1, weights, normal,
-    height, area, normal stress, friction force, tangential speed, power); per automaton the heat received
-    (J); the roughness process; and the law."""
+    height, area, normal stress, friction force, tangential speed, power) and the energy its friction
+    dissipated; per automaton the heat received (J); the roughness process; and the law."""
 
     slave: np.ndarray
     faces: np.ndarray  # (ns, 6) open sides of each slave
@@ -89,6 +89,7 @@ class ContactState(NamedTuple):
     fric: np.ndarray  # (ns, 3) friction force on the slave
     speed: np.ndarray  # (ns,) |V_t|
     power: np.ndarray  # (ns,) friction power of the current step (W)
+    dissipated: np.ndarray  # (ns,) energy dissipated by each slave's friction (J)
     heat: np.ndarray  # (N,) heat received (J)
     rough: rg.RoughState
     law: ContactLaw
@@ -194,7 +195,21 @@ def new_state(aut: Automata, x: np.ndarray, law: ContactLaw, skin: float) -> Con
     return ContactState(slave=slave, faces=faces, facets=tri, side=side, cand_ptr=ptr, cand=cand, extent=aut.extent,
                         facet=np.full(ns, -1, dtype=np.int64), w=np.zeros((ns, 3)), nrm=np.zeros((ns, 3)),
                         gap=np.zeros(ns), area=np.zeros(ns), sigma=np.zeros(ns), fric=np.zeros((ns, 3)),
-                        speed=np.zeros(ns), power=np.zeros(ns), heat=np.zeros(aut.size), rough=rs, law=law)
+                        speed=np.zeros(ns), power=np.zeros(ns), dissipated=np.zeros(ns), heat=np.zeros(aut.size),
+                        rough=rs, law=law)
+
+
+def rest_partners(con: ContactState, aut: Automata) -> ContactState:
+    """A copy of the contact state with each slave's facet and weights found at the rest positions (the rest
+    geometry's partners: in an aligned stack, the automaton right across the interface)."""
+    ns = len(con.slave)
+    rest = con._replace(facet=np.full(ns, -1, dtype=np.int64), w=np.zeros((ns, 3)), nrm=np.zeros((ns, 3)),
+                        gap=np.zeros(ns), area=np.zeros(ns))
+    x = aut.positions.copy()
+    x[aut.body == 1, con.law.axis] -= 1e-9 * con.law.h0  # just closed (at rest the gap is exactly h0)
+    rest = relisted(rest, aut, x, 0.0)
+    geometry(x, aut.volume, rest, np.zeros(aut.size))
+    return rest
 
 
 def relisted(con: ContactState, aut: Automata, x: np.ndarray, skin: float) -> ContactState:
@@ -375,6 +390,7 @@ def after_step(con, dt):
             continue
         q = con.power[s] * dt
         total += q
+        con.dissipated[s] += q
         con.heat[con.slave[s]] += 0.5 * q
         for v in range(3):
             con.heat[con.facets[fct, v]] += 0.5 * con.w[s, v] * q

@@ -22,7 +22,14 @@ summarises the run).
   end of the run) and var_k the variance of one contact's mean of K over the distance slid in the window
   (roughness.variance_of_mean).  Energy balance over the window: work of the drive and of the load against
   kinetic + elastic energy + friction and damping dissipation (the largest imbalance over the window
-  relative to the drive's work).
+  relative to the drive's work).  With a platen (Contact.platen) the far face is held at its preloaded
+  height while it slides, and F_N is the normal force the contacts carry.
+- Frictional heating: sliding as above, then MCA heat on the bonded automata (the contact conducts as the
+  interface pairs of the rest geometry) from the initial temperature to t_end, each contact's mean friction
+  power over the window held constant: half into the slave, half into its rest partners (one-way,
+  quasi-steady coupling: the mechanics' time scale is ~1e-7 s, the heat's ~1e-2 s; no thermal expansion).
+  Summary: the mean flux against the scene's declared interface flux (flux_ratio), its uniformity over the
+  interface, and the rise of the automata next to the plane against the semi-infinite solid's at a/2.
 """
 
 from __future__ import annotations
@@ -31,13 +38,17 @@ import math
 from typing import Any
 
 import numpy as np
+from scipy.special import erfc
 
 from pcverify.scene import Contact, FaceClamp, FaceSupport, Scene, SceneError
+from pcverify.solvers.protocol import heat_summary
 
 from . import contact as ct
+from . import heat as mca_heat
 from . import kernel as mk
 from . import roughness as rg
 from .automata import Automata, body_automata
+from .kernels import timed
 from .model import Elastic, Model, rebuild_pairs, relax, relax_status
 
 FACE_AXES = "xyz"
@@ -196,33 +207,31 @@ def _sliding(scene: Scene, aut: Automata, bonded: Automata, el: Elastic, law: ct
     t_ramp = p["slide_ramp"] if p["slide_ramp"] is not None else 2 * 2 * math.pi / rate
     t0 = float(st.clock[0])
     fixv[top, dr] = contact.speed
+    if contact.platen:
+        fixm[top, ax] = mk.PRESCRIBED  # held at the preloaded height (fixv 0 there): a rigid platen
     frame = np.zeros((aut.size, 3))
     frame[aut.body == 1, dr] = contact.speed
     st = st._replace(frame=mk.Frame(frame))
     gamma = rate if p["slide_damping"] is None else p["slide_damping"]
     model.params = model.params._replace(gamma=float(gamma), t_stop=math.inf, ramp_start=t0, ramp=t_ramp)
-    total = math.ceil((t_ramp + contact.duration) / model.dt)
-    total = min(total, p["max_steps"])
+    ramp_steps = math.ceil(t_ramp / model.dt)
+    total = min(ramp_steps + math.ceil(contact.duration / model.dt), p["max_steps"])
     every = max(1, total // p["records"])
     st = st._replace(hist=np.zeros((total // every + 2, mk.N_H)))
+    rows: list[np.ndarray] = []
+    st, code, rebuilds = _slide(model, st, pre_steps + min(ramp_steps, total), every, rows)
+    t1 = float(st.clock[0])
     heat0 = st.contact.heat.copy()
-    rows, done, rebuilds, code = [], 0, 0, mk.OK
-    while done < total:
-        code = model.advance(st, min(20 * every, total - done), every)
-        rows.append(st.hist[: st.counters[mk.C_ROWS]].copy())
-        done = int(st.counters[mk.C_STEPS]) - pre_steps
-        if code == mk.MOVED:
-            st, _ = rebuild_pairs(model, st)
-            rebuilds += 1
-            code = mk.OK
-            continue
-        if code != mk.OK:
-            break
+    dissipated0 = st.contact.dissipated.copy()
+    if code == mk.OK:
+        st, code, more = _slide(model, st, pre_steps + total, every, rows)
+        rebuilds += more
+    done = int(st.counters[mk.C_STEPS]) - pre_steps
     h = np.concatenate(rows) if rows else np.zeros((0, mk.N_H))
     summary.update(steps=int(st.counters[mk.C_STEPS]), slide_steps=done, slide_ramp_s=t_ramp,
                    pair_list_rebuilds=rebuilds)
     summary.update(contact_summary(st))
-    window = h[h[:, mk.H_T] >= t0 + t_ramp]
+    window = h[h[:, mk.H_T] >= t1]
     if code in (mk.NAN, mk.GROWTH):
         status, reason = "unstable", f"{mk.STATUS_TEXT[code]} at step {done} of sliding; history up to there kept"
     elif len(window) < 10:
@@ -230,21 +239,93 @@ def _sliding(scene: Scene, aut: Automata, bonded: Automata, el: Elastic, law: ct
     else:
         status, reason = "ok", ""
         summary.update(_friction_summary(window, st, law, contact, f_normal))
-    t_end = float(st.clock[0])
+    window_s = float(st.clock[0]) - t1
     heat = st.contact.heat - heat0
     summary["friction_heat_J"] = float(heat.sum())
-    summary["friction_power_W"] = float(heat.sum() / max(t_end - t0, 1e-300))
+    summary["friction_power_W"] = float(heat.sum() / window_s) if window_s > 0 else math.nan
     diag = {"history": {"columns": list(mk.HISTORY_COLUMNS), "rows": h}}
-    return {"field": heat / aut.volume, "quantity": "friction heat received (J/m^3)", "summary": summary,
-            "status": status, "reason": reason, "diagnostics": diag, "model": model, "state": st}
+    return {"field": heat / aut.volume, "quantity": "friction heat received in the window (J/m^3)",
+            "summary": summary, "status": status, "reason": reason, "diagnostics": diag, "model": model, "state": st,
+            "power": (st.contact.dissipated - dissipated0) / window_s if window_s > 0 else None}
+
+
+def _slide(model: Model, st: mk.State, until: int, every: int, rows: list[np.ndarray]
+           ) -> tuple[mk.State, int, int]:
+    """Advance to step `until` in chunks, keeping the history rows and rebuilding the lists whenever an
+    automaton moved beyond the skin: (state, kernel status, rebuilds)."""
+    code, rebuilds = mk.OK, 0
+    while int(st.counters[mk.C_STEPS]) < until:
+        code = model.advance(st, min(20 * every, until - int(st.counters[mk.C_STEPS])), every)
+        rows.append(st.hist[: st.counters[mk.C_ROWS]].copy())
+        if code == mk.MOVED:
+            st, _ = rebuild_pairs(model, st)
+            rebuilds += 1
+            code = mk.OK
+            continue
+        if code != mk.OK:
+            break
+    return st, code, rebuilds
+
+
+def _heating(scene: Scene, aut: Automata, bonded: Automata, el: Elastic, law: ct.ContactLaw, p: dict[str, Any]
+             ) -> dict[str, Any]:
+    """Sliding, then MCA heat of the bonded automata (the contact conducts as the interface pairs of the rest
+    geometry) from the scene's initial temperature to t_end, fed by the window's mean friction power of each
+    contact: half to the slave, half to its rest partners (the facet found at the rest positions, by weight)."""
+    out = _sliding(scene, aut, bonded, el, law, p)
+    slave_power = out.pop("power")
+    summary = out["summary"]
+    if out["status"] != "ok" or slave_power is None:
+        return out | {"field": None}
+    contact, heat, mat = scene.contact, scene.conduction, scene.material
+    ax = contact.axis_index
+    section = float(np.prod(np.delete(scene.box.extent, ax)))
+    rest = ct.rest_partners(out["state"].contact, aut)
+    power = np.zeros(aut.size)
+    paired = rest.facet >= 0
+    np.add.at(power, rest.slave, 0.5 * slave_power)
+    for v in range(3):
+        np.add.at(power, rest.facets[rest.facet[paired], v], 0.5 * slave_power[paired] * rest.w[paired, v])
+    flux = float(slave_power.sum()) / section
+    per_area = slave_power[paired] / rest.area[paired]
+    held, values = mca_heat.held_temperatures(scene, bonded)
+    hs, hp, steps = mca_heat.transient(bonded, mat.conductivity, mat.density * mat.heat_capacity, values, held,
+                                       heat.t_end, p["heat_cfl"], power)
+    heat_s = timed("heat", hs, hp, steps)
+    rise = hs.temp - heat.initial_temperature
+    near = np.abs(np.abs(aut.positions[:, ax] - contact.position) - 0.5 * law.h0) < 1e-6 * law.h0
+    summary.update(heat_dt=hp.dt, heat_steps=steps, heat_kernel_s=heat_s, flux_friction=flux,
+                   flux_uniformity=float(np.ptp(per_area) / per_area.mean()),
+                   interface_rise=float(rise[near].mean()))
+    declared = heat.interface.flux if heat.interface is not None else math.nan
+    if math.isfinite(declared) and declared > 0:
+        expect = semi_infinite_rise(declared / 2, mat.conductivity, mat.diffusivity, heat.t_end, 0.5 * law.h0)
+        summary.update(flux_declared=declared, flux_ratio=flux / declared, interface_rise_expected=expect,
+                       interface_rise_error=float(rise[near].mean() / expect - 1))
+    temp = hs.temp / heat.t_max
+    summary.update(heat_summary(temp, float((temp * bonded.volume).sum() / bonded.volume.sum())))
+    out["diagnostics"]["notes"] = ["frictional heating: the mean friction power of the sliding window feeds MCA "
+                                   "heat on the rest geometry for t_end (quasi-steady one-way coupling)"]
+    return out | {"field": temp, "quantity": "T/t_max"}
+
+
+def semi_infinite_rise(flux: float, conductivity: float, diffusivity: float, t: float, depth: float) -> float:
+    """Rise at `depth` below the surface of a semi-infinite solid taking `flux` from t = 0 (Carslaw & Jaeger
+    §2.9): (2 q / k) sqrt(alpha t) ierfc(depth / (2 sqrt(alpha t))); the scene's reference at short times, with
+    q the half of the interface flux each body takes."""
+    root = math.sqrt(diffusivity * t)
+    u = depth / (2.0 * root)
+    return 2.0 * flux / conductivity * root * (math.exp(-u * u) / math.sqrt(math.pi) - u * float(erfc(u)))
 
 
 def _friction_summary(window: np.ndarray, st: mk.State, law: ct.ContactLaw, contact: Contact,
                       f_normal: float) -> dict[str, Any]:
     """mu_dr statistics over the sliding window, their expected value and uncertainty, the energy balance."""
+    ratio = float(window[:, mk.H_FN].mean() / f_normal)
+    if contact.platen:  # the platen's reaction is the normal force: the contacts' normal force
+        f_normal *= ratio
     mu = window[:, mk.H_FT] / f_normal
-    out: dict[str, Any] = {"mu_dr_mean": float(mu.mean()), "mu_dr_std": float(mu.std()),
-                           "normal_force_ratio": float(window[:, mk.H_FN].mean() / f_normal),
+    out: dict[str, Any] = {"mu_dr_mean": float(mu.mean()), "mu_dr_std": float(mu.std()), "normal_force_ratio": ratio,
                            "window_s": float(window[-1, mk.H_T] - window[0, mk.H_T])}
     expected = law.mu1 * (1 + rg.mean(law.rough)) + law.mu0 * contact.speed / contact.normal_stress
     out["mu_dr_expected"] = expected
@@ -284,7 +365,9 @@ def solve_contact(scene: Scene, n: int, p: dict[str, Any]) -> tuple[dict[str, An
     mat = scene.material
     el = Elastic(mat.youngs_modulus, mat.poisson_ratio, many_body=p["many_body"], coefficient=p["coefficient"])
     law = law_of(aut, contact, p)
-    out = (_sliding if contact.sliding else _pressed)(scene, aut, bonded, el, law, p)
+    run = _heating if contact.heating else _sliding if contact.sliding else _pressed
+    out = run(scene, aut, bonded, el, law, p)
+    out.pop("power", None)
     model, st = out.pop("model"), out.pop("state")
     out["summary"]["friction_step_ratio"] = friction_step_ratio(model, law, contact)
     out["work"] = {"pair_steps": int(st.counters[mk.C_PAIRSTEPS]), "time_steps": int(st.counters[mk.C_STEPS]),

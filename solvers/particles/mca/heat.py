@@ -21,7 +21,15 @@ import scipy.sparse as sp
 from numba import njit
 from scipy.sparse.linalg import spsolve
 
-from pcverify.scene import FaceTemperature, PatchTemperature, PointTemperature, Scene, SceneError
+from pcverify.scene import (
+    FaceClamp,
+    FaceSupport,
+    FaceTemperature,
+    PatchTemperature,
+    PointTemperature,
+    Scene,
+    SceneError,
+)
 
 from .automata import Automata
 
@@ -160,6 +168,8 @@ def held_temperatures(scene: Scene, aut: Automata) -> tuple[np.ndarray, np.ndarr
     held = np.zeros(aut.size, dtype=np.int64)
     values = np.full(aut.size, scene.conduction.initial_temperature, dtype=float)
     for c in scene.constraints:
+        if isinstance(c, (FaceSupport, FaceClamp)) and scene.elasticity is not None:
+            continue  # a mechanical support of a coupled scene: no heat condition
         if isinstance(c, FaceTemperature):
             idx = aut.on_face(c.face, scene.box.extent)
         elif isinstance(c, PointTemperature):

@@ -123,9 +123,14 @@ class Mca:
                 return False, "steady conduction without any prescribed temperature is singular"
             return True, ""
         if "contact" in phys:
-            extra = phys - {"elasticity", "contact"}
+            extra = phys - {"elasticity", "contact", "conduction", "frictional-heating", "interface-flux"}
             if extra:
-                return False, f"mca contact scenes do not model {sorted(extra)} yet"
+                return False, f"mca contact scenes do not model {sorted(extra)}"
+            contact = scene.contact
+            if ("conduction" in phys) != contact.heating:
+                return False, "mca couples contact and conduction through frictional heating only"
+            if contact.heating and not (contact.sliding and scene.conduction.mode == "transient"):
+                return False, "frictional heating needs sliding and a transient conduction part"
             return True, ""
         if "elasticity" in phys:
             extra = phys - {"elasticity", "modes", "fracture"}
