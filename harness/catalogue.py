@@ -11,9 +11,6 @@ from __future__ import annotations
 
 import importlib
 import math
-from dataclasses import dataclass
-from functools import cache
-from importlib import metadata
 from typing import Any
 
 from pcverify.scene import (
@@ -38,6 +35,7 @@ from pcverify.scene import (
     SceneError,
     SceneSpec,
 )
+from pcverify.solvers.registry import Entry, Registry
 
 BOX = Box()  # the paper's bar, 0.01 x 0.01 x 0.03 m (the default dimensions of every catalogue scene)
 PLACEMENTS = ("back-edge", "diagonal")
@@ -194,8 +192,8 @@ CATALOGUE: dict[str, SceneSpec] = {
             "Uniaxial stress of the duralumin bar (E = 70 GPa, nu = 0.33): face z=0 on frictionless supports, "
             "face z=L displaced by strain * L along z, lateral faces free (analytic: sigma = E eps, "
             "lateral strain -nu eps)",
-            (*DIMENSIONS, Param("strain", -1e-3, "", "nominal axial strain (negative = compression)", low=-0.01,
-                                high=0.0, high_open=True)),
+            (*DIMENSIONS, Param("strain", -1e-3, "", "nominal axial strain (negative = compression; below 1e-12 in "
+                                "magnitude the loads underflow in floating point)", low=-0.01, high=-1e-12)),
             _compression,
         ),
         SceneSpec(
@@ -275,54 +273,19 @@ CATALOGUE: dict[str, SceneSpec] = {
 }
 
 
-ENTRY_POINT_GROUP = "pcverify.scenes"
-
-
-@dataclass(frozen=True)
-class Entry:
-    """Where a scene name comes from: its spec (or a "module:attribute" to import) and its origin."""
-
-    name: str
-    target: Any
-    origin: str
-
-
-_REGISTERED: dict[str, Entry] = {}
-
-
-@cache
-def _entry_points() -> dict[str, Entry]:
-    out: dict[str, Entry] = {}
-    for ep in metadata.entry_points(group=ENTRY_POINT_GROUP):
-        dist = ep.dist
-        origin = f"entry point of {dist.name} {dist.version}" if dist is not None else "an entry point"
-        _add(out, Entry(ep.name, ep.value, origin))
-    return out
-
-
-def _add(table: dict[str, Entry], entry: Entry) -> None:
-    old = table.get(entry.name)
-    if old is not None and old.origin != entry.origin and old.target is not entry.target:
-        raise SceneError(f"scene name {entry.name!r} is registered twice: by {old.origin} and by {entry.origin}; "
-                         "allowed: one scene per name")
-    table[entry.name] = entry
+SCENES = Registry("scene", "pcverify.scenes", CATALOGUE)
 
 
 def entries() -> dict[str, Entry]:
     """Every known scene by name (shipped, entry points, registered at run time)."""
-    table = {name: Entry(name, spec, "pcverify") for name, spec in CATALOGUE.items()}
-    for entry in (*_entry_points().values(), *_REGISTERED.values()):
-        _add(table, entry)
-    return table
+    return SCENES.entries()
 
 
 def register_scene(spec: SceneSpec, origin: str) -> None:
     """Make a scene spec known under its name (plugin module or study file); SceneError on a clash."""
     if not isinstance(spec, SceneSpec):
         raise SceneError(f"{origin}: {spec!r} is not a SceneSpec")
-    entry = Entry(spec.name, spec, origin)
-    _add(entries(), entry)
-    _REGISTERED[spec.name] = entry
+    SCENES.register(spec.name, spec, origin)
 
 
 def scene_names() -> list[str]:

@@ -26,6 +26,7 @@ from pcverify.harness.catalogue import entries as scene_entries
 from pcverify.harness.catalogue import get_spec
 from pcverify.harness.execution import cached_results, execute, plan
 from pcverify.harness.interrupt import received, remember_sigint
+from pcverify.harness.limits import check_work
 from pcverify.harness.report import write_index, write_study_report
 from pcverify.harness.study import MAX_CELLS, load_study, study_files
 from pcverify.scene import Param, Resolution, SceneError, shown
@@ -201,6 +202,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     scene_vals, solver_vals = split_settings(args.set or [], spec.parameters, solver.parameters)
     scene = spec.make(**scene_vals)
     ok, reason = solver.supports(scene)
+    if ok:
+        check_work(solver, scene, resolution, solver_vals, args.allow_large)
     with working(f"{solver.name} on {scene.name} n={resolution.n} refine={resolution.refine}", not args.json):
         solution = solver.solve(scene, resolution, **solver_vals) if ok else skipped(scene, solver, resolution, reason)
     out = solution.to_dict()
@@ -240,7 +243,7 @@ def cmd_study(args: argparse.Namespace) -> int:
                 continue
             t0 = time.perf_counter()
             results, counts = execute(study, cache, jobs=args.jobs, progress=not args.json, scheduler=args.scheduler,
-                                      rerun=rerun)
+                                      rerun=rerun, allow_large=args.allow_large)
             write_study_report(study, results, out)
             summary.append({"study": study.name, **counts, "wall_s": round(time.perf_counter() - t0, 3)})
             if not args.json:
@@ -329,6 +332,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--refine", type=int_in("refine", 1, 1000), default=1,
                    help="grid refinement factor of continuum solvers (default 1)")
     p.add_argument("--set", action="append", metavar="KEY=VALUE", help="scene or solver parameter (repeatable)")
+    p.add_argument("--allow-large", action="store_true", help="run a solve beyond the work and memory limits")
     p.add_argument("--json", action="store_true", help="one JSON object on stdout")
     p.set_defaults(func=cmd_run)
 
@@ -342,7 +346,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="parallel cells on local cores (default 1)")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="hand the cells to a Dask cluster (e.g. tcp://host:8786; needs pcverify[dask])")
-    p.add_argument("--allow-large", action="store_true", help=f"run a study of more than {MAX_CELLS} cells")
+    p.add_argument("--allow-large", action="store_true", help=f"run a study of more than {MAX_CELLS} cells, or cells "
+                   "beyond the work and memory limits")
     p.add_argument("--rerun", nargs="*", default=None, metavar="SOLVER",
                    help="recompute cached cells: all of them, or those of the named solvers (put it last)")
     p.add_argument("--json", action="store_true", help="print a JSON summary of the study (with --dry-run: the "

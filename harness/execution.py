@@ -10,6 +10,7 @@ this process, after a warm-up solve per solver.
 from __future__ import annotations
 
 import re
+import sys
 import threading
 import time
 import warnings
@@ -23,8 +24,10 @@ from tqdm import tqdm
 from pcverify.harness.cache import Cache, cell_key
 from pcverify.harness.fingerprint import code_fingerprint, module_fingerprint
 from pcverify.harness.interrupt import check_interrupted, ignore_sigint_in_worker
+from pcverify.harness.limits import check_work
 from pcverify.harness.plugins import load_plugins
 from pcverify.harness.study import Cell, Study
+from pcverify.harness.tasks import SolveTask
 from pcverify.scene import Resolution, SceneError, shown
 from pcverify.solvers.registry import SolverUnavailable, get_solver
 
@@ -87,14 +90,13 @@ def _indexed(i: int, cell: Cell) -> tuple[int, dict[str, Any]]:
     return i, run_cell(cell)
 
 
-def _parallel(cells: list[Cell], todo: list[int], jobs: int, scheduler: str | None
+def _parallel(cells: list[Cell], todo: list[int], jobs: int, client: Any | None
               ) -> Iterator[tuple[int, dict[str, Any]]]:
-    """(index, result) pairs in completion order: joblib on local cores, or a Dask cluster at `scheduler`."""
-    if scheduler is not None:
-        with connect(scheduler) as client:
-            futures = [client.submit(_indexed, i, cells[i], pure=False) for i in todo]
-            for fut in as_completed(futures):
-                yield fut.result()
+    """(index, result) pairs in completion order: joblib on local cores, or the Dask cluster of `client`."""
+    if client is not None:
+        futures = [client.submit(_indexed, i, cells[i], pure=False) for i in todo]
+        for fut in as_completed(futures):
+            yield fut.result()
         return
     # loky replaces a worker whose memory grew (numba, FiPy caches) and says so; the cell is rerun, nothing lost
     warnings.filterwarnings("ignore", message="A worker stopped while some jobs", category=UserWarning)
@@ -160,10 +162,13 @@ def _rerun(cell: Cell, rerun: frozenset[str] | None) -> bool:
 
 
 def execute(study: Study, cache: Cache, jobs: int = 1, progress: bool = True, scheduler: str | None = None,
-            rerun: frozenset[str] | None = None) -> tuple[list[dict[str, Any]], dict[str, int]]:
+            rerun: frozenset[str] | None = None, allow_large: bool = False
+            ) -> tuple[list[dict[str, Any]], dict[str, int]]:
     """Run every cell not yet cached; return all results in cell order and the counts.
 
-    `rerun` recomputes cached cells too: all of them (an empty set) or those of the named solvers.
+    `rerun` recomputes cached cells too: all of them (an empty set) or those of the named solvers.  A
+    cell beyond the work limits (`limits.check_work`) stops the study before anything runs, unless
+    `allow_large`.
     Cells of timed groups run last, serially in this process, after a warm-up solve per solver;
     the others run in parallel (joblib with `jobs` > 1, or a Dask cluster at `scheduler`).
     Each finished cell is written to the cache at once, so an interrupted study loses nothing.
@@ -179,13 +184,18 @@ def execute(study: Study, cache: Cache, jobs: int = 1, progress: bool = True, sc
         entry = as_cell(entry, cells[i])
         if state.startswith("corrupt"):
             counts["corrupt"] += 1
-            tqdm.write(f"cache entry {key} ({cells[i].describe()}) is {state}; recomputing")
+            tqdm.write(f"cache entry {key} ({cells[i].describe()}) is {state}; recomputing", file=sys.stderr)
         if entry is not None:
             counts["cached"] += 1
         else:
             todo.append(i)
         results.append(entry)
+    for i in todo:  # the work limits, before anything starts
+        if identities[i][1] is None and isinstance(cells[i].task, SolveTask):
+            check_work(get_solver(cells[i].solver), cells[i].scene, Resolution(cells[i].n, cells[i].refine),
+                       dict(cells[i].solver_params), allow_large)
     cache.remove_stray_files()
+    client = connect(scheduler) if scheduler is not None else None  # before the progress bar: errors are one line
     bar = tqdm(total=len(cells), initial=counts["cached"], desc=study.name, unit="cell", disable=not progress,
                dynamic_ncols=True)
 
@@ -221,7 +231,7 @@ def execute(study: Study, cache: Cache, jobs: int = 1, progress: bool = True, sc
     try:
         mine = [i for i in todo if cache.try_lock(keys[i])]  # the others are being computed by another process
         theirs = [i for i in todo if keys[i] not in cache.locks]
-        _run(study, cells, identities, mine, finish, bar, jobs, scheduler)
+        _run(study, cells, identities, mine, finish, bar, jobs, client)
         for i in theirs:
             bar.set_description(f"{study.name}: waiting for another process: {cells[i].describe()}"[:70])
             entry = _wait_for(cache, keys[i])
@@ -232,17 +242,19 @@ def execute(study: Study, cache: Cache, jobs: int = 1, progress: bool = True, sc
     finally:
         cache.unlock_all()
         bar.close()
+        if client is not None:
+            client.close()
     return [r for r in results if r is not None], counts
 
 
 def _run(study: Study, cells: list[Cell], identities: list[tuple[dict[str, Any], str | None]], todo: list[int],
-         finish: Any, bar: Any, jobs: int, scheduler: str | None) -> None:
+         finish: Any, bar: Any, jobs: int, client: Any | None) -> None:
     """Run the cells `todo`: the free ones in parallel, then the timed ones serially after a warm-up."""
     free = [i for i in todo if not cells[i].serial]
     timed = [i for i in todo if cells[i].serial and identities[i][1] is None]
     timed_skips = [i for i in todo if cells[i].serial and identities[i][1] is not None]
-    if (jobs > 1 or scheduler is not None) and len(free) > 1:
-        for i, res in _parallel(cells, free, jobs, scheduler):
+    if (jobs > 1 or client is not None) and len(free) > 1:
+        for i, res in _parallel(cells, free, jobs, client):
             finish(i, res)
     else:
         timed_skips = free + timed_skips

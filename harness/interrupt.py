@@ -73,9 +73,12 @@ def _alive(pid: int) -> bool:
 
 
 def _watch(pid: int, period: float) -> None:
-    while _alive(pid):
+    parent = os.getppid()
+    # the study is gone when it no longer exists, or when this worker has been handed to another parent
+    # (a killed study is a zombie until its own parent reaps it, but its children are re-parented at once)
+    while _alive(pid) and os.getppid() == parent:
         time.sleep(period)
-    os._exit(1)  # the study is gone: nobody will read this worker's result
+    os._exit(1)  # nobody will read this worker's result
 
 
 def ignore_sigint_in_worker(period: float = 1.0) -> None:

@@ -103,8 +103,9 @@ class Solver(Protocol):
 
     name: the registry name.  kind: "particle" or "continuum".  parameters: every parameter `solve`
     takes, with its default, unit and range (`pcverify solvers` lists them).  A solver may also offer
-    `stability_probe() -> StabilityProbe` (see below); the cache key holds a fingerprint of the
-    solver's code, so no version needs bumping when results change.
+    `stability_probe() -> StabilityProbe` (see below) and `estimate(scene, resolution, **params) ->
+    WorkEstimate` (the harness then refuses work beyond its limits before it starts); the cache key holds
+    a fingerprint of the solver's code, so no version needs bumping when results change.
     """
 
     name: str
@@ -124,6 +125,16 @@ class Solver(Protocol):
     ) -> Solution:
         """Solve `scene` at `resolution`; report at `samples` (default: scene.sample_sets(n))."""
         ...
+
+
+@dataclass(frozen=True)
+class WorkEstimate:
+    """What a solve will cost, known before it starts (a solver's optional `estimate`): the unknowns, the
+    time steps (1 for a steady or eigen solve) and the memory in bytes (an upper estimate)."""
+
+    unknowns: int
+    steps: int = 1
+    bytes: int = 0
 
 
 @dataclass(frozen=True)

@@ -13,7 +13,7 @@ from __future__ import annotations
 import importlib
 import re
 from dataclasses import dataclass
-from functools import cache
+from functools import cached_property
 from importlib import metadata
 from typing import Any
 
@@ -37,46 +37,67 @@ class SolverUnavailable(RuntimeError):
 
 @dataclass(frozen=True)
 class Entry:
-    """Where a solver name comes from: a "module:Class" target (or the class itself) and its origin."""
+    """Where a name comes from: its target ("module:attribute" to import, or the object) and its origin."""
 
     name: str
     target: Any
     origin: str
 
 
-_REGISTERED: dict[str, Entry] = {}
-
-
-@cache
-def _entry_points() -> dict[str, Entry]:
-    """The `pcverify.solvers` entry points of the installed distributions, read once per process."""
-    out: dict[str, Entry] = {}
-    for ep in metadata.entry_points(group=ENTRY_POINT_GROUP):
-        dist = ep.dist
-        origin = f"entry point of {dist.name} {dist.version}" if dist is not None else "an entry point"
-        entry = Entry(ep.name, ep.value, origin)
-        _add(out, entry)
-    return out
-
-
-def _add(table: dict[str, Entry], entry: Entry) -> None:
-    old = table.get(entry.name)
-    if old is not None and old.origin != entry.origin and old.target != entry.target:
-        raise SceneError(f"solver name {entry.name!r} is registered twice: by {old.origin} ({_show(old.target)}) and "
-                         f"by {entry.origin} ({_show(entry.target)}); allowed: one solver per name")
-    table[entry.name] = entry
-
-
 def _show(target: Any) -> str:
-    return target if isinstance(target, str) else f"{target.__module__}:{target.__qualname__}"
+    if isinstance(target, str):
+        return target
+    return f"{getattr(target, '__module__', '?')}:{getattr(target, '__qualname__', type(target).__name__)}"
+
+
+class Registry:
+    """Names to targets from three sources: a shipped table, an entry point group of the installed
+    distributions (read once per process), and registrations at run time (plugin modules, study files).
+    Two sources that give one name different targets are an error naming both; a source that registers
+    a name again (a study file loaded twice) replaces its own entry."""
+
+    def __init__(self, what: str, group: str, shipped: dict[str, Any]) -> None:
+        self.what, self.group, self.shipped = what, group, shipped
+        self.registered: dict[str, Entry] = {}
+
+    @cached_property
+    def entry_points(self) -> dict[str, Entry]:
+        out: dict[str, Entry] = {}
+        for ep in metadata.entry_points(group=self.group):
+            dist = ep.dist
+            origin = f"entry point of {dist.name} {dist.version}" if dist is not None else "an entry point"
+            self._add(out, Entry(ep.name, ep.value, origin))
+        return out
+
+    def _add(self, table: dict[str, Entry], entry: Entry) -> None:
+        old = table.get(entry.name)
+        if old is not None and old.origin != entry.origin and old.target is not entry.target \
+                and old.target != entry.target:
+            raise SceneError(f"{self.what} name {entry.name!r} is registered twice: by {old.origin} "
+                             f"({_show(old.target)}) and by {entry.origin} ({_show(entry.target)}); allowed: one "
+                             f"{self.what} per name")
+        table[entry.name] = entry
+
+    def entries(self) -> dict[str, Entry]:
+        """Every known name (shipped, entry points, registered at run time)."""
+        table = {name: Entry(name, target, "pcverify") for name, target in self.shipped.items()}
+        for entry in (*self.entry_points.values(), *self.registered.values()):
+            self._add(table, entry)
+        return table
+
+    def register(self, name: str, target: Any, origin: str) -> None:
+        """Make `target` known as `name`; SceneError if another source already gives that name."""
+        entry = Entry(name, target, origin)
+        self._add(self.entries(), entry)
+        self.registered[name] = entry
+
+
+SOLVERS = Registry("solver", ENTRY_POINT_GROUP, SHIPPED)
 
 
 def entries() -> dict[str, Entry]:
     """Every known solver by name (shipped, entry points, registered at run time)."""
-    table = {name: Entry(name, target, "pcverify") for name, target in SHIPPED.items()}
-    for entry in (*_entry_points().values(), *_REGISTERED.values()):
-        _add(table, entry)
-    return table
+    return SOLVERS.entries()
 
 
 def solver_names() -> list[str]:
@@ -86,10 +107,7 @@ def solver_names() -> list[str]:
 def register_solver(cls: type, origin: str) -> None:
     """Make a solver class known under its `name` (e.g. from a plugin module); SceneError on a clash."""
     check_solver_class(cls, origin)
-    table = entries()
-    entry = Entry(cls.name, cls, origin)
-    _add(table, entry)  # raises on a clash with any other source
-    _REGISTERED[cls.name] = entry
+    SOLVERS.register(cls.name, cls, origin)
 
 
 def is_solver_class(obj: Any) -> bool:

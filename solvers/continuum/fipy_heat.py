@@ -93,7 +93,8 @@ from pcverify.scene import (
 from pcverify.solvers.continuum.assembly import grid_graph, split_free
 from pcverify.solvers.continuum.fipy_fast import diffusion_term, tensor_grid3d
 from pcverify.solvers.continuum.linear_solver import smoothed_aggregation
-from pcverify.solvers.protocol import Solution, effective_params, heat_summary
+from pcverify.solvers.continuum.work import heat_estimate, transient_steps
+from pcverify.solvers.protocol import Solution, WorkEstimate, effective_params, heat_summary
 
 _FACE_AXIS = {"x0": (0, 0), "xW": (0, 1), "y0": (1, 0), "yH": (1, 1), "z0": (2, 0), "zL": (2, 1)}
 _FIPY_FACES = {"x0": "facesLeft", "xW": "facesRight", "y0": "facesBottom", "yH": "facesTop",
@@ -260,7 +261,13 @@ class FipyHeat:
         Param("rtol", 1e-10, "", "relative residual of AMG-CG (checked on the true residual)",
               low=0.0, high=1e-3, low_open=True),
         Param("penalty", 1e8, "", "penalty factor: B = penalty * k / h^2 for fixed cells", low=1e3, high=1e14),
+        Param("max_steps", 1_000_000, "", "largest number of time steps of a transient (t_end / dt)", low=1,
+              high=1e10, kind=int),
     )
+
+    def estimate(self, scene: Scene, resolution: Resolution, **params: Any) -> WorkEstimate:
+        """Cells (one per lattice-grid node), time steps and memory of the solve."""
+        return heat_estimate(scene, resolution)
 
     def supports(self, scene: Scene) -> tuple[bool, str]:
         if "conduction" not in scene.physics or not scene.physics <= PHYSICS:
@@ -426,13 +433,9 @@ class FipyHeat:
         ok, why = self.supports(scene)
         if not ok:
             raise SceneError(why)
-        nsteps = 0
         heat = scene.conduction
-        if heat.mode == "transient":
-            nsteps = int(round(heat.t_end / heat.dt))
-            if nsteps < 1 or abs(nsteps * heat.dt - heat.t_end) > 1e-9 * heat.t_end:
-                raise SceneError(f"dt={heat.dt!r} does not divide t_end={heat.t_end!r}; allowed: t_end / dt an "
-                                 "integer (within 1e-9)")
+        nsteps = transient_steps(heat, p["max_steps"])
+        if nsteps:
             if p["scheme"] == "crank-nicolson" and p["rannacher_steps"] > 2 * nsteps:
                 raise SceneError(f"rannacher_steps={p['rannacher_steps']!r} is out of range; allowed: even integer "
                                  f"in [0, {2 * nsteps}] (2 x number of steps)")

@@ -61,7 +61,8 @@ from skfem.models.elasticity import lame_parameters, linear_elasticity
 from pcverify.scene import FaceClamp, FaceSupport, Param, Resolution, Scene, SceneError
 from pcverify.solvers.continuum.grid import HEX_CORNERS, StructuredGrid
 from pcverify.solvers.continuum.linear_solver import SpdSolver, smoothed_aggregation
-from pcverify.solvers.protocol import Solution, effective_params
+from pcverify.solvers.continuum.work import ELASTIC_BYTES_PER_DOF, grid_nodes
+from pcverify.solvers.protocol import Solution, WorkEstimate, effective_params
 
 PARAMETERS: tuple[Param, ...] = (
     Param("element", "q2", "", "Q1 (trilinear) or Q2 (triquadratic) hexahedra", choices=("q1", "q2"), kind=str),
@@ -223,6 +224,13 @@ class SkfemElastic:
     kind = "continuum"
     parameters = PARAMETERS
 
+    def estimate(self, scene: Scene, resolution: Resolution, **params: Any) -> WorkEstimate:
+        """Degrees of freedom (3 per node of the Q1 or Q2 grid) and memory of the solve."""
+        p = effective_params(self, params)
+        degree = ELEMENTS[p["element"]][2]
+        dofs = 3 * grid_nodes(scene, Resolution(resolution.n, resolution.refine * degree))
+        return WorkEstimate(unknowns=dofs, steps=1, bytes=ELASTIC_BYTES_PER_DOF * dofs)
+
     def supports(self, scene: Scene) -> tuple[bool, str]:
         if "elasticity" not in scene.physics:
             return False, f"skfem-elastic does linear elasticity only; scene needs {sorted(scene.physics)}"
@@ -362,8 +370,12 @@ class SkfemElastic:
 
     @staticmethod
     def _static(stiff, fixed, is_fixed, method, p, near_null):
-        """Lifted Dirichlet problem with the constrained rows/columns replaced by their diagonal."""
+        """Lifted Dirichlet problem with the constrained rows/columns replaced by their diagonal, solved for
+        prescribed displacements scaled to unit size and scaled back (linear: exact; keeps CG's norms away
+        from underflow whatever the load's magnitude)."""
         g = np.where(is_fixed, fixed, 0.0)
+        scale = float(np.max(np.abs(g))) or 1.0
+        g = g / scale
         d = stiff.diagonal()
         rhs = -(stiff @ g)
         rhs[is_fixed] = d[is_fixed] * g[is_fixed]
@@ -373,7 +385,7 @@ class SkfemElastic:
         solver = _linear_solver(a, method, p["cg_rtol"], near_null)
         u = solver.solve(rhs)
         u[is_fixed] = g[is_fixed]
-        return u, solver
+        return u * scale, solver
 
     @staticmethod
     def _static_summary(scene, mesh, basis, element, intorder, stiff, u, locs, extent, h) -> dict[str, Any]:

@@ -58,7 +58,8 @@ from pcverify.scene import (
 from pcverify.solvers.continuum.assembly import assemble_q1, grid_graph, plane_load, split_free
 from pcverify.solvers.continuum.grid import StructuredGrid, plan_sphere_warp
 from pcverify.solvers.continuum.linear_solver import SpdSolver, smoothed_aggregation
-from pcverify.solvers.protocol import Solution, effective_params, heat_summary
+from pcverify.solvers.continuum.work import heat_estimate, transient_steps
+from pcverify.solvers.protocol import Solution, WorkEstimate, effective_params, heat_summary
 
 PHYSICS = frozenset({"conduction", "heat-source", "interface-flux"})  # what this solver implements
 
@@ -72,6 +73,8 @@ PARAMETERS: tuple[Param, ...] = (
     Param("linear_solver", "auto", "", "direct (SuperLU), amg (pyamg SA-preconditioned CG) or auto",
           choices=("auto", "direct", "amg"), kind=str),
     Param("cg_rtol", 1e-11, "", "relative residual tolerance of CG", low=0.0, high=1e-3, low_open=True),
+    Param("max_steps", 1_000_000, "", "largest number of time steps of a transient (t_end / dt)", low=1, high=1e10,
+          kind=int),
     Param("direct_max_unknowns", 10000, "", "auto: direct solver up to this many free nodes, AMG-CG above",
           low=1, high=1e9, kind=int),
 )
@@ -116,6 +119,10 @@ class SkfemHeat:
     kind = "continuum"
     parameters = PARAMETERS
 
+    def estimate(self, scene: Scene, resolution: Resolution, **params: Any) -> WorkEstimate:
+        """Grid nodes, time steps and memory of the solve."""
+        return heat_estimate(scene, resolution)
+
     def supports(self, scene: Scene) -> tuple[bool, str]:
         if "conduction" not in scene.physics or not scene.physics <= PHYSICS:
             return False, (f"skfem heat solver does conduction (with {', '.join(sorted(PHYSICS - {'conduction'}))}) "
@@ -133,12 +140,9 @@ class SkfemHeat:
         if p["rannacher_steps"] % 2:
             raise SceneError(f"rannacher_steps={p['rannacher_steps']!r} is out of range; allowed: even integer "
                              "in [0, 1000] (half steps in pairs)")
-        if scene.conduction.mode != "transient":
+        steps = transient_steps(scene.conduction, p["max_steps"])
+        if steps == 0:
             return 0
-        steps = int(round(scene.conduction.t_end / scene.conduction.dt))
-        if steps < 1 or abs(steps * scene.conduction.dt - scene.conduction.t_end) > 1e-9 * scene.conduction.t_end:
-            raise SceneError(f"dt={scene.conduction.dt!r} is out of range; allowed: t_end/dt must be an integer "
-                             f"(t_end={scene.conduction.t_end:g} s)")
         if p["scheme"] == "crank-nicolson" and p["rannacher_steps"] // 2 > steps:
             raise SceneError(f"rannacher_steps={p['rannacher_steps']!r} is out of range; allowed: even integer "
                              f"in [0, {2 * steps}] (2 * number of time steps)")
