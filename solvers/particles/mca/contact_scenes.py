@@ -1,29 +1,30 @@
-"""The MCA solver's contact scenes: two bodies pressed together, or pressed and slid (contact.py holds the
-segment method and the friction law; this module maps a scene's Contact part onto the model and
-summarises the run).
+"""The MCA solver's contact scenes: two bodies pressed together, pressed and slid, or slid and heated by
+friction (contact.py holds the segment method and the friction law; this module maps a scene's Contact part
+onto the model and summarises the run).
 
 - Pressed (no sliding speed): the scene's supports compress the stack across the interface, ramped in and
   relaxed dynamically as bar-compression is (damping at Model.relaxation_rate, residual below relax_tol
   E |strain| a^2).  Each body's far face carries the force-free "3-2-1" set against rigid motion (the
   friction law has no static part).  Summary: the contact pressure (area-weighted mean and uniformity
-  (max - min) / mean over the closed contacts) against the analytic uniaxial stress E |strain| of the bonded
-  stack, E_eff and nu_eff as for the bar.
+  (max - min) / mean over the closed contacts) against the analytic uniaxial stress E |strain| of the
+  bonded stack, E_eff and nu_eff as for the bar.
 - Sliding: body 2's far face is pressed by normal_stress (a load) and held tangentially; a first run
-  relaxes the preload with damping; then the far face is driven along the direction at `speed`, ramped in
-  smoothly over `slide_ramp`, and kept at speed for the scene's duration, the window every average is
-  taken over.  While sliding, damping (slide_damping, default the relaxation rate; 0 = none) acts on each
-  automaton's velocity relative to its body's drive (body 1 at rest, body 2 at the drive's velocity), so
-  it damps vibrations and not the sliding itself.  Undamped, the slider on its elastic base develops a
-  friction-induced vibration (measured at n = 4, V = 1 m/s, 1 MPa: after ~0.4 ms the contacts open and
-  close and mu_dr(t) swings by +-0.2 about 0.3).  mu_dr(t) = F_dr / F_N (eq. 17) with F_dr the friction
-  resistance of the contacts on body 2 along the direction and F_N = normal_stress x the far face's area.
-  The expected value: mu1 (1 + K_av) + mu0 V / normal_stress (every contact sliding at V); its uncertainty
-  from the run length: mu1 (sum_k w_k^2 var_k)^(1/2), w_k the contacts' shares of the normal force (at the
-  end of the run) and var_k the variance of one contact's mean of K over the distance slid in the window
-  (roughness.variance_of_mean).  Energy balance over the window: work of the drive and of the load against
-  kinetic + elastic energy + friction and damping dissipation (the largest imbalance over the window
-  relative to the drive's work).  With a platen (Contact.platen) the far face is held at its preloaded
-  height while it slides, and F_N is the normal force the contacts carry.
+  relaxes the preload with damping (to preload_tol normal_stress a^2); then the far face is driven along
+  the direction at `speed`, ramped in smoothly over `slide_ramp`, and kept at speed for the scene's
+  duration, the window every average is taken over.  While sliding, damping (slide_damping, default the
+  relaxation rate; 0 = none) acts on each automaton's velocity relative to its body's drive (body 1 at
+  rest, body 2 at the drive's velocity), so it damps vibrations and not the sliding itself.  Undamped,
+  the slider on its elastic base develops a friction-induced vibration (measured at n = 4, V = 1 m/s,
+  1 MPa: after ~0.4 ms the contacts open and close and mu_dr(t) swings by +-0.2 about 0.3).
+  mu_dr(t) = F_dr / F_N (eq. 17): F_dr the friction resistance of the contacts on body 2 along the
+  direction, F_N = normal_stress x the far face's area.  The expected value: mu1 (1 + K_av) + mu0 V /
+  normal_stress (every contact sliding at V); its uncertainty from the run length: mu1 (sum_k w_k^2
+  var_k)^(1/2), w_k the contacts' shares of the normal force (at the end of the run) and var_k the
+  variance of one contact's mean of K over the distance slid in the window (roughness.variance_of_mean).
+  Energy balance over the window: work of the drive and of the load against kinetic + elastic energy +
+  friction and damping dissipation (the largest imbalance over the window relative to the drive's work).
+  With a platen (Contact.platen) the far face is held at its preloaded height while it slides, and F_N is
+  the normal force the contacts carry.
 - Frictional heating: sliding as above, then MCA heat on the bonded automata (the contact conducts as the
   interface pairs of the rest geometry) from the initial temperature to t_end, each contact's mean friction
   power over the window held constant: half into the slave, half into its rest partners (one-way,
@@ -195,13 +196,13 @@ def _sliding(scene: Scene, aut: Automata, bonded: Automata, el: Elastic, law: ct
                   t_stop=0.0, ke_limit=p["blowup"] * e_load, load=load, contact=law, step_automata=bonded)
     st = model.new_state()
     scale = contact.normal_stress * float(aut.spacing.min()) ** 2
-    status, res, _ = relax(model, st, scale, tol=p["relax_tol"], max_steps=p["max_steps"])
+    status, res, _ = relax(model, st, scale, tol=p["preload_tol"], max_steps=p["max_steps"])
     pre_steps = int(st.counters[mk.C_STEPS])
     summary: dict[str, Any] = {"dt": model.dt, "preload_steps": pre_steps, "preload_residual": res,
                                "normal_force_applied": f_normal}
     summary.update({f"preload_{k}": v for k, v in contact_summary(st).items() if k.startswith("contact_pressure")})
-    if status != mk.OK or not res <= p["relax_tol"]:
-        kstat, reason = relax_status(status, res, p["relax_tol"], pre_steps, p["max_steps"])
+    if status != mk.OK or not res <= p["preload_tol"]:
+        kstat, reason = relax_status(status, res, p["preload_tol"], pre_steps, p["max_steps"])
         return {"field": None, "quantity": "", "summary": summary, "status": kstat, "reason": f"preload: {reason}",
                 "model": model, "state": st}
     t_ramp = p["slide_ramp"] if p["slide_ramp"] is not None else 2 * 2 * math.pi / rate
