@@ -489,9 +489,7 @@ def _advance(st, par, rot, inel, load, con, frame, nsteps):
     load_old = _load_power(st, load)
     for _ in range(nsteps):
         t = st.clock[0]
-        drive = min(1.0, max(0.0, (par.t_stop - t) / dt))  # the last partial step lands on t_stop exactly
-        if par.ramp > 0.0:
-            drive *= _smoothstep((t + 0.5 * dt - par.ramp_start) / par.ramp)
+        drive = _drive(par, t, dt)
         diss = 0.0
         for i in range(n_aut):
             for c in range(3):
@@ -570,6 +568,16 @@ def _advance(st, par, rot, inel, load, con, frame, nsteps):
         if moved:
             counters[C_STATUS] = MOVED
             return
+
+
+@njit(cache=True)
+def _drive(par, t, dt):
+    """Factor of the prescribed velocities over the step from t: the stop (the last partial step lands on
+    t_stop exactly) times the smooth ramp."""
+    drive = min(1.0, max(0.0, (par.t_stop - t) / dt))
+    if par.ramp > 0.0:
+        drive *= _smoothstep((t + 0.5 * dt - par.ramp_start) / par.ramp)
+    return drive
 
 
 @njit(inline="always")
