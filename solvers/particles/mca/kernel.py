@@ -170,15 +170,21 @@ def _cross(a0, a1, a2, b0, b1, b2):
 def forces(st, par):
     """Forces (and moments) of the current positions for the step's increments st.dx (and dphi): one
     evaluation of the pair-force function, outside time stepping."""
-    n_pair = st.pi.shape[0]
-    _forces(st, par, st.rot, st.inel, st.load, st.contact, np.empty((n_pair, 3)), np.empty(n_pair),
-            np.empty(st.x.shape[0]))
+    _evaluate(st, par, st.rot, st.inel, st.load, st.contact)
 
 
 @njit(cache=True)
+def _evaluate(st, par, rot, inel, load, con):
+    n_pair = st.pi.shape[0]
+    _forces(st, par, rot, inel, load, con, np.empty((n_pair, 3)), np.empty(n_pair), np.empty(st.x.shape[0]))
+
+
+@njit(cache=True, inline="always")
 def _forces(st, par, rot, inel, load, con, nvec, rr, theta_new):
     """The pair-force function: update every pair's stress for the step's increments and return the forces
-    st.f (and moments rot.mom); nvec, rr, theta_new are scratch (pair normals, lengths, new volume strains)."""
+    st.f (and moments rot.mom); nvec, rr, theta_new are scratch (pair normals, lengths, new volume strains).
+    Inlined into its callers (whose None arguments then prune it): called per step with the state, it cost
+    a reference count per array of the state, 2-5 % of a step at n = 4."""
     x, pi, pj, r0, area, linked, sig, tau, rprev, theta = (st.x, st.pi, st.pj, st.r0, st.area, st.linked, st.sig,
                                                           st.tau, st.rprev, st.theta)
     f = st.f
@@ -270,7 +276,7 @@ def _forces(st, par, rot, inel, load, con, nvec, rr, theta_new):
     for i in range(n_aut):
         theta[i] = theta_new[i]
     if inel is not None:
-        _inelastic(st, par, inel, nvec, rr)
+        _inelastic(pi, pj, r0, area, linked, sig, tau, st.vol, st.counters, par, inel, nvec, rr)
     if par.relink_on:
         for p in range(n_pair):
             if linked[p] == 0 and sig[p] <= -par.relink:
@@ -315,16 +321,16 @@ def _forces(st, par, rot, inel, load, con, nvec, rr, theta_new):
 
 
 @njit(cache=True)
-def _inelastic(st, par, inel, nvec, rr):
-    """Average stress, plastic return, damage and fracture of the automata (response functions, PHYSICS.md §4)."""
-    pi, pj, r0, linked, sig, tau = st.pi, st.pj, st.r0, st.linked, st.sig, st.tau
-    n_aut = st.x.shape[0]
+def _inelastic(pi, pj, r0, area, linked, sig, tau, vol, counters, par, inel, nvec, rr):
+    """Average stress, plastic return, damage and fracture of the automata (response functions, PHYSICS.md §4).
+    Arrays, not the state: a structure passed to a function per step costs a reference count per array."""
+    n_aut = vol.shape[0]
     n_pair = pi.shape[0]
     kind = par.kind
     g_mod = par.shear
     savg, mfac, smean, alpha, kappa, dmg, seq = inel.savg, inel.mfac, inel.smean, inel.alpha, inel.kappa, inel.dmg, \
         inel.seq
-    _average_stress(st.vol, pi, pj, r0, st.area, sig, tau, nvec, savg)
+    _average_stress(vol, pi, pj, r0, area, sig, tau, nvec, savg)
     for i in range(n_aut):
         mfac[i] = 1.0
         sm = (savg[i, 0] + savg[i, 1] + savg[i, 2]) / 3.0
@@ -364,7 +370,7 @@ def _inelastic(st, par, inel, nvec, rr):
         for p in range(n_pair):
             if linked[p] == 1 and 0.5 * (seq[pi[p]] + seq[pj[p]]) >= par.sigma_c:
                 linked[p] = 0
-                st.counters[C_UNLINK] += 1
+                counters[C_UNLINK] += 1
                 sig[p] = kc * min(0.0, (rr[p] - r0[p]) / r0[p])
                 cap = mu * abs(sig[p])
                 mag = math.sqrt(tau[p, 0] ** 2 + tau[p, 1] ** 2 + tau[p, 2] ** 2)
@@ -485,8 +491,8 @@ def _advance(st, par, rot, inel, load, con, frame, nsteps):
         inertia = rot.inertia
         inv_j = 1.0 / inertia
     skin2 = par.skin * par.skin
-    power_old = _power(st, rot)
-    load_old = _load_power(st, load)
+    power_old = _power(f, v, fixm, rot)
+    load_old = _load_power(v, load)
     for _ in range(nsteps):
         t = st.clock[0]
         drive = _drive(par, t, dt)
@@ -541,12 +547,12 @@ def _advance(st, par, rot, inel, load, con, frame, nsteps):
             dd = (x[i, 0] - st.xref[i, 0]) ** 2 + (x[i, 1] - st.xref[i, 1]) ** 2 + (x[i, 2] - st.xref[i, 2]) ** 2
             if dd > skin2:
                 moved = True
-        power = _power(st, rot)
+        power = _power(f, v, fixm, rot)
         st.energy[E_WORK] += 0.5 * dt * (power_old + power)
         st.energy[E_DISS] += diss
         power_old = power
         if load is not None:
-            load_new = _load_power(st, load)
+            load_new = _load_power(v, load)
             st.energy[E_LOAD] += 0.5 * dt * (load_old + load_new)
             load_old = load_new
         if con is not None:
@@ -588,9 +594,8 @@ def _smoothstep(s):
 
 
 @njit(cache=True)
-def _power(st, rot):
+def _power(f, v, fixm, rot):
     """Power of the prescribed motions on the automata: sum over prescribed dofs of (-force) . velocity."""
-    f, v, fixm = st.f, st.v, st.fixm
     pw = 0.0
     for i in range(f.shape[0]):
         for c in range(3):
@@ -603,13 +608,13 @@ def _power(st, rot):
 
 
 @njit(cache=True)
-def _load_power(st, load):
+def _load_power(v, load):
     """Power of the external loads: sum f_load . v."""
     pw = 0.0
     if load is not None:
-        for i in range(st.v.shape[0]):
+        for i in range(v.shape[0]):
             for c in range(3):
-                pw += load.force[i, c] * st.v[i, c]
+                pw += load.force[i, c] * v[i, c]
     return pw
 
 
