@@ -1,6 +1,6 @@
 """Ensemble runs: K replicas in one kernel equal K single runs, bit for bit.
 
-The ensemble and the single runs share one kernel (`scaling.advance`; a single run is K = 1).
+The ensemble and the single runs share one kernel (`large_n.kernel.advance_p2`; a single run is K = 1).
 Why bit-identical (not just round-off): each replica performs the single kernel's operations in
 the same order (same pair term, tiles and slab blocks counted in particles, the same group slots,
 residual rows in ascending j with pairs beyond r_cut skipped rather than added as zeros, drive
@@ -16,11 +16,10 @@ import numpy as np
 import pytest
 
 from pcverify.scene import SceneError
-from pcverify.solvers.particles.macromolecule.ensemble import EnsembleRun
+from pcverify.solvers.particles.macromolecule.codes import FROZEN, GROUP, PRESCRIBED
 from pcverify.solvers.particles.macromolecule.force import SevenRoot
-from pcverify.solvers.particles.macromolecule.large_n import (
-    FROZEN,
-    PRESCRIBED,
+from pcverify.solvers.particles.macromolecule.large_n.ensemble import EnsembleRun
+from pcverify.solvers.particles.macromolecule.large_n.kernel import (
     TILE,
     KernelRun,
     bench_lattice,
@@ -121,3 +120,15 @@ def test_bad_replica_parameters_raise_scene_error():
         EnsembleRun.start(X, M, A, MODEL, DT, np.array([0.0, -1.0]), 1.0)
     with pytest.raises(SceneError, match=r"omega\[0\]"):
         EnsembleRun.start(X, M, A, MODEL, DT, 0.0, np.array([np.nan, 1.0]))
+
+
+def test_fix_kinds_the_large_n_kernel_does_not_take_are_refused():
+    """The large-N kernels share the model's fix kinds (codes.py) but take FREE, FROZEN and PRESCRIBED only:
+    a GROUP particle (the red pair's rigid side of the fixed-list kernels) is a one-line SceneError."""
+    kind, amp = _fixes()
+    kind[3] = GROUP
+    with pytest.raises(SceneError, match=r"^kind\[3\]=3 is not allowed; allowed: 0 \(free\), 1 \(frozen\), "
+                                         r"2 \(prescribed\)$"):
+        KernelRun.start(X, M, A, MODEL, 0.0, DT, kind=kind, amp=amp)
+    with pytest.raises(SceneError, match=r"^kind\[3\]=3 is not allowed"):
+        EnsembleRun.start(X, M, A, MODEL, DT, 0.0, 1.0, kind=kind, amp=amp)

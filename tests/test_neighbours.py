@@ -17,15 +17,15 @@ from __future__ import annotations
 import numba
 import numpy as np
 import pytest
+from bench.benchmark_rows import rows_from_benchmark_json
 from scipy.spatial import cKDTree
 
 from pcverify.scene import Box, SceneError
 from pcverify.solvers.particles.macromolecule import fixes as mm_fixes
 from pcverify.solvers.particles.macromolecule import simulate as mm
+from pcverify.solvers.particles.macromolecule.codes import FROZEN, PRESCRIBED
 from pcverify.solvers.particles.macromolecule.force import SevenRoot, force_array
-from pcverify.solvers.particles.macromolecule.large_n import (
-    FROZEN,
-    PRESCRIBED,
+from pcverify.solvers.particles.macromolecule.large_n.kernel import (
     TILE,
     KernelRun,
     _drift,
@@ -33,17 +33,16 @@ from pcverify.solvers.particles.macromolecule.large_n import (
     bench_lattice,
     omega_bound,
     pair_forces,
-    rows_from_benchmark_json,
     slab_block,
 )
-from pcverify.solvers.particles.macromolecule.lattice import build_lattice
-from pcverify.solvers.particles.macromolecule.modal import free_dofs, hessian, top_frequency
-from pcverify.solvers.particles.macromolecule.neighbours import (
+from pcverify.solvers.particles.macromolecule.large_n.neighbours import (
     build_neighbours,
     merge_lists,
     stencil_offsets,
     union_list,
 )
+from pcverify.solvers.particles.macromolecule.lattice import build_lattice
+from pcverify.solvers.particles.macromolecule.modal import free_dofs, hessian, top_frequency
 
 MODEL = SevenRoot(1.0)
 

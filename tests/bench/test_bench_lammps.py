@@ -2,7 +2,7 @@
 (pair_style table, fix nve; damping through pair dpd/ext/tstat at T = 0) and in our kernel.
 
 First validated, then timed.  Validation: from the same start, after 1000 steps, the positions of
-LAMMPS and of `scaling.KernelRun` differ only by LAMMPS' table error, which is second order in the
+LAMMPS and of `large_n.kernel.KernelRun` differ only by LAMMPS' table error, which is second order in the
 table length (linear interpolation of F/r on a grid in r^2).  Over table lengths 1000 ... 64000 the
 least-squares order of the max position difference must lie in (1.7, 2.3) (measured 2.06 undamped,
 2.03 damped; single doublings scatter between 2.9x and 7.4x, so no two-point ratio is asserted) and
@@ -25,8 +25,8 @@ import numpy as np
 import pytest
 
 from pcverify.solvers.particles.macromolecule.force import SevenRoot
-from pcverify.solvers.particles.macromolecule.lammps_peer import load_lammps, run_lammps
-from pcverify.solvers.particles.macromolecule.large_n import KernelRun, bench_lattice, omega_bound
+from pcverify.solvers.particles.macromolecule.large_n.kernel import KernelRun, bench_lattice, omega_bound
+from pcverify.solvers.particles.macromolecule.large_n.lammps_peer import load_lammps, run_lammps
 
 LAMMPS, WHY = load_lammps()
 pytestmark = pytest.mark.skipif(LAMMPS is None, reason=f"LAMMPS peer unavailable: {WHY}")

@@ -11,7 +11,7 @@ on, else from the single untimed call), cpu_ns_per_pair_step (process CPU time o
 sensitive to other jobs on the machine, but it counts idle-spinning worker threads),
 bytes_per_particle (all arrays of the run, list included; peak_rss_mb is the process's peak, which
 includes the set-up's temporaries and everything run before), offset_groups and
-list_entries_per_particle (residual entries only).  `scaling.rows_from_benchmark_json`
+list_entries_per_particle (residual entries only).  `benchmark_rows.rows_from_benchmark_json`
 turns a saved run into the rows of the ns-per-pair-step-against-N plot.
 
 Run: pytest tests/bench/test_bench_scaling.py --benchmark-enable --benchmark-only
@@ -27,9 +27,10 @@ import numba
 import numpy as np
 import pytest
 
-from pcverify.solvers.particles.macromolecule.ensemble import EnsembleRun
+from pcverify.solvers.particles.macromolecule.codes import PRESCRIBED
 from pcverify.solvers.particles.macromolecule.force import SevenRoot
-from pcverify.solvers.particles.macromolecule.large_n import PRESCRIBED, KernelRun, bench_lattice, omega_bound
+from pcverify.solvers.particles.macromolecule.large_n.ensemble import EnsembleRun
+from pcverify.solvers.particles.macromolecule.large_n.kernel import KernelRun, bench_lattice, omega_bound
 
 MODEL = SevenRoot(1.0)
 SIZES = {4: 160, 16: 11_776, 41: 203_401, 70: 1_019_200}

@@ -20,7 +20,7 @@ import numpy as np
 
 from pcverify.scene import FaceTemperature, PointTemperature, Scene
 
-from .kernel_reference import FREE, FROZEN, GROUP, PRESCRIBED
+from .codes import FREE, FROZEN, GROUP, PRESCRIBED
 from .lattice import Lattice
 
 

@@ -1,43 +1,38 @@
-"""Fast time-stepping kernel of the macromolecule model: `integrate.run`'s scheme, laid out for SIMD.
+"""Fast time-stepping kernels of the macromolecule model: the reference kernel's scheme, laid out for SIMD.
 
 Same fixes, same kick-drift velocity Verlet with half-step (lagged) pair damping, same energy
-identity and computes (see `integrate`'s docstring); `integrate.run` stays as the plain reference
-kernel that the tests and the benchmark compare against (equal to rounding, no fastmath anywhere).
-What differs is only how the work is laid out:
+identity and computes as `kernel_reference` (the plain kernel the tests compare against: equal to
+rounding).  What differs is how the work is laid out:
 
 - structure of arrays: positions, velocities and forces as separate x, y, z vectors;
-- pairs ordered for locality as a lattice stencil (`stencil`): the fixed pair list is grouped by
-  index offset o = j - i (and rest shell), and each group is one contiguous loop over the slots
-  i = 0 .. N - o - 1, with a 0/1 mask for slots that are not listed pairs (lattice edges: 29 %
-  extra slots at N = 160).  Contiguous loads let LLVM vectorise the pair loop (it will not
-  vectorise gathers through an index list on this CPU); the forces are added to i and subtracted
-  from i + o in two more contiguous loops.  Indices are unsigned (no numba wrap-around code);
-- one loop per group computes the conservative force, the radial damping, the per-slot
-  dissipation term and the hop flag.  Dissipation over n -> n+1 is
-  1/2 dt sum_k (G_k^n . (v_j - v_i)_{n+1/2} + delta rdot_k^2), with G_k^n the slot's damping
-  force from the previous pass, kept as one scalar q = g/r per slot (G^n . dv = q d_n . dv and
-  d_n = d_{n+1} - dt dv_{n+1/2}, exact to rounding), summed in 8 fixed partial sums;
-- the seven-root product as a depth-3 tree of the root factors: no pow, exact near the roots.
-  Horner in powers of x cancels catastrophically near the roots (6e-7 relative error of the force
-  at x = sqrt3 + 1e-4, where the lattice lives), so it is not used; Horner about each pair's own
-  root is accurate but needs per-shell coefficients and a 7-deep multiply-add chain.  The
-  envelope (a/r)^2 is (a * (1/r))^2 (other exponents: pow, a scalar loop);
-- the STEP is branch-free (clamped), so 2a pairs that cross 2a cost no branch mispredictions;
-- hop detection stays exact in every pass: the group loop counts slots whose flag differs from
-  the stored one (an integer reduction, vectorised), and the group's bookkeeping runs only then;
+- the pair list as a lattice stencil (`kernel_state.stencil`): groups of equal index offset o and
+  rest shell, each one contiguous loop over the slots i = 0 .. N - o - 1 (pair (i, i + o)), with a
+  0/1 mask for slots that are not listed pairs.  Contiguous loads let LLVM vectorise the loop;
+  indices are unsigned (no numba wrap-around code);
+- one loop per group computes the conservative force, the radial damping, the dissipation term and
+  the hop flag, and adds the pair force to particle i in one accumulator and subtracts it from
+  i + o in another (two arrays, so the loop carries no dependence and vectorises; their sum is the
+  force).  The whole pair pass, every group loop included, is inlined into the step loop: a call
+  per group costs numba's per-call set-up (reference counts of every array argument) and keeps LLVM
+  from optimising across the groups;
+- dissipation is exact every step and kept per slot: over n -> n+1 a slot dissipates
+  1/2 dt (G_n . dv_{n+1/2} + delta rdot_{n+1}^2), G_n the slot's damping force of the previous pass,
+  kept as one scalar q = g/r (G_n . dv = q d_n . dv, d_n = d_{n+1} - dt dv_{n+1/2}, so
+  G_n . dv = q (r rdot - dt |dv|^2), exact to rounding).  The slot adds its term to its own running
+  sum; the sums are added up (in 8 fixed partial sums, deterministic) only when a check records the
+  history and at the end, not every step;
+- the seven-root product as `force.force_tree` (no pow, exact near the roots), the envelope (a/r)^2
+  as (a * (1/r))^2 (other exponents: pow), the STEP branch-free;
+- hop detection stays exact in every pass: the group loop counts slots whose flag differs from the
+  stored one (an integer reduction, vectorised), and the group's bookkeeping runs only then;
   NaN, box, energy-growth and neighbourhood checks run every `check_every` steps, as in the
-  reference kernel; the potential energy they record is `potential`, the reference's 12-point
-  Gauss-Legendre rule vectorised over the stencil slots (3x faster than the pair-list loop);
+  reference kernel; the potential energy they record is the reference's 12-point Gauss-Legendre
+  rule vectorised over the slots;
 - kick and drift run over all particles in one contiguous loop; held and bath particles are then
   overwritten by their own updates (index lists, no per-particle branches).
 
-Measured (tests/bench/test_bench_macromolecule.py, CPU time, N = 160, damping on, machine shared
-with other jobs): ~8 ns per pair-step for the whole kernel against ~16 for the reference kernel
-(ratio ~2 in one run).  The 3 ns target is not reached: on this CPU (Zen 4, AVX-512) the group
-loop stripped to the slot forces (no dissipation terms, hop flags, scatter or integration) costs
-2.6-2.9 ns per listed pair for the conservative force alone and 3.2-3.4 ns with the radial damping,
-against 7.5-7.8 for the full pair pass (test_bench_kernel_floor, side by side; 29 % of the slots
-are masked lattice-edge slots at N = 160).
+Variants, each compiled only when used (`kernels.KERNELS`): `run_p2` (envelope (a/r)^2, vectorised),
+`run_any` (any exponent p) and `run_p2_fastmath` (run_p2 compiled with the FASTMATH flags).
 """
 
 from __future__ import annotations
@@ -46,55 +41,26 @@ import math
 
 import llvmlite.binding as llvm
 import numpy as np
-from numba import literal_unroll, njit
+from numba import njit
 
+from .codes import E_START, FREE, FROZEN, GROUP, K_HALF1, K_HALF2, K_HOT_STEPS, RUNNING
+from .computes import finish, hop_out, neighbourhood, record, reset_outputs, verdict
 from .force import _GL_W, _GL_X, C_A, C_P, C_ROOTS, C_X0, C_X1, energy_x, force_tree
-from .kernel_reference import (
-    E_START,
-    FREE,
-    FROZEN,
-    GROUP,
-    K_HALF1,
-    K_HALF2,
-    K_HOT_STEPS,
-    RUNNING,
-    finish,
-    hop_out,
-    neighbourhood,
-    record,
-    reset_outputs,
-    verdict,
-)
+from .kernel_state import FixArrays, LatticeArrays, RunOutputs, RunParams, RunState
 
-__all__ = ["pair_pass", "run", "stencil"]
+__all__ = ["FASTMATH", "run_any", "run_p2", "run_p2_fastmath"]
 
-# The stencil loop reads 10 and writes 8 arrays; LLVM's default limit on the runtime alias checks
-# this needs (128 pointer comparisons, "too many memory checks needed") keeps it scalar.  Raising
-# the limit only changes which loops get vectorised, never a result: no fastmath, no reassociation
-# (the loops have no floating-point reductions), so vector and scalar code give the same bits.
+# The group loop reads 16 and writes 8 arrays; LLVM's default limit on the runtime alias checks this
+# needs ("too many memory checks needed") keeps it scalar.  Raising the limit only changes which loops
+# get vectorised, never a result: no fastmath, no reassociation (the vectorised loops have no
+# floating-point reductions), so vector and scalar code give the same bits.
 llvm.set_option("", "-vectorize-memory-check-threshold=4096")
 
-
-def stencil(pairs: np.ndarray, shell: np.ndarray, n: int, basins: np.ndarray) -> tuple[np.ndarray, ...]:
-    """Pair list as groups of equal index offset o = j - i and rest shell (a lattice stencil).
-
-    Group g covers the slots i = 0 .. n - o - 1 (pair (i, i + o)) at slots base_g + i, so every
-    access in the pair loop is contiguous and the loop vectorises; slots that are not listed
-    pairs (lattice edges) have mask 0 and contribute exactly nothing.  Returns (offset, base, lo,
-    hi) per group, the slot mask and each listed pair's slot.
-    """
-    off = pairs[:, 1] - pairs[:, 0]
-    key = off * 4 + shell
-    keys, gidx = np.unique(key, return_inverse=True)
-    g_off = (keys // 4).astype(np.int64)
-    g_sh = keys % 4
-    base = np.concatenate([[0], np.cumsum(n - g_off)]).astype(np.int64)
-    slot = (base[gidx] + pairs[:, 0]).astype(np.int64)
-    mask = np.zeros(base[-1])
-    mask[slot] = 1.0
-    lo = np.ascontiguousarray(basins[g_sh, 0])
-    hi = np.ascontiguousarray(basins[g_sh, 1])
-    return g_off, base, lo, hi, mask, slot
+# The fastmath variant: FMA contraction, reciprocal and function approximations, no signed zeros.
+# Not nnan/ninf: blow-ups are detected through NaN and inf, which those flags would let LLVM assume
+# away.  The flags apply to the whole kernel (numba sets them per compiled function).  Tests hold it
+# to the reference kernel's results to 1e-10.
+FASTMATH = {"contract", "arcp", "afn", "nsz"}
 
 
 @njit(inline="always")
@@ -105,21 +71,19 @@ def _slot(base, i, o):
 
 
 @njit(inline="always")
-def _group(px, py, pz, vx, vy, vz, o, base, lo, hi, mask, rt, amp_a, p, step_lo, inv_w, a, delta, dt,
-           qk, fsx, fsy, fsz, dk, out, square):
-    """One stencil group: per-slot force vectors and dissipation terms in one loop; returns how
-    many slots changed their hop flag (in or out of the root interval) against `out`.
+def _group(pos, vel, o, base, lo, hi, mask, rt, shape, a, delta, dt, qk, dk, out, fi, fj, square):
+    """One stencil group: pair forces added to fi[i] and subtracted from fj[i + o], each slot's
+    dissipation term added to its running sum dk, the damping force over distance kept in qk; returns
+    how many slots changed their hop flag (in or out of the root interval) against `out`.
 
-    The damping force of the previous pass, G = g e, is kept as one scalar per slot, q = g / r:
-    its work G . dv_{n+1/2} is q (d_n . dv), and d_n = d_{n+1} - dt dv_{n+1/2} because every
-    particle moved by dt v_{n+1/2} (free ones drift so, held ones have v_{n+1/2} defined as their
-    displacement over dt): exact to rounding, one stream per slot instead of three.
-
-    Inlined at Numba IR level into `_group_p2` and `_group_any`, each passing `square` as a
-    constant, so each compiled loop holds only its own envelope: (a * (1/r))^2, vectorised, or
-    x^-p through pow (correct, not vectorised).  Indices are unsigned so that numba emits no
-    negative-index wrap-around (which hides the contiguous access from LLVM's vectoriser), and the
-    loop body has no inner loop and no call (either keeps LLVM from vectorising it)."""
+    `square` is a constant (the envelope (a * (1/r))^2, vectorised, or x^-p through pow), so each
+    compiled loop holds only its own envelope.  The loop body has no inner loop and no call (either
+    keeps LLVM from vectorising it)."""
+    px, py, pz = pos
+    vx, vy, vz = vel
+    fix, fiy, fiz = fi
+    fjx, fjy, fjz = fj
+    amp_a, p, step_lo, inv_w = shape
     inv_a = 1.0 / a
     r0, r1, r2, r3, r4, r5, r6 = rt[0], rt[1], rt[2], rt[3], rt[4], rt[5], rt[6]
     changed = 0
@@ -139,112 +103,21 @@ def _group(px, py, pz, vx, vy, vz, o, base, lo, hi, mask, rt, amp_a, p, step_lo,
         dvz = vz[j] - vz[iu]
         rdot = dvx * ex + dvy * ey + dvz * ez
         g = delta * rdot * m
-        back = (dx * dvx + dy * dvy + dz * dvz) - dt * (dvx * dvx + dvy * dvy + dvz * dvz)
-        dk[s] = qk[s] * back + g * rdot
+        dk[s] += qk[s] * (r * rdot - dt * (dvx * dvx + dvy * dvy + dvz * dvz)) + g * rdot
         qk[s] = g * ir
         f += g
-        fsx[s] = f * ex
-        fsy[s] = f * ey
-        fsz[s] = f * ez
+        tx = f * ex
+        ty = f * ey
+        tz = f * ez
+        fix[iu] += tx
+        fiy[iu] += ty
+        fiz[iu] += tz
+        fjx[j] -= tx
+        fjy[j] -= ty
+        fjz[j] -= tz
         flag = np.int8(1) if ((x < lo) | (x >= hi)) & (m != 0.0) else np.int8(0)
         changed += flag != out[s]
     return changed
-
-
-@njit(cache=True, boundscheck=False, error_model="numpy")
-def _group_p2(px, py, pz, vx, vy, vz, o, base, lo, hi, mask, rt, amp_a, p, step_lo, inv_w, a, delta, dt,
-              qk, fsx, fsy, fsz, dk, out):
-    """`_group` for the default envelope (a/r)^2 (the vectorised loop)."""
-    return _group(px, py, pz, vx, vy, vz, o, base, lo, hi, mask, rt, amp_a, p, step_lo, inv_w, a, delta, dt,
-                  qk, fsx, fsy, fsz, dk, out, True)
-
-
-# The fastmath variant: FMA contraction, reciprocal and function approximations, no signed zeros.
-# Not nnan/ninf: blow-ups are detected through NaN and inf, which those flags would let LLVM assume
-# away.  Used only by kernel "fastmath"; tests hold it to the exact kernel's results to 1e-10.
-FASTMATH = {"contract", "arcp", "afn", "nsz"}
-
-
-@njit(cache=True, boundscheck=False, error_model="numpy", fastmath=FASTMATH)
-def _group_p2_fm(px, py, pz, vx, vy, vz, o, base, lo, hi, mask, rt, amp_a, p, step_lo, inv_w, a, delta, dt,
-                 qk, fsx, fsy, fsz, dk, out):
-    """`_group_p2` compiled with the FASTMATH flags."""
-    return _group(px, py, pz, vx, vy, vz, o, base, lo, hi, mask, rt, amp_a, p, step_lo, inv_w, a, delta, dt,
-                  qk, fsx, fsy, fsz, dk, out, True)
-
-
-@njit(cache=True, boundscheck=False, error_model="numpy")
-def _group_any(px, py, pz, vx, vy, vz, o, base, lo, hi, mask, rt, amp_a, p, step_lo, inv_w, a, delta, dt,
-              qk, fsx, fsy, fsz, dk, out):
-    """`_group` for any envelope exponent p (x^-p through pow: correct, not vectorised)."""
-    return _group(px, py, pz, vx, vy, vz, o, base, lo, hi, mask, rt, amp_a, p, step_lo, inv_w, a, delta, dt,
-                  qk, fsx, fsy, fsz, dk, out, False)
-
-
-@njit(cache=True, boundscheck=False)
-def _scatter(o, base, fsx, fsy, fsz, fx, fy, fz):
-    """Add the group's slot forces to i and subtract them from i + o (two contiguous loops)."""
-    n = fx.shape[0]
-    for i in range(n - o):
-        s = np.uint64(base + i)
-        iu = np.uint64(i)
-        fx[iu] += fsx[s]
-        fy[iu] += fsy[s]
-        fz[iu] += fsz[s]
-    for i in range(n - o):
-        s = np.uint64(base + i)
-        j = np.uint64(i + o)
-        fx[j] -= fsx[s]
-        fy[j] -= fsy[s]
-        fz[j] -= fsz[s]
-
-
-# Gauss-Legendre nodes of `seven_root.energy_x` as (node, weight) pairs about the midpoint: a tuple of
-# constants that numba unrolls, so that the slot loop of `_energy` vectorises
-_GL_PAIRS = tuple((float(x), float(w)) for x, w in zip(_GL_X[6:], _GL_W[6:], strict=True))
-
-
-@njit(inline="always")
-def _energy(px, py, pz, o, base, mask, r0s, rt, amp_a, p, step_lo, inv_w, a, es, square):
-    """Per-slot potential energy U(r) - U(r0) of one group (over a), 12-point Gauss-Legendre.
-
-    The same rule as `seven_root.energy_x` (same nodes on [x0, x]), vectorised over the slots: a
-    slot whose x or x0 lies beyond the STEP start (where energy_x splits the interval) gets 0 here
-    and is counted; the caller evaluates those few with energy_x itself."""
-    inv_a = 1.0 / a
-    r0, r1, r2, r3, r4, r5, r6 = rt[0], rt[1], rt[2], rt[3], rt[4], rt[5], rt[6]
-    beyond = 0
-    for i in range(px.shape[0] - o):
-        s, iu, j = _slot(base, i, o)
-        m = mask[s]
-        dx, dy, dz = px[j] - px[iu], py[j] - py[iu], pz[j] - pz[iu]
-        x = math.sqrt(dx * dx + dy * dy + dz * dz) * inv_a
-        x0 = r0s[s] * inv_a
-        inside = (x <= step_lo) & (x0 <= step_lo)
-        half = 0.5 * (x - x0)
-        mid = 0.5 * (x + x0)
-        acc = 0.0
-        for k in literal_unroll(_GL_PAIRS):  # the 12 nodes as 6 symmetric pairs, unrolled
-            xa = mid + half * k[0]
-            xb = mid - half * k[0]
-            fa = force_tree(xa, 1.0 / xa, r0, r1, r2, r3, r4, r5, r6, amp_a, p, step_lo, inv_w, square, False)
-            fb = force_tree(xb, 1.0 / xb, r0, r1, r2, r3, r4, r5, r6, amp_a, p, step_lo, inv_w, square, False)
-            acc += k[1] * (fa + fb)
-        es[s] = acc * half * m if inside else 0.0
-        beyond += 1 if (m != 0.0) & (not inside) else 0
-    return beyond
-
-
-@njit(cache=True, boundscheck=False, error_model="numpy")
-def _energy_p2(px, py, pz, o, base, mask, r0s, rt, amp_a, p, step_lo, inv_w, a, es):
-    """`_energy` for the default envelope (a/r)^2 (the vectorised loop)."""
-    return _energy(px, py, pz, o, base, mask, r0s, rt, amp_a, p, step_lo, inv_w, a, es, True)
-
-
-@njit(cache=True, boundscheck=False, error_model="numpy")
-def _energy_any(px, py, pz, o, base, mask, r0s, rt, amp_a, p, step_lo, inv_w, a, es):
-    """`_energy` for any envelope exponent p."""
-    return _energy(px, py, pz, o, base, mask, r0s, rt, amp_a, p, step_lo, inv_w, a, es, False)
 
 
 @njit(inline="always")
@@ -254,32 +127,6 @@ def _reduced(px, py, pz, i, j, inv_a):
     dy = py[j] - py[i]
     dz = pz[j] - pz[i]
     return math.sqrt(dx * dx + dy * dy + dz * dz) * inv_a
-
-
-@njit(cache=True, boundscheck=False)
-def potential(px, py, pz, g_off, g_base, mask, r0s, c, pint, a, es):
-    """U(x) - U(x_rest) summed over the listed pairs (J): `integrate.potential_energy` on the stencil."""
-    rt = c[C_ROOTS:C_ROOTS + 7]
-    inv_a = 1.0 / a
-    inv_w = 1.0 / (c[C_X1] - c[C_X0])
-    for g in range(g_off.shape[0]):
-        o = g_off[g]
-        base = g_base[g]
-        if pint == 2:
-            beyond = _energy_p2(px, py, pz, o, base, mask, r0s, rt, c[C_A], c[C_P], c[C_X0], inv_w, a, es)
-        else:
-            beyond = _energy_any(px, py, pz, o, base, mask, r0s, rt, c[C_A], c[C_P], c[C_X0], inv_w, a, es)
-        if beyond == 0:
-            continue
-        for i in range(px.shape[0] - o):
-            s = base + i
-            if mask[s] == 0.0:
-                continue
-            x = _reduced(px, py, pz, i, i + o, inv_a)
-            x0 = r0s[s] * inv_a
-            if x > c[C_X0] or x0 > c[C_X0]:
-                es[s] = energy_x(x0, x, c)
-    return a * _sum8(es)
 
 
 @njit(cache=True, boundscheck=False)
@@ -295,6 +142,34 @@ def _hops(px, py, pz, o, base, lo, hi, mask, a, out, ever, step, counters):
             hop_out(s, out, ever, step, counters)
         elif out[s] != 0:
             out[s] = 0
+
+
+@njit(inline="always")
+def _pair_pass(pos, vel, lattice, rt, shape, delta, dt, qk, dk, out, ever, step, counters, fi, fj, f, square):
+    """Forces at the current positions (damping with the given velocities) into f = fi + fj; each slot's
+    dissipation term over the interval ending here added to dk; hop flags exact, every slot, every pass."""
+    fix, fiy, fiz = fi
+    fjx, fjy, fjz = fj
+    fx, fy, fz = f
+    px, py, pz = pos
+    for i in range(fx.shape[0]):
+        fix[i] = 0.0
+        fiy[i] = 0.0
+        fiz[i] = 0.0
+        fjx[i] = 0.0
+        fjy[i] = 0.0
+        fjz[i] = 0.0
+    g_off, g_base, g_lo, g_hi, mask, a = lattice.g_off, lattice.g_base, lattice.g_lo, lattice.g_hi, lattice.mask, \
+        lattice.a
+    for g in range(g_off.shape[0]):
+        changed = _group(pos, vel, g_off[g], g_base[g], g_lo[g], g_hi[g], mask, rt, shape, a, delta, dt, qk, dk, out,
+                         fi, fj, square)
+        if changed != 0:
+            _hops(px, py, pz, g_off[g], g_base[g], g_lo[g], g_hi[g], mask, a, out, ever, step, counters)
+    for i in range(fx.shape[0]):
+        fx[i] = fix[i] + fjx[i]
+        fy[i] = fiy[i] + fjy[i]
+        fz[i] = fiz[i] + fjz[i]
 
 
 @njit(cache=True, boundscheck=False)
@@ -316,33 +191,95 @@ def _sum8(v):
     return ((s0 + s1) + (s2 + s3)) + ((s4 + s5) + (s6 + s7))
 
 
-@njit(cache=True, boundscheck=False)
-def pair_pass(px, py, pz, vx, vy, vz, g_off, g_base, g_lo, g_hi, mask, rt, amp_a, pint, p, step_lo, inv_w, a,
-              delta, dt, qk, fsx, fsy, fsz, dk, out, ever, step, counters, fx, fy, fz, fm):
-    """Forces at the current positions (damping with the given velocities) into fx, fy, fz.
+# Gauss-Legendre nodes of `force.energy_x` as symmetric pairs about the midpoint (node, weight): constant
+# arrays and a loop of constant trip count, which LLVM unrolls, so that the slot loop of `_energy` vectorises
+_GL_HALF_X = np.ascontiguousarray(_GL_X[6:])
+_GL_HALF_W = np.ascontiguousarray(_GL_W[6:])
+_STEP_END = 2.0  # where the STEP ends, in units of a (force.SevenRoot.coeffs: C_X1)
 
-    Returns 1/2 sum_k (G_k^prev . dv_k + delta rdot_k^2) (times dt: dissipation over the interval
-    ending here; summed in 8 fixed partial sums, so deterministic); qk holds each slot's damping
-    force over distance for the next pass.  Hop flags are exact: every slot, every pass."""
-    n = px.shape[0]
-    for i in range(n):
-        fx[i] = 0.0
-        fy[i] = 0.0
-        fz[i] = 0.0
-    for g in range(g_off.shape[0]):
-        if pint == 2 and fm:
-            changed = _group_p2_fm(px, py, pz, vx, vy, vz, g_off[g], g_base[g], g_lo[g], g_hi[g], mask, rt, amp_a,
-                                   p, step_lo, inv_w, a, delta, dt, qk, fsx, fsy, fsz, dk, out)
-        elif pint == 2:
-            changed = _group_p2(px, py, pz, vx, vy, vz, g_off[g], g_base[g], g_lo[g], g_hi[g], mask, rt, amp_a, p,
-                                step_lo, inv_w, a, delta, dt, qk, fsx, fsy, fsz, dk, out)
+
+@njit(inline="always")
+def _energy(px, py, pz, o, base, mask, r0s, rt, shape, a, es, square, in_step):
+    """Per-slot potential energy U(r) - U(r0) of one group (over a), 12-point Gauss-Legendre.
+
+    The same rule as `force.energy_x` (same nodes on [x0, x], the STEP's end 2a clamping both), vectorised
+    over the slots.  energy_x splits an interval at the STEP's start, where F'' jumps; here a group
+    integrates either below the start (in_step False: no STEP factor) or above it (in_step True: the
+    STEP without its clamps), both constants.  A slot whose interval is not on the group's side gets 0
+    and is counted; the caller evaluates those few with energy_x itself."""
+    amp_a, p, step_lo, inv_w = shape
+    inv_a = 1.0 / a
+    r0, r1, r2, r3, r4, r5, r6 = rt[0], rt[1], rt[2], rt[3], rt[4], rt[5], rt[6]
+    beyond = 0
+    for i in range(px.shape[0] - o):
+        s, iu, j = _slot(base, i, o)
+        m = mask[s]
+        dx, dy, dz = px[j] - px[iu], py[j] - py[iu], pz[j] - pz[iu]
+        x = math.sqrt(dx * dx + dy * dy + dz * dz) * inv_a
+        x0 = r0s[s] * inv_a
+        if in_step:
+            inside = (x > step_lo) & (x0 > step_lo)
+            x = x if x < _STEP_END else _STEP_END
+            x0 = x0 if x0 < _STEP_END else _STEP_END
         else:
-            changed = _group_any(px, py, pz, vx, vy, vz, g_off[g], g_base[g], g_lo[g], g_hi[g], mask, rt, amp_a, p,
-                                 step_lo, inv_w, a, delta, dt, qk, fsx, fsy, fsz, dk, out)
-        if changed != 0:
-            _hops(px, py, pz, g_off[g], g_base[g], g_lo[g], g_hi[g], mask, a, out, ever, step, counters)
-        _scatter(g_off[g], g_base[g], fsx, fsy, fsz, fx, fy, fz)
-    return 0.5 * _sum8(dk)
+            inside = (x <= step_lo) & (x0 <= step_lo)
+        half = 0.5 * (x - x0)
+        mid = 0.5 * (x + x0)
+        acc = 0.0
+        for k in range(6):  # the 12 nodes as 6 symmetric pairs
+            xa = mid + half * _GL_HALF_X[k]
+            xb = mid - half * _GL_HALF_X[k]
+            fa = force_tree(xa, 1.0 / xa, r0, r1, r2, r3, r4, r5, r6, amp_a, p, step_lo, inv_w, square, False)
+            fb = force_tree(xb, 1.0 / xb, r0, r1, r2, r3, r4, r5, r6, amp_a, p, step_lo, inv_w, square, False)
+            if in_step:
+                da = (xa - step_lo) * inv_w
+                db = (xb - step_lo) * inv_w
+                fa *= 1.0 - da * da * (3.0 - 2.0 * da)
+                fb *= 1.0 - db * db * (3.0 - 2.0 * db)
+            acc += _GL_HALF_W[k] * (fa + fb)
+        es[s] = acc * half * m if inside else 0.0
+        beyond += 1 if (m != 0.0) & (not inside) else 0
+    return beyond
+
+
+@njit(inline="always")
+def _potential(px, py, pz, lattice, c, es, square):
+    """U(x) - U(x_rest) summed over the listed pairs (J): `kernel_reference.potential_energy` on the stencil."""
+    g_off, g_base, g_r0, mask, r0s, a = lattice.g_off, lattice.g_base, lattice.g_r0, lattice.mask, lattice.r0s, \
+        lattice.a
+    rt = c[C_ROOTS:C_ROOTS + 7]
+    shape = (c[C_A], c[C_P], c[C_X0], 1.0 / (c[C_X1] - c[C_X0]))
+    inv_a = 1.0 / a
+    for g in range(g_off.shape[0]):
+        o = g_off[g]
+        base = g_base[g]
+        if g_r0[g] * inv_a > c[C_X0]:
+            beyond = _energy(px, py, pz, o, base, mask, r0s, rt, shape, a, es, square, True)
+        else:
+            beyond = _energy(px, py, pz, o, base, mask, r0s, rt, shape, a, es, square, False)
+        if beyond == 0:
+            continue
+        for i in range(px.shape[0] - o):
+            s = base + i
+            if mask[s] == 0.0:
+                continue
+            x = _reduced(px, py, pz, i, i + o, inv_a)
+            x0 = r0s[s] * inv_a
+            if (x > c[C_X0]) != (g_r0[g] * inv_a > c[C_X0]) or (x0 > c[C_X0]) != (g_r0[g] * inv_a > c[C_X0]):
+                es[s] = energy_x(x0, x, c)
+    return a * _sum8(es)
+
+
+@njit(cache=True, boundscheck=False, error_model="numpy")
+def _potential_p2(px, py, pz, lattice, c, es):
+    """`_potential` for the envelope (a/r)^2 (the vectorised loop)."""
+    return _potential(px, py, pz, lattice, c, es, True)
+
+
+@njit(cache=True, boundscheck=False, error_model="numpy")
+def _potential_any(px, py, pz, lattice, c, es):
+    """`_potential` for any envelope exponent p."""
+    return _potential(px, py, pz, lattice, c, es, False)
 
 
 @njit(inline="always")
@@ -365,8 +302,8 @@ def _held_velocity(t_next, t_now, dt, kind, held, amp, phase, omega, vc, vx, vy,
     """Velocity of the held particles over [t_now, t_next] into vx, vy, vz (0 for frozen ones).
 
     `start` is a constant: v_{-1/2} at the start divides the sine difference by dt and leaves out
-    the group's centre velocity (added after); a step multiplies by 1/dt and adds it.  The two
-    roundings are kept as they were, so that results stay bit-identical."""
+    the group's centre velocity (added after); a step multiplies by 1/dt and adds it (the two
+    roundings the reference kernel uses)."""
     inv_dt = 1.0 / dt
     for q in range(held.shape[0]):
         i = held[q]
@@ -388,10 +325,12 @@ def _held_velocity(t_next, t_now, dt, kind, held, amp, phase, omega, vc, vx, vy,
                 vz[i] += vc[2]
 
 
-@njit(cache=True)
-def _held_kick(t_next, t_now, dt, kind, held, amp, phase, omega, mass, fx, fy, fz, vmx, vmy, vmz,
-               vpx, vpy, vpz, lam, vc, group_mass, free_centre):
+@njit(inline="always")
+def _held_kick(t_next, t_now, dt, kind, held, amp, phase, omega, mass, f, vm, vp, lam, vc, group_mass, free_centre):
     """v_{n+1/2} of the held particles (prescribed, group) and lambda_n = m (vp - vm)/dt - F_n."""
+    fx, fy, fz = f
+    vmx, vmy, vmz = vm
+    vpx, vpy, vpz = vp
     if free_centre:
         s0, s1, s2 = _group_force(kind, held, fx, fy, fz)
         vc[0] += dt * s0 / group_mass
@@ -406,9 +345,12 @@ def _held_kick(t_next, t_now, dt, kind, held, amp, phase, omega, mass, fx, fy, f
         lam[q, 2] = mass * (vpz[i] - vmz[i]) * inv_dt - fz[i]
 
 
-@njit(cache=True)
-def _bath_kick(dt, bath, gamma, kt, mass, fx, fy, fz, vmx, vmy, vmz, vpx, vpy, vpz, lam):
+@njit(inline="always")
+def _bath_kick(dt, bath, gamma, kt, mass, f, vm, vp, lam):
     """Langevin particles: exact OU factor with seeded noise, then the kick; lambda as for held ones."""
+    fx, fy, fz = f
+    vmx, vmy, vmz = vm
+    vpx, vpy, vpz = vp
     inv_dt = 1.0 / dt
     for q in range(bath.shape[0]):
         i = bath[q]
@@ -423,83 +365,11 @@ def _bath_kick(dt, bath, gamma, kt, mass, fx, fy, fz, vmx, vmy, vmz, vpx, vpy, v
 
 
 @njit(cache=True)
-def _work(idx, vx, vy, vz, lam0, lam1):
-    """sum over idx of v . (lambda_prev + lambda_now) (times dt/2: the work over one interval)."""
-    w = 0.0
-    for q in range(idx.shape[0]):
-        i = idx[q]
-        w += vx[i] * (lam0[q, 0] + lam1[q, 0]) + vy[i] * (lam0[q, 1] + lam1[q, 1]) + vz[i] * (lam0[q, 2] + lam1[q, 2])
-    return w
-
-
-@njit(inline="always")
-def _xyz(n):
-    """x, y and z vectors of length n, zero (structure of arrays: three separate allocations)."""
-    return np.zeros(n), np.zeros(n), np.zeros(n)
-
-
-@njit(cache=True)
-def run(x, v0, x_rest, kind, amp, phase, omega, free_centre, mass, gamma, kt, seed,
-        pi, pj, g_off, g_base, g_lo, g_hi, mask, slot, pint, a, delta, dt, n_steps, n_start, n_end,
-        check_every, blowup_factor, e_scale, box_lo, box_hi, contact_fraction, cutoff_rest, skin, c,
-        r0, hot, energy, counters, history, ever, fm):
-    """Integrate n_steps from t = 0; same outputs and stopping rules as `integrate.run`.
-
-    fm: the pair loop compiled with FASTMATH (envelope p = 2 only; other p use the exact loop).
-    c = model.coeffs() (roots, A, p, STEP start); pint = p if p is a small integer else -1.
-    x (N, 3) is overwritten with the final positions.
-    """
-    np.random.seed(seed)  # noqa: NPY002 (numba supports only the legacy seeded RNG in kernels)
-    n = x.shape[0]
-    npair = pi.shape[0]
-    px = np.ascontiguousarray(x[:, 0])
-    py = np.ascontiguousarray(x[:, 1])
-    pz = np.ascontiguousarray(x[:, 2])
-    rt = c[C_ROOTS:C_ROOTS + 7].copy()
-    amp_a = c[C_A]
-    p = c[C_P]
-    step_lo = c[C_X0]
-    inv_w = 1.0 / (c[C_X1] - step_lo)
-    held = np.flatnonzero(kind != FREE)
-    free = np.flatnonzero(kind == FREE)
-    bath = np.flatnonzero((kind == FREE) & (gamma > 0.0))
-    moving = np.flatnonzero((kind != FREE) & (kind != FROZEN))
-    group_mass = mass * np.sum(kind == GROUP)
-    if group_mass == 0.0:
-        free_centre = False
-    fx, fy, fz = _xyz(n)
-    vmx, vmy, vmz = _xyz(n)
-    vpx, vpy, vpz = _xyz(n)
-    ns = mask.shape[0]
-    qk = np.zeros(ns)
-    es = np.zeros(ns)
-    r0s = np.zeros(ns)
-    for k in range(npair):
-        r0s[slot[k]] = r0[k]
-    fsx, fsy, fsz = _xyz(ns)
-    dk = np.zeros(ns)
-    ever_s = np.zeros(ns, dtype=np.int8)
-    lh0 = np.zeros((held.shape[0], 3))
-    lh1 = np.zeros((held.shape[0], 3))
-    lb0 = np.zeros((bath.shape[0], 3))
-    lb1 = np.zeros((bath.shape[0], 3))
-    vc = np.zeros(3)
-    cpos = np.zeros(3)
-    out = np.zeros(ns, dtype=np.int8)
-    hot1 = np.zeros(n)
-    hot2 = np.zeros(n)
-    reset_outputs(counters, energy)
-    n_mid = (n_start + n_end) // 2
-    half_m = 0.5 * mass
-    dtm = dt / mass
-
-    # start: forces at t = 0 with damping from v0; v_{-1/2} so that v_{+1/2} = v0 + dt/2 a0
-    for i in range(n):
-        vpx[i] = v0[i, 0]
-        vpy[i] = v0[i, 1]
-        vpz[i] = v0[i, 2]
-    pair_pass(px, py, pz, vpx, vpy, vpz, g_off, g_base, g_lo, g_hi, mask, rt, amp_a, pint, p, step_lo, inv_w, a,
-              delta, dt, qk, fsx, fsy, fsz, dk, out, ever_s, 0, counters, fx, fy, fz, fm)
+def _start(v0, f, vm, kind, held, free, amp, phase, omega, dt, dtm, vc, group_mass, free_centre):
+    """v_{-1/2} from v0 and the forces at t = 0, so that v_{+1/2} = v0 + dt/2 a0 (held particles: their
+    motion over [-dt, 0]; the group's centre velocity from the forces on the group)."""
+    fx, fy, fz = f
+    vmx, vmy, vmz = vm
     for q in range(free.shape[0]):
         i = free[q]
         vmx[i] = v0[i, 0] - 0.5 * dtm * fx[i]
@@ -518,10 +388,95 @@ def run(x, v0, x_rest, kind, amp, phase, omega, free_centre, mass, gamma, kt, se
                 vmy[i] += vc[1]
                 vmz[i] += vc[2]
 
-    diss = w_drive = w_bath = 0.0  # energy dissipated and work done by drives and baths so far
+
+@njit(inline="always")
+def _work(idx, v, lam0, lam1):
+    """sum over idx of v . (lambda_prev + lambda_now) (times dt/2: the work over one interval)."""
+    vx, vy, vz = v
+    w = 0.0
+    for q in range(idx.shape[0]):
+        i = idx[q]
+        w += vx[i] * (lam0[q, 0] + lam1[q, 0]) + vy[i] * (lam0[q, 1] + lam1[q, 1]) + vz[i] * (lam0[q, 2] + lam1[q, 2])
+    return w
+
+
+@njit(cache=True)
+def _xyz(n):
+    """x, y and z vectors of length n, zero (structure of arrays: three separate allocations)."""
+    return np.zeros(n), np.zeros(n), np.zeros(n)
+
+
+@njit(inline="always")
+def _run(state, lattice, fixes, params, out, square, potential):
+    """The kernel body: `kernel_reference.run`'s scheme and outputs on the stencil layout.  `square` (a
+    constant) picks the envelope, `potential` the matching potential-energy function."""
+    x, v0 = state
+    x_rest, mass = lattice.x_rest, lattice.mass
+    kind, amp, phase, gamma, kt, omega, free_centre, seed = fixes
+    c, delta, dt, n_steps, n_start, n_end = params.coeffs, params.delta, params.dt, params.n_steps, params.n_start, \
+        params.n_end
+    hot, energy, counters, history, ever = out
+    np.random.seed(seed)  # noqa: NPY002 (numba supports only the legacy seeded RNG in kernels)
+    n = x.shape[0]
+    npair = lattice.pi.shape[0]
+    px = np.ascontiguousarray(x[:, 0])
+    py = np.ascontiguousarray(x[:, 1])
+    pz = np.ascontiguousarray(x[:, 2])
+    pos = (px, py, pz)
+    rt = c[C_ROOTS:C_ROOTS + 7].copy()
+    shape = (c[C_A], c[C_P], c[C_X0], 1.0 / (c[C_X1] - c[C_X0]))
+    held = np.flatnonzero(kind != FREE)
+    free = np.flatnonzero(kind == FREE)
+    bath = np.flatnonzero((kind == FREE) & (gamma > 0.0))
+    moving = np.flatnonzero((kind != FREE) & (kind != FROZEN))
+    group_mass = mass * np.sum(kind == GROUP)
+    if group_mass == 0.0:
+        free_centre = False
+    f = _xyz(n)
+    fi = _xyz(n)
+    fj = _xyz(n)
+    fx, fy, fz = f
+    vm = _xyz(n)
+    vp = _xyz(n)
+    ns = lattice.mask.shape[0]
+    qk = np.zeros(ns)
+    dk = np.zeros(ns)
+    es = np.zeros(ns)
+    ever_s = np.zeros(ns, dtype=np.int8)
+    out_s = np.zeros(ns, dtype=np.int8)
+    lh0 = np.zeros((held.shape[0], 3))
+    lh1 = np.zeros((held.shape[0], 3))
+    lb0 = np.zeros((bath.shape[0], 3))
+    lb1 = np.zeros((bath.shape[0], 3))
+    vc = np.zeros(3)
+    cpos = np.zeros(3)
+    hot1 = np.zeros(n)
+    hot2 = np.zeros(n)
+    reset_outputs(counters, energy)
+    n_mid = (n_start + n_end) // 2
+    half_m = 0.5 * mass
+    dtm = dt / mass
+
+    vpx, vpy, vpz = vp
+    for i in range(n):
+        vpx[i] = v0[i, 0]
+        vpy[i] = v0[i, 1]
+        vpz[i] = v0[i, 2]
+    w_drive = w_bath = 0.0  # work done by drives and baths so far
     hrow = step = 0
     status = RUNNING
     while True:
+        # --- forces at t_n with damping from v_{n-1/2} (at the start: v0); dissipation over n-1 -> n into dk.
+        # One call site for every pass, so that the pair loops are compiled once
+        _pair_pass(pos, vp, lattice, rt, shape, delta, dt, qk, dk, out_s, ever_s, step, counters, fi, fj, f,
+                   square)
+        if step == 0:
+            _start(v0, f, vm, kind, held, free, amp, phase, omega, dt, dtm, vc, group_mass, free_centre)
+            dk[:] = 0.0  # dissipation counts from the first interval on
+        else:
+            vm, vp = vp, vm  # v_{n-1/2} was the velocity of the drift
+        vmx, vmy, vmz = vm
+        vpx, vpy, vpz = vp
         t = step * dt
         # --- kick: v_{n+1/2} from v_{n-1/2} and F_n, over all particles (one contiguous, vectorised
         # loop); held and bath particles are then overwritten by their own kicks
@@ -529,27 +484,27 @@ def run(x, v0, x_rest, kind, amp, phase, omega, free_centre, mass, gamma, kt, se
             vpx[i] = vmx[i] + dtm * fx[i]
             vpy[i] = vmy[i] + dtm * fy[i]
             vpz[i] = vmz[i] + dtm * fz[i]
-        _held_kick(t + dt, t, dt, kind, held, amp, phase, omega, mass, fx, fy, fz, vmx, vmy, vmz,
-                   vpx, vpy, vpz, lh1, vc, group_mass, free_centre)
-        _bath_kick(dt, bath, gamma, kt, mass, fx, fy, fz, vmx, vmy, vmz, vpx, vpy, vpz, lb1)
+        _held_kick(t + dt, t, dt, kind, held, amp, phase, omega, mass, f, vm, vp, lh1, vc, group_mass, free_centre)
+        _bath_kick(dt, bath, gamma, kt, mass, f, vm, vp, lb1)
         if step == 0:
             e0 = 0.0
             for i in range(n):
                 e0 += vmx[i] * vpx[i] + vmy[i] * vpy[i] + vmz[i] * vpz[i]
-            energy[E_START] = half_m * e0 + potential(px, py, pz, g_off, g_base, mask, r0s, c, pint, a, es)
+            energy[E_START] = half_m * e0 + potential(px, py, pz, lattice, c, es)
         else:
             # drive and bath work over n-1 -> n with v_{n-1/2}
-            w_drive += 0.5 * dt * _work(held, vmx, vmy, vmz, lh0, lh1)
-            w_bath += 0.5 * dt * _work(bath, vmx, vmy, vmz, lb0, lb1)
+            w_drive += 0.5 * dt * _work(held, vm, lh0, lh1)
+            w_bath += 0.5 * dt * _work(bath, vm, lb0, lb1)
         lh0, lh1 = lh1, lh0
         lb0, lb1 = lb1, lb0
         if step == n_steps:
             break
         # --- checks at t_n (every check_every steps)
-        if step % check_every == 0:
+        if step % params.check_every == 0:
             kin = 0.0
             bad = False
             left = False
+            box_lo, box_hi = params.box_lo, params.box_hi
             for i in range(n):
                 ux = 0.5 * (vmx[i] + vpx[i])
                 uy = 0.5 * (vmy[i] + vpy[i])
@@ -562,12 +517,13 @@ def run(x, v0, x_rest, kind, amp, phase, omega, free_centre, mass, gamma, kt, se
                         or pz[i] < box_lo[2] or pz[i] > box_hi[2]):
                     left = True
             kin *= half_m
-            status = verdict(bad, left, kin, energy[E_START] + w_drive + w_bath, blowup_factor, e_scale)
+            status = verdict(bad, left, kin, energy[E_START] + w_drive + w_bath, params.blowup_factor, params.e_scale)
             if status == RUNNING:
-                status = neighbourhood(px, py, pz, x_rest, kind, pi, pj, a, cutoff_rest, contact_fraction, skin)
+                status = neighbourhood(px, py, pz, x_rest, kind, lattice.pi, lattice.pj, lattice.a,
+                                       params.cutoff_rest, params.contact_fraction, params.skin)
             if hrow < history.shape[0]:
-                pot = potential(px, py, pz, g_off, g_base, mask, r0s, c, pint, a, es) if not bad else np.nan
-                record(history, hrow, t, kin, pot, diss, w_drive, w_bath)
+                pot = potential(px, py, pz, lattice, c, es) if not bad else np.nan
+                record(history, hrow, t, kin, pot, 0.5 * dt * _sum8(dk), w_drive, w_bath)
                 hrow += 1
             if status != RUNNING:
                 break
@@ -600,13 +556,10 @@ def run(x, v0, x_rest, kind, amp, phase, omega, free_centre, mass, gamma, kt, se
                 px[i] += cpos[0]
                 py[i] += cpos[1]
                 pz[i] += cpos[2]
-        # --- forces at t_{n+1} with damping from v_{n+1/2}; dissipation over n -> n+1
-        diss += dt * pair_pass(px, py, pz, vpx, vpy, vpz, g_off, g_base, g_lo, g_hi, mask, rt, amp_a, pint, p,
-                               step_lo, inv_w, a, delta, dt, qk, fsx, fsy, fsz, dk, out, ever_s, step + 1,
-                               counters, fx, fy, fz, fm)
-        vmx, vmy, vmz, vpx, vpy, vpz = vpx, vpy, vpz, vmx, vmy, vmz  # v_{n+1/2} is v_{n-1/2} of the next step
         step += 1
 
+    vmx, vmy, vmz = vm
+    vpx, vpy, vpz = vp
     e1 = 0.0
     kin = 0.0
     for i in range(n):
@@ -624,8 +577,28 @@ def run(x, v0, x_rest, kind, amp, phase, omega, free_centre, mass, gamma, kt, se
         hot[1, i] = q8 * hot1[i]
         hot[2, i] = q8 * hot2[i]
         hot[0, i] = hot[1, i] + hot[2, i]
-    pot = potential(px, py, pz, g_off, g_base, mask, r0s, c, pint, a, es)
-    finish(counters, energy, step, status, half_m * e1 + pot, diss, w_drive, w_bath, half_m * kin, pot)
+    pot = potential(px, py, pz, lattice, c, es)
+    finish(counters, energy, step, status, half_m * e1 + pot, 0.5 * dt * _sum8(dk), w_drive, w_bath, half_m * kin,
+           pot)
     for k in range(npair):
-        ever[k] = ever_s[slot[k]]
+        ever[k] = ever_s[lattice.slot[k]]
     return hrow
+
+
+@njit(cache=True, boundscheck=False, error_model="numpy")
+def run_p2(state: RunState, lattice: LatticeArrays, fixes: FixArrays, params: RunParams, out: RunOutputs) -> int:
+    """The fast kernel for the envelope (a/r)^2 (the vectorised pair loop)."""
+    return _run(state, lattice, fixes, params, out, True, _potential_p2)
+
+
+@njit(cache=True, boundscheck=False, error_model="numpy")
+def run_any(state: RunState, lattice: LatticeArrays, fixes: FixArrays, params: RunParams, out: RunOutputs) -> int:
+    """The fast kernel for any envelope exponent p (x^-p through pow: correct, not vectorised)."""
+    return _run(state, lattice, fixes, params, out, False, _potential_any)
+
+
+@njit(cache=True, boundscheck=False, error_model="numpy", fastmath=FASTMATH)
+def run_p2_fastmath(state: RunState, lattice: LatticeArrays, fixes: FixArrays, params: RunParams,
+                    out: RunOutputs) -> int:
+    """`run_p2` compiled with the FASTMATH flags."""
+    return _run(state, lattice, fixes, params, out, True, _potential_p2)

@@ -1,7 +1,8 @@
 """Velocity-Verlet kernel of the macromolecule model with its fixes and computes in one loop.
 
-This is the plain reference kernel (pair list, array-of-structures); `kernel.run` integrates the
-same scheme faster and is tested equal to it to rounding.
+This is the plain reference kernel (pair list, array-of-structures); the fast kernels
+(`kernel_fast`) integrate the same scheme faster and are tested equal to it to rounding.  All take
+the structures of `kernel_state` (one signature) and are chosen from `kernels.KERNELS`.
 
 Fixes (what a particle's motion is):
   FREE        Newton, optionally with a Langevin bath (gamma, kT): exact OU factor, then kick;
@@ -33,7 +34,7 @@ Energy accounting (exact algebra, per step n -> n+1):
 The first sum is minus the dissipated energy, the second the drive (or bath) work, the bracket
 the quadrature error of the conservative work, O(|dx|^3 F'') per pair-step: the balance error.
 
-What the balance error is (measured, issue 3a).  The dissipation and drive work above are what
+What the balance error is (measured).  The dissipation and drive work above are what
 the scheme applies, so the residual E_end - E_start + dissipated - work is exactly the sum of
 the per-pair brackets (checked to 1e-10 with an instrumented kernel).  It vanishes for a
 harmonic lattice: with every pair force replaced by its linearisation at the rest root (same
@@ -55,7 +56,7 @@ every run measured closes to <= 8e-4 (paper runs n = 2, 3, 4, 6, 8, 11: 1.4e-7, 
 under 1 s.  A shadow-energy correction would hide the error, not remove it; a higher-order
 integrator would remove it at several force passes per step and is not done.
 
-Stability with damping (issue 3b).  For one mode of frequency omega and damping ratio zeta the
+Stability with damping.  For one mode of frequency omega and damping ratio zeta the
 scheme is stable for omega dt / 2 < sqrt(1 + zeta^2) - zeta.  The radial pair damping is not
 proportional to the stiffness, so on small lattices another mode can limit first: at n = 2,
 zeta = 0.2 (top mode) a mode at |lambda| = 0.96 omega_max has zeta = 0.29, and the measured limit
@@ -74,27 +75,10 @@ import math
 import numpy as np
 from numba import njit
 
+from .codes import E_START, FREE, FROZEN, GROUP, K_HALF1, K_HALF2, K_HOT_STEPS, PRESCRIBED, RUNNING
+from .computes import finish, hop_out, neighbourhood, record, reset_outputs, verdict
 from .force import energy_x, force_x
-
-FREE, FROZEN, PRESCRIBED, GROUP = 0, 1, 2, 3
-
-# status codes of run()
-RUNNING, DONE, NAN, GROWTH, LEFT_BAR, ISOLATED, CONTACT = -1, 0, 1, 2, 3, 4, 5
-STATUS_TEXT = {
-    DONE: "completed",
-    NAN: "NaN/Inf in the state",
-    GROWTH: "energy grew beyond blowup_factor times the energy supplied",
-    LEFT_BAR: "a particle left the bar's neighbourhood (more than a outside the box)",
-    ISOLATED: "broken neighbourhood: a particle is beyond 2a of all its listed neighbours",
-    CONTACT: "broken neighbourhood: two unlisted particles came closer than contact_fraction * a",
-}
-
-# energy output slots
-E_START, E_END, E_DISS, E_DRIVE, E_BATH, E_KIN_END, E_POT_END = range(7)
-# counter output slots
-K_STEPS, K_HOP_EVENTS, K_HOP_PAIRS, K_FIRST_HOP, K_STATUS, K_STOP_STEP, K_HOT_STEPS, K_HALF1, K_HALF2 = range(9)
-# history columns
-H_T, H_KIN, H_POT, H_DISS, H_DRIVE, H_BATH = range(6)
+from .kernel_state import FixArrays, LatticeArrays, RunOutputs, RunParams, RunState
 
 
 @njit(inline="always")
@@ -115,69 +99,6 @@ def add_pair(f, i, j, g, ex, ey, ez):
     f[j, 0] -= g * ex
     f[j, 1] -= g * ey
     f[j, 2] -= g * ez
-
-
-@njit(inline="always")
-def hop_out(k, out, ever, step, counters):
-    """Pair k is outside its root interval: an event if it was inside, its first exit, the first step.
-
-    (The caller tests the interval and clears out[k] when inside: a flag passed in here instead
-    costs the reference kernel 30 % in the pair loop.)"""
-    if out[k] == 0:
-        out[k] = 1
-        counters[K_HOP_EVENTS] += 1
-        if ever[k] == 0:
-            ever[k] = 1
-            counters[K_HOP_PAIRS] += 1
-            if counters[K_FIRST_HOP] < 0:
-                counters[K_FIRST_HOP] = step
-
-
-@njit(inline="always")
-def reset_outputs(counters, energy):
-    """Counters and energies of a run before its first step (no hop yet, running)."""
-    for k in range(counters.shape[0]):
-        counters[k] = 0
-    counters[K_FIRST_HOP] = -1
-    counters[K_STATUS] = RUNNING
-    energy[:] = 0.0
-
-
-@njit(inline="always")
-def verdict(bad, left, kin, supplied, blowup_factor, e_scale):
-    """Status of a check from the state alone: NaN, left the bar, energy growth, else RUNNING."""
-    if bad:
-        return NAN
-    if left:
-        return LEFT_BAR
-    if kin > blowup_factor * (max(supplied, 0.0) + e_scale):
-        return GROWTH
-    return RUNNING
-
-
-@njit(inline="always")
-def record(history, hrow, t, kin, pot, diss, w_drive, w_bath):
-    """One row of the coarse energy history."""
-    history[hrow, H_T] = t
-    history[hrow, H_KIN] = kin
-    history[hrow, H_POT] = pot
-    history[hrow, H_DISS] = diss
-    history[hrow, H_DRIVE] = w_drive
-    history[hrow, H_BATH] = w_bath
-
-
-@njit(inline="always")
-def finish(counters, energy, step, status, e_end, diss, w_drive, w_bath, kin_end, pot_end):
-    """Counters and energies of a run that stopped at `step` with `status` (RUNNING: completed)."""
-    counters[K_STEPS] = step
-    counters[K_STOP_STEP] = step
-    counters[K_STATUS] = DONE if status == RUNNING else status
-    energy[E_END] = e_end
-    energy[E_DISS] = diss
-    energy[E_DRIVE] = w_drive
-    energy[E_BATH] = w_bath
-    energy[E_KIN_END] = kin_end
-    energy[E_POT_END] = pot_end
 
 
 @njit(cache=True)
@@ -214,49 +135,6 @@ def potential_energy(x, pi, pj, r0, c, a):
         r = separation(x, pi[k], pj[k])[3]
         u += energy_x(r0[k] * inv_a, r * inv_a, c)
     return u * a
-
-
-@njit(cache=True)
-def neighbourhood(px, py, pz, x_rest, kind, pi, pj, a, cutoff_rest, contact_fraction, skin):
-    """ISOLATED / CONTACT check of the fixed pair list (positions as x, y, z vectors); RUNNING if fine."""
-    n = px.shape[0]
-    near = np.full(n, np.inf)
-    for k in range(pi.shape[0]):
-        i = pi[k]
-        j = pj[k]
-        dx = px[j] - px[i]
-        dy = py[j] - py[i]
-        dz = pz[j] - pz[i]
-        r = math.sqrt(dx * dx + dy * dy + dz * dz)
-        near[i] = min(near[i], r)
-        near[j] = min(near[j], r)
-    for i in range(n):
-        if kind[i] != FROZEN and near[i] > 2.0 * a:
-            return ISOLATED
-    # unlisted pairs: only possible when some particle moved more than the skin
-    dmax2 = 0.0
-    for i in range(n):
-        dx = px[i] - x_rest[i, 0]
-        dy = py[i] - x_rest[i, 1]
-        dz = pz[i] - x_rest[i, 2]
-        dmax2 = max(dmax2, dx * dx + dy * dy + dz * dz)
-    if 4.0 * dmax2 < skin * skin:
-        return RUNNING
-    lim2 = (contact_fraction * a) ** 2
-    cut2 = cutoff_rest * cutoff_rest
-    for i in range(n):
-        for j in range(i + 1, n):
-            rx = x_rest[j, 0] - x_rest[i, 0]
-            ry = x_rest[j, 1] - x_rest[i, 1]
-            rz = x_rest[j, 2] - x_rest[i, 2]
-            if rx * rx + ry * ry + rz * rz <= cut2:
-                continue
-            dx = px[j] - px[i]
-            dy = py[j] - py[i]
-            dz = pz[j] - pz[i]
-            if dx * dx + dy * dy + dz * dz < lim2:
-                return CONTACT
-    return RUNNING
 
 
 @njit(cache=True)
@@ -304,21 +182,25 @@ def _kick(t_next, t_now, dt, x_rest, kind, amp, phase, omega, mass, f, vm, vp, l
 
 
 @njit(cache=True)
-def run(x, v0, x_rest, kind, amp, phase, omega, free_centre, mass, gamma, kt, seed,
-        pi, pj, r0, lo, hi, c, a, delta, dt, n_steps, n_start, n_end,
-        check_every, blowup_factor, e_scale, box_lo, box_hi, contact_fraction, cutoff_rest, skin,
-        hot, energy, counters, history, ever):
-    """Integrate n_steps from t = 0 (x: positions at t = 0, overwritten with the final state).
+def run(state: RunState, lattice: LatticeArrays, fixes: FixArrays, params: RunParams, out: RunOutputs) -> int:
+    """Integrate params.n_steps from t = 0 (state.x: positions at t = 0, overwritten with the final state).
 
-    hot (3, N): sums of KE_j * dt over the window [n_start, n_end) and over its two halves.
-    energy: E_START, E_END (leapfrog energies), E_DISS (>= 0), E_DRIVE, E_BATH (work done on the
-    lattice), E_KIN_END, E_POT_END.  counters: see K_*; history: one row per check.
-    ever (P,): 1 for pairs that ever left their root interval.
+    out.hot (3, N): sums of KE_j * dt over the window [n_start, n_end) and over its two halves.
+    out.energy: E_START, E_END (leapfrog energies), E_DISS (>= 0), E_DRIVE, E_BATH (work done on the
+    lattice), E_KIN_END, E_POT_END.  out.counters: see K_*; out.history: one row per check.
+    out.ever (P,): 1 for pairs that ever left their root interval.
     Stops early (keeping all sums) on NaN, energy growth (kinetic energy above blowup_factor times
     E_start + net work in + e_scale, the energy scale of the drives and baths: the discrete energy
     identity bounds it by the first two), particles leaving the bar or a broken neighbourhood;
-    counters[K_STATUS] says which.
+    counters[K_STATUS] says which.  Returns the number of history rows written.
     """
+    x, v0 = state
+    x_rest, mass, a, pi, pj, r0, lo, hi = (lattice.x_rest, lattice.mass, lattice.a, lattice.pi, lattice.pj,
+                                           lattice.r0, lattice.lo, lattice.hi)
+    kind, amp, phase, gamma, kt, omega, free_centre, seed = fixes
+    c, delta, dt, n_steps, n_start, n_end = params.coeffs, params.delta, params.dt, params.n_steps, params.n_start, \
+        params.n_end
+    hot, energy, counters, history, ever = out
     np.random.seed(seed)  # noqa: NPY002 (numba supports only the legacy seeded RNG in kernels)
     n = x.shape[0]
     npair = pi.shape[0]
@@ -403,7 +285,7 @@ def run(x, v0, x_rest, kind, amp, phase, omega, free_centre, mass, gamma, kt, se
                 e = 0.5 * mass * v2 * dt
                 hot[0, i] += e
                 hot[half, i] += e
-        if step % check_every == 0:
+        if step % params.check_every == 0:
             kin = 0.0
             bad = False
             left = False
@@ -413,12 +295,13 @@ def run(x, v0, x_rest, kind, amp, phase, omega, free_centre, mass, gamma, kt, se
                     kin += 0.5 * mass * vv * vv
                     if not (math.isfinite(x[i, d]) and math.isfinite(vv)):
                         bad = True
-                    if x[i, d] < box_lo[d] or x[i, d] > box_hi[d]:
+                    if x[i, d] < params.box_lo[d] or x[i, d] > params.box_hi[d]:
                         left = True
-            status = verdict(bad, left, kin, energy[E_START] + w_drive + w_bath, blowup_factor, e_scale)
+            status = verdict(bad, left, kin, energy[E_START] + w_drive + w_bath, params.blowup_factor,
+                             params.e_scale)
             if status == RUNNING:
-                status = neighbourhood(x[:, 0], x[:, 1], x[:, 2], x_rest, kind, pi, pj, a, cutoff_rest,
-                                       contact_fraction, skin)
+                status = neighbourhood(x[:, 0], x[:, 1], x[:, 2], x_rest, kind, pi, pj, a, params.cutoff_rest,
+                                       params.contact_fraction, params.skin)
             if hrow < history.shape[0]:
                 pot = potential_energy(x, pi, pj, r0, c, a) if not bad else np.nan
                 record(history, hrow, t, kin, pot, diss, w_drive, w_bath)

@@ -18,7 +18,7 @@ import scipy.linalg as sla
 from pcverify.scene import Resolution, Scene
 from pcverify.solvers.protocol import ProbeRun, ProbeSetup, Solver, effective_params
 
-from . import kernel_reference as ig
+from . import codes
 from .modal import damping_matrix, free_dofs, hessian
 from .setup import prepare
 from .simulate import run_status, simulate
@@ -65,17 +65,17 @@ class MacromoleculeProbe:
         run = simulate(lat, s.model, fx, s.delta, dt, p["t_end"], p["t_start"], w, seed=p["seed"],
                        blowup_factor=p["blowup_factor"], contact_fraction=p["contact_fraction"], kernel=p["kernel"])
         H = run.hot[0]
-        free = (fx.kind == ig.FREE) & (fx.gamma == 0.0)
+        free = (fx.kind == codes.FREE) & (fx.gamma == 0.0)
         status, reason, flags = run_status(run, H, free, p)
         e = run.energy
         finite = bool(np.isfinite(run.x).all() and np.isfinite(e).all())
         disp = float(np.max(np.linalg.norm(run.x - lat.positions, axis=1)) / lat.a) if finite else math.inf
         outside = float(np.max(np.maximum(lat.positions.min(axis=0) - run.x, run.x - lat.positions.max(axis=0)))
                         / lat.a) if finite else math.inf
-        held = fx.kind != ig.FREE
+        held = fx.kind != codes.FREE
         e_scale = 1.5 * fx.kt.sum() + 0.5 * lat.mass * w**2 * float((fx.amp[held] ** 2).sum())
-        supplied = max(e[ig.E_START] + e[ig.E_DRIVE] + e[ig.E_BATH], 0.0) + e_scale
-        ke_ratio = float(e[ig.E_KIN_END] / supplied) if finite else math.inf
+        supplied = max(e[codes.E_START] + e[codes.E_DRIVE] + e[codes.E_BATH], 0.0) + e_scale
+        ke_ratio = float(e[codes.E_KIN_END] / supplied) if finite else math.inf
         blown = (not finite) or outside > 1.0 or ke_ratio > p["blowup_factor"]
         return ProbeRun(status=status, reason=reason, dt=dt, dt_ratio=dt_ratio, steps=run.steps,
                         steps_planned=int(round(p["t_end"] / dt)), stopped_at_step=flags["stopped_at_step"],

@@ -23,10 +23,11 @@ import numpy as np
 from pcverify.scene import FaceTemperature, Param, Resolution, Scene, SceneError
 from pcverify.solvers.protocol import Solution, effective_params, heat_summary
 
-from . import kernel_reference as ig
+from . import codes
 from .elastic_modes import macromolecule_modes
 from .fixes import Fixes
 from .force import SevenRoot
+from .kernels import KERNELS
 from .lattice import Lattice
 from .probe import MacromoleculeProbe
 from .setup import DEFAULT_DAMPING_RATIO, prepare
@@ -53,16 +54,16 @@ PARAMETERS: tuple[Param, ...] = (
     Param("t_start", 0.0, "s", "start of the averaging window", low=0.0, high=1e5),
     Param("safety", 0.05, "", "dt = safety * 2 / omega_max; default 0.05, not 0.1: at 0.1 the driven lattice's "
           "energy balance misses 1e-3 from n = 4 on (2.0-3.1e-3, velocity Verlet's dt^2 error on the anharmonic "
-          "force; integrate.py), at 0.05 it closes to <= 8e-4 for n = 2..11", low=0.0, high=1.0, low_open=True),
+          "force; kernel_reference.py), at 0.05 it closes to <= 8e-4 for n = 2..11", low=0.0, high=1.0, low_open=True),
     Param("dt", None, "s", "time step (overrides safety; must be below the stability limit)", low=0.0, high=1.0,
           low_open=True, optional=True),
     Param("pairs_at_2a", "keep", "", "keep or drop the pairs resting at exactly 2a", choices=("keep", "drop"),
           kind=str),
     Param("face_drive_direction", "y", "", "bar-heat-faces, hot_face=driven: direction of the face drive (z: "
           "normal to the face, longitudinal)", choices=("x", "y", "z"), kind=str),
-    Param("kernel", "fast", "", "time-stepping kernel: fast (kernel.py), fastmath (its pair loop with FMA and "
-          "approximate reciprocals) or the plain reference (integrate.py); the same scheme, equal to rounding",
-          choices=("fast", "fastmath", "reference"), kind=str),
+    Param("kernel", "fast", "", "time-stepping kernel from the table kernels.KERNELS: fast (kernel_fast.py), "
+          "fastmath (the same compiled with FMA and approximate reciprocals) or the plain reference "
+          "(kernel_reference.py); the same scheme, equal to rounding", choices=tuple(KERNELS), kind=str),
     Param("hot_face", "langevin", "", "bar-heat-faces: z=0 face thermostatted or kinematically driven",
           choices=("langevin", "driven"), kind=str),
     Param("far_face", "absorbing", "", "bar-heat-faces: z=L face viscous (0 K bath) or frozen",
@@ -127,7 +128,7 @@ class Macromolecule:
         run = simulate(lat, s.model, fx, s.delta, s.dt, p["t_end"], p["t_start"], w_drive, seed=p["seed"],
                        blowup_factor=p["blowup_factor"], contact_fraction=p["contact_fraction"], kernel=p["kernel"])
         H = run.hot[0]
-        free = (fx.kind == ig.FREE) & (fx.gamma == 0.0)  # bath particles are held, not free
+        free = (fx.kind == codes.FREE) & (fx.gamma == 0.0)  # bath particles are held, not free
         rel = H / H[free].max() if H[free].max() > 0 else np.full_like(H, np.nan)
         h_drv = H[fx.hot].mean() if len(fx.hot) else np.nan
         rel_drv = H / h_drv if h_drv > 0 else np.full_like(H, np.nan)
@@ -149,8 +150,8 @@ class Macromolecule:
             status=status, **flags,
         )
         diagnostics: dict[str, Any] = {
-            "energy": {k: float(run.energy[i]) for k, i in (("start", ig.E_START), ("end", ig.E_END),
-                       ("dissipated", ig.E_DISS), ("drive_work", ig.E_DRIVE), ("bath_work", ig.E_BATH))},
+            "energy": {k: float(run.energy[i]) for k, i in (("start", codes.E_START), ("end", codes.E_END),
+                       ("dissipated", codes.E_DISS), ("drive_work", codes.E_DRIVE), ("bath_work", codes.E_BATH))},
             "history": {"columns": ["t", "kinetic", "potential", "dissipated", "drive_work", "bath_work"],
                         "rows": run.history},
             "hopped_pairs_by_shell": np.bincount(lat.shell[run.ever == 1], minlength=4),
@@ -203,8 +204,8 @@ class Macromolecule:
         """Held particles report their constraint value, like constrained nodes of a continuum solve:
         frozen and 0 K baths 0, driven and hot baths 1 (their own hotness stays in the diagnostics)."""
         out = rel.copy()
-        out[fx.kind == ig.FROZEN] = 0.0
-        out[(fx.kind == ig.PRESCRIBED) | (fx.kind == ig.GROUP)] = 1.0
+        out[fx.kind == codes.FROZEN] = 0.0
+        out[(fx.kind == codes.PRESCRIBED) | (fx.kind == codes.GROUP)] = 1.0
         out[(fx.gamma > 0) & (fx.kt > 0)] = 1.0
         out[(fx.gamma > 0) & (fx.kt == 0)] = 0.0
         return out

@@ -11,8 +11,8 @@ damping delta * rdot, F > 0 attraction), for lattices up to ~10^6 particles on a
   LAMMPS' dpd/ext cutoff);
 - the list's offset groups (the 16 lattice offsets o = j - i, chosen from the rest lattice) are
   evaluated as contiguous loops over all slots (i, i + o), zeroed beyond r_cut: structure of
-  arrays, unsigned indices, a branch-free pair term (kernel.py's root-factor product tree and
-  clamped STEP), so LLVM vectorises them (zmm on AVX-512).  Residual pairs (other offsets: lattice
+  arrays, unsigned indices, a branch-free pair term (`force.force_tree`: the root-factor product tree
+  and clamped STEP), so LLVM vectorises them (zmm on AVX-512).  Residual pairs (other offsets: lattice
   defects, particles out of lattice order) are summed per row (gather) after the groups;
 - two group passes, both free of write races and bit-identical for any number of threads:
   "slabs" (default): each pair evaluated once and its term added to both particles; particles are
@@ -25,13 +25,20 @@ damping delta * rdot, F > 0 attraction), for lattices up to ~10^6 particles on a
   the operations of its single run (K = 1) in the same order: bit-identical to it;
 - time stepping is velocity Verlet (LAMMPS fix nve): half kick, drift, forces, half kick.  The
   damping in F_{n+1} uses v_{n+1/2}, the velocities at force time (LAMMPS' dpd does the same;
-  it is the half-step predictor of the solver's kernel, see integrate.py).  The closing half kick
+  it is the half-step predictor of the solver's kernels, see kernel_reference.py).  The closing half kick
   of a step, the next half kick and drift and the list's displacement check are one contiguous
   pass over all slots (every slot treated as free); held particles are corrected after it;
-- fixes: FREE, FROZEN (held at rest), PRESCRIBED (x = x_rest + amp sin(omega t + phase));
+- fixes (`codes`): FREE, FROZEN (held at rest), PRESCRIBED (x = x_rest + amp sin(omega t + phase));
 - memory: state x, v, f (72 B per particle and replica), rest positions, drive amplitudes and
   phases, kinds (57 B), the list's reference positions and residual row offsets (32 B); the
   groups cost nothing per particle.
+
+The kernels take structures numba accepts (typed named tuples): the state (`SlotState`), the fixes
+(`DriveArrays`), one parameter set per replica (`ReplicaParams`: damping, drive frequency and
+amplitude scale, so that K parameter sets are integrated in one call), the list (`ListArrays`), the
+pair force (`PairParams`) and the steps (`StepParams`).  The envelope (a/r)^2 and any other exponent
+have a compiled function each (`advance_p2`, `advance_any`, `forces_p2`, `forces_any`), compiled
+only when used.
 
 Work counter: a pair-step is one interacting pair (i < j, r < r_cut) advanced one step (the
 gather evaluates each twice, the slab pass once; group slots beyond r_cut are work not counted).
@@ -39,10 +46,9 @@ gather evaluates each twice, the slab pass once; group slots beyond r_cut are wo
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass
-from pathlib import Path
+from typing import NamedTuple
 
 import llvmlite.binding as llvm
 import numpy as np
@@ -50,28 +56,103 @@ from numba import njit, prange
 
 from pcverify.scene import Box, SceneError
 
-from .force import C_A, C_P, C_PINT, C_ROOTS, C_X0, C_X1, SevenRoot, energy_x, force_tree, shell_stiffness
+from ..codes import DONE, EXPIRED, FREE, FROZEN, KIND_NAMES, PRESCRIBED
+from ..force import C_A, C_P, C_PINT, C_ROOTS, C_X0, C_X1, SevenRoot, energy_x, force_tree, shell_stiffness
 from .neighbours import NeighbourList, build_neighbours, stencil_offsets
 
-FREE, FROZEN, PRESCRIBED = 0, 1, 2
-DONE, EXPIRED = 0, 1
+KINDS = (FREE, FROZEN, PRESCRIBED)  # the fixes this kernel takes
 DEFAULT_R_CUT = 2.1  # in units of a: above the 2a shell, below the sqrt(5) a shell
 DEFAULT_SKIN = 0.1  # in units of a: list radius 2.2 a < sqrt(5) a: at rest exactly the 16 lattice offsets
 FORCE_PASSES = ("slabs", "gather")
 TILE = 512  # particles per tile of the group loops: the tile's data and slot terms stay in L1/L2
 
-# As in kernel.py: the group loop reads 6 arrays in two ranges and writes 3; LLVM's default limit on
+# As in kernel_fast.py: the group loop reads 6 arrays in two ranges and writes 3; LLVM's default limit on
 # runtime alias checks would keep it scalar.  Only changes which loops vectorise, never a result (no
 # fastmath, no floating-point reductions in the vectorised loops).
 llvm.set_option("", "-vectorize-memory-check-threshold=4096")
 
 
-def pair_params(coeffs: np.ndarray, a: float, r_cut: float) -> tuple[tuple[float, ...], bool]:
-    """Scalars of the pair term (7 roots, A, STEP start, 1/STEP width, 1/a, a, p, r_cut^2) and whether
-    the envelope is (a/r)^2 (the vectorised square; otherwise x^-p through pow)."""
+class PairParams(NamedTuple):
+    """Scalars of the pair term: the seven roots (units of a), A, STEP start, 1/STEP width, 1/a, a, the
+    envelope exponent p and r_cut^2."""
+
+    r0: float
+    r1: float
+    r2: float
+    r3: float
+    r4: float
+    r5: float
+    r6: float
+    amp_a: float
+    step_lo: float
+    inv_w: float
+    inv_a: float
+    a: float
+    p: float
+    rc2: float
+
+
+class SlotState(NamedTuple):
+    """Positions, velocities and forces (3, N * K), replica innermost (flat index i * K + k); hot (N * K)
+    accumulates KE dt (empty: no hotness)."""
+
+    xs: np.ndarray
+    vs: np.ndarray
+    fs: np.ndarray
+    hot: np.ndarray
+
+
+class DriveArrays(NamedTuple):
+    """Fixes shared by the replicas: rest positions (N, 3), kinds (N, int8: FREE, FROZEN, PRESCRIBED), the
+    held particles' indices, drive amplitudes (N, 3) and phases (N)."""
+
+    x_rest: np.ndarray
+    kind: np.ndarray
+    held: np.ndarray
+    amp: np.ndarray
+    phase: np.ndarray
+
+
+class ReplicaParams(NamedTuple):
+    """One parameter set per replica (K each): drive amplitude scale, drive angular frequency (rad/s) and
+    radial damping delta (N s/m)."""
+
+    scale: np.ndarray
+    omega: np.ndarray
+    delta: np.ndarray
+
+
+class ListArrays(NamedTuple):
+    """The neighbour list as the kernels read it: offset groups, slab block width (0: gather pass),
+    residual CSR rows (start, index), the reference positions (N * K, 3) and half the skin."""
+
+    offsets: np.ndarray
+    block: int
+    start: np.ndarray
+    index: np.ndarray
+    x_ref: np.ndarray
+    half_skin: float
+
+
+class StepParams(NamedTuple):
+    """Particle mass, time step, the step count at the call's start, steps to do, and whether the call
+    resumes a step whose drift is done (after a list rebuild)."""
+
+    mass: float
+    dt: float
+    step0: int
+    n_steps: int
+    resume: bool
+
+
+def pair_params(coeffs: np.ndarray, a: float, r_cut: float) -> tuple[PairParams, bool]:
+    """The pair term's scalars for force coefficients `coeffs` (force.SevenRoot.coeffs), spacing a and
+    cutoff r_cut (m), and whether the envelope is (a/r)^2 (the vectorised square; otherwise x^-p
+    through pow)."""
     c = coeffs
-    prm = (*(float(r) for r in c[C_ROOTS:C_ROOTS + 7]), float(c[C_A]), float(c[C_X0]), 1.0 / (c[C_X1] - c[C_X0]),
-           1.0 / a, float(a), float(c[C_P]), float(r_cut) ** 2)
+    prm = PairParams(*(float(r) for r in c[C_ROOTS:C_ROOTS + 7]), amp_a=float(c[C_A]), step_lo=float(c[C_X0]),
+                     inv_w=1.0 / (c[C_X1] - c[C_X0]), inv_a=1.0 / a, a=float(a), p=float(c[C_P]),
+                     rc2=float(r_cut) ** 2)
     return prm, bool(c[C_PINT] == 2.0)
 
 
@@ -79,7 +160,7 @@ def pair_params(coeffs: np.ndarray, a: float, r_cut: float) -> tuple[tuple[float
 def pair_term(dx, dy, dz, dvx, dvy, dvz, prm, delta, square):
     """Force on i from j (seven-root F + delta * rdot; 0 from r_cut on), d = x_j - x_i, dv = v_j - v_i.
 
-    Branch-free, as kernel.py's `_group`: root factors multiplied as a depth-3 tree (A folded in),
+    Branch-free, as kernel_fast.py's `_group`: root factors multiplied as a depth-3 tree (A folded in),
     clamped STEP (0 from 2a on), envelope (a/r)^2 as (a * (1/r))^2 if square, else (r/a)^-p."""
     r0, r1, r2, r3, r4, r5, r6, amp_a, step_lo, inv_w, inv_a, a, p, rc2 = prm
     rr = dx * dx + dy * dy + dz * dz
@@ -157,8 +238,10 @@ def _tile_any(xs, vs, fs, t0, t1, n, nk, offsets, buf, dl, prm, newton):
     _tile(xs, vs, fs, t0, t1, n, nk, offsets, buf, dl, prm, newton, False)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(inline="always")
 def _tile_pass(xs, vs, fs, t0, t1, n, nk, offsets, buf, dl, prm, square, newton):
+    """The tile function of the envelope `square` (a constant: numba prunes the other branch, so only the
+    envelope in use is compiled)."""
     if square:
         _tile_p2(xs, vs, fs, t0, t1, n, nk, offsets, buf, dl, prm, newton)
     else:
@@ -192,8 +275,8 @@ def _residual_rows(xs, vs, fs, start, index, nk, delta, prm, square):
             fs[2, si] += fz
 
 
-@njit(cache=True, parallel=True, error_model="numpy")
-def forces(xs, vs, fs, offsets, block, start, index, delta, prm, square):
+@njit(inline="always")
+def _forces(state, nl, replicas, prm, square):
     """fs = pair forces; state (3, N * K), replica innermost (flat index i * K + k), K = len(delta).
 
     Group pairs first, in tiles of TILE particles: block > 0, slabs: each pair once, blocks of width
@@ -201,6 +284,9 @@ def forces(xs, vs, fs, offsets, block, start, index, delta, prm, square):
     block = 0, gather: each pair twice, every tile on its own.  Then the residual rows (gather).
     The order of every sum is fixed by N, the offsets, block and TILE: independent of the thread
     count, and the same for each replica as for its single run (K = 1)."""
+    xs, vs, fs = state.xs, state.vs, state.fs
+    offsets, block, start, index = nl.offsets, nl.block, nl.start, nl.index
+    delta = replicas.delta
     nk = delta.shape[0]
     n = xs.shape[1] // nk
     for s in prange(xs.shape[1]):
@@ -225,6 +311,18 @@ def forces(xs, vs, fs, offsets, block, start, index, delta, prm, square):
             _tile_pass(xs, vs, fs, t * TILE, min((t + 1) * TILE, n), n, nk, offsets, buf, dl, prm, square, False)
     if index.shape[0] > 0:
         _residual_rows(xs, vs, fs, start, index, nk, delta, prm, square)
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def forces_p2(state: SlotState, nl: ListArrays, replicas: ReplicaParams, prm: PairParams) -> None:
+    """`_forces` for the envelope (a/r)^2."""
+    _forces(state, nl, replicas, prm, True)
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def forces_any(state: SlotState, nl: ListArrays, replicas: ReplicaParams, prm: PairParams) -> None:
+    """`_forces` for any envelope exponent p."""
+    _forces(state, nl, replicas, prm, False)
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -337,9 +435,8 @@ def _kick(vs, fs, hot, h, dt, hmk):
         _kick_slot(vx, vy, vz, fx, fy, fz, q, h, hot, hmk, dt, with_hot)
 
 
-@njit(cache=True, parallel=True, error_model="numpy")
-def advance(xs, vs, fs, x_rest, kind, held, amp, phase, scale, omega, delta, mass, dt, step0, n_steps, offsets,
-            block, start, index, x_ref, half_skin, prm, square, hot, resume):
+@njit(inline="always")
+def _advance(state, fixes, replicas, nl, prm, steps, square):
     """Velocity-Verlet steps of K replicas (K = len(scale); state (3, N * K), x_ref (N * K, 3)) from
     step0 until n_steps are done or the list expires.
 
@@ -351,6 +448,11 @@ def advance(xs, vs, fs, x_rest, kind, held, amp, phase, scale, omega, delta, mas
     and call again with resume=True, which starts at the force pass.  hot (N * K) accumulates KE dt
     (if not empty).
     """
+    xs, vs, fs, hot = state
+    x_rest, kind, held, amp, phase = fixes
+    scale, omega = replicas.scale, replicas.omega
+    x_ref, half_skin = nl.x_ref, nl.half_skin
+    mass, dt, step0, n_steps, resume = steps
     nk = scale.shape[0]
     lim2 = half_skin * half_skin
     h = 0.5 * dt / mass
@@ -374,7 +476,10 @@ def advance(xs, vs, fs, x_rest, kind, held, amp, phase, scale, omega, delta, mas
             return 0, EXPIRED
     s = 0
     while True:
-        forces(xs, vs, fs, offsets, block, start, index, delta, prm, square)
+        if square:
+            forces_p2(state, nl, replicas, prm)
+        else:
+            forces_any(state, nl, replicas, prm)
         s += 1
         t1 = (step0 + s) * dt  # end of step s, start of step s + 1 (times as n * dt, never summed)
         t2 = (step0 + s + 1) * dt
@@ -405,6 +510,20 @@ def advance(xs, vs, fs, x_rest, kind, held, amp, phase, scale, omega, delta, mas
             return s, DONE
         if over > 0:
             return s, EXPIRED
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def advance_p2(state: SlotState, fixes: DriveArrays, replicas: ReplicaParams, nl: ListArrays, prm: PairParams,
+               steps: StepParams) -> tuple[int, int]:
+    """`_advance` for the envelope (a/r)^2: (steps completed, DONE or EXPIRED)."""
+    return _advance(state, fixes, replicas, nl, prm, steps, True)
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def advance_any(state: SlotState, fixes: DriveArrays, replicas: ReplicaParams, nl: ListArrays, prm: PairParams,
+                steps: StepParams) -> tuple[int, int]:
+    """`_advance` for any envelope exponent p."""
+    return _advance(state, fixes, replicas, nl, prm, steps, False)
 
 
 @njit(cache=True, error_model="numpy")  # serial: a check, not a hot loop (compiles faster)
@@ -441,8 +560,11 @@ def pair_forces(x: np.ndarray, v: np.ndarray, nl: NeighbourList, model: SevenRoo
     prm, square = pair_params(model.coeffs(), a, nl.r_cut if r_cut is None else r_cut)
     xs, vs = np.ascontiguousarray(x.T), np.ascontiguousarray(v.T)
     fs = np.empty_like(xs)
-    forces(xs, vs, fs, nl.offsets, slab_block(nl) if force_pass == "slabs" else 0, nl.start, nl.index,
-           np.array([float(delta)]), prm, square)
+    state = SlotState(xs=xs, vs=vs, fs=fs, hot=np.zeros(0))
+    lists = ListArrays(offsets=nl.offsets, block=slab_block(nl) if force_pass == "slabs" else 0, start=nl.start,
+                       index=nl.index, x_ref=nl.x_ref, half_skin=0.5 * nl.skin)
+    replicas = ReplicaParams(scale=np.ones(1), omega=np.zeros(1), delta=np.array([float(delta)]))
+    (forces_p2 if square else forces_any)(state, lists, replicas, prm)
     return fs.T.copy()
 
 
@@ -470,6 +592,11 @@ def initial_state(x_rest: np.ndarray, kind: np.ndarray | None, amp: np.ndarray |
     n = x_rest.shape[0]
     x_rest = np.ascontiguousarray(x_rest, dtype=np.float64)
     kind = np.zeros(n, dtype=np.int8) if kind is None else np.ascontiguousarray(kind, dtype=np.int8)
+    bad = ~np.isin(kind, KINDS)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise SceneError(f"kind[{i}]={int(kind[i])} is not allowed; allowed: "
+                         f"{', '.join(f'{k} ({KIND_NAMES[k]})' for k in KINDS)}")
     amp = np.zeros((n, 3)) if amp is None else np.ascontiguousarray(amp, dtype=np.float64)
     phase = np.zeros(n) if phase is None else np.ascontiguousarray(phase, dtype=np.float64)
     x = x_rest.copy() if x0 is None else np.array(x0, dtype=np.float64)
@@ -560,20 +687,26 @@ class LatticeRun:
     def _rebuild(self, step: int) -> None:
         raise NotImplementedError
 
-    def _forces(self) -> None:
-        _, _, delta, _ = self._vectors()
+    def _kernel_args(self) -> tuple[SlotState, ListArrays, ReplicaParams, PairParams, bool]:
+        """The kernels' structures for the current state and list, and whether the envelope is (a/r)^2."""
+        scale, omega, delta, x_ref = self._vectors()
         prm, square = pair_params(self.coeffs, self.a, self.r_cut)
-        forces(self.xs.reshape(3, -1), self.vs.reshape(3, -1), self.fs.reshape(3, -1), self.nl.offsets, self.block,
-               self.nl.start, self.nl.index, delta, prm, square)
+        state = SlotState(xs=self.xs.reshape(3, -1), vs=self.vs.reshape(3, -1), fs=self.fs.reshape(3, -1),
+                          hot=self.hot.reshape(-1))
+        lists = ListArrays(offsets=self.nl.offsets, block=self.block, start=self.nl.start, index=self.nl.index,
+                           x_ref=x_ref, half_skin=0.5 * self.nl.skin)
+        return state, lists, ReplicaParams(scale=scale, omega=omega, delta=delta), prm, square
+
+    def _forces(self) -> None:
+        state, lists, replicas, prm, square = self._kernel_args()
+        (forces_p2 if square else forces_any)(state, lists, replicas, prm)
 
     def _steps(self, n_steps: int, resume: bool) -> tuple[int, int]:
         """Run the numba kernel from self.step: (steps completed, DONE or EXPIRED)."""
-        scale, omega, delta, x_ref = self._vectors()
-        prm, square = pair_params(self.coeffs, self.a, self.r_cut)
-        return advance(self.xs.reshape(3, -1), self.vs.reshape(3, -1), self.fs.reshape(3, -1), self.x_rest,
-                       self.kind, self.held, self.amp, self.phase, scale, omega, delta, self.mass, self.dt, self.step,
-                       n_steps, self.nl.offsets, self.block, self.nl.start, self.nl.index, x_ref, 0.5 * self.nl.skin,
-                       prm, square, self.hot.reshape(-1), resume)
+        state, lists, replicas, prm, square = self._kernel_args()
+        fixes = DriveArrays(x_rest=self.x_rest, kind=self.kind, held=self.held, amp=self.amp, phase=self.phase)
+        steps = StepParams(mass=self.mass, dt=self.dt, step0=self.step, n_steps=int(n_steps), resume=bool(resume))
+        return (advance_p2 if square else advance_any)(state, fixes, replicas, lists, prm, steps)
 
     def advance(self, n_steps: int) -> int:
         """Advance n_steps (fewer if the run becomes unstable: status, reason set, sums kept); rebuilds the
@@ -703,18 +836,3 @@ def omega_bound(model: SevenRoot, a: float, mass: float) -> float:
     row = np.abs(e[:, :, None] * e[:, None, :]).sum(axis=2)  # (P, 3): sum_b |e_c e_b| for each c
     bound = 2.0 * (ks[:, None] * row).sum(axis=0).max()
     return math.sqrt(bound / mass)
-
-
-def rows_from_benchmark_json(path: str | Path) -> list[dict]:
-    """Rows {N, ns_per_pair_step, bytes_per_particle, threads, force_pass, name} of the scaling benchmarks
-    in a pytest-benchmark JSON file (benchmarks whose extra_info has those keys), sorted by N."""
-    data = json.loads(Path(path).read_text())
-    rows = []
-    for b in data.get("benchmarks", []):
-        info = b.get("extra_info", {})
-        if "ns_per_pair_step" in info and "bytes_per_particle" in info and "particles" in info:
-            rows.append({"N": int(info["particles"]), "ns_per_pair_step": float(info["ns_per_pair_step"]),
-                         "bytes_per_particle": float(info["bytes_per_particle"]),
-                         "threads": int(info.get("threads", 0)), "force_pass": info.get("force_pass", ""),
-                         "name": b.get("name", "")})
-    return sorted(rows, key=lambda r: (r["N"], r["force_pass"], r["threads"]))

@@ -6,11 +6,11 @@ one neighbour list: the same offset groups (from the rest lattice) and the union
 replica's residual list (`neighbours.union_list`), valid for replica k while no particle of k has
 moved more than skin/2 from its own build positions; a replica that expires is rebuilt alone and
 its list added to the union (`EnsembleRun._rebuild`).  State is (3, N, K), replica innermost: the
-flat index i * K + k is a lattice with offsets o * K, so `scaling.advance` runs its contiguous,
+flat index i * K + k is a lattice with offsets o * K, so `kernel.advance_p2` runs its contiguous,
 vectorised group loops over all replicas at once (K times longer loops, one pass over the tiles,
 the damping per slot from a K-periodic vector).
 
-Each replica performs exactly the floating-point operations of a single `scaling.KernelRun` with
+Each replica performs exactly the floating-point operations of a single `kernel.KernelRun` with
 its parameters, in the same order (tiles and slab blocks are counted in particles, group slots of
 a replica are those of its single run, residual pairs beyond r_cut are skipped, not added as
 zeros, drive amplitude amp * scale formed the same way), so every replica is bit-identical to its
@@ -25,12 +25,12 @@ import numpy as np
 
 from pcverify.scene import SceneError
 
-from .force import SevenRoot
-from .large_n import (
+from ..codes import PRESCRIBED
+from ..force import SevenRoot
+from .kernel import (
     DEFAULT_R_CUT,
     DEFAULT_SKIN,
     FORCE_PASSES,
-    PRESCRIBED,
     LatticeRun,
     check_range,
     initial_state,

@@ -4,13 +4,13 @@ pair style, velocity Verlet (fix nve), radial damping through pair dpd/ext/tstat
 Mapping (LAMMPS units si):
 - pair_style table linear NTAB with a file of F(r) on [r_lo, 2a] (keyword R: exact abscissae).
   LAMMPS' force column is -dE/dr, positive = repulsive, so it holds -F (F > 0 attraction here),
-  and its energy column U(r) = -int_r^{2a} F (zero at the cutoff 2a, as `scaling` counts it).
+  and its energy column U(r) = -int_r^{2a} F (zero at the cutoff 2a, as `kernel` counts it).
   Internally LAMMPS splines the file onto NTAB points evenly spaced in r^2 and interpolates F/r
   linearly: a force error of order (3.75 a^2 / NTAB)^2, second order in 1/NTAB.
 - damping: dpd/ext/tstat with gamma_par = delta, gamma_perp = 0, exponents 0 (weight 1 inside
   its cutoff) and temperature 0 (no random force): F_i = delta ((v_j - v_i).e) e for r < r_cut,
   the kernel's radial damping.  LAMMPS evaluates it with the velocities at force time, v_{n+1/2},
-  as `scaling.advance` does; both integrate the same scheme, so trajectories differ only by the
+  as `kernel.advance_p2` does; both integrate the same scheme, so trajectories differ only by the
   table error (and round-off).
 - all particles free, non-periodic box, neighbour skin as given; one MPI rank, serial styles.
 
@@ -33,7 +33,7 @@ import numpy as np
 
 from pcverify.scene import SceneError
 
-from .force import SevenRoot, energy_x, force_array
+from ..force import SevenRoot, energy_x, force_array
 
 KEYWORD = "SEVENROOT"
 
