@@ -221,8 +221,8 @@ def test_linearised_stiffness_gives_hooke_and_the_macromolecule_lattice_is_scale
 
 def test_kernel_seconds_of_a_fresh_process_leave_out_the_dispatcher_and_cache_load():
     """In a fresh process the first heat solve loads numba's dispatcher and cache (0.1-0.5 s); kernel_s counts
-    the steps alone, so it is the same as a warm solve's (tens of microseconds at n = 4), not thousands of
-    times larger (measured before the fix: 0.39 s against 60-80 us)."""
+    the steps alone, so it is that of a warm solve (~1e-4 s at n = 4), not the load's (measured before the
+    fix: 0.39 s against 60-80 us).  The bound 0.05 s leaves room for a loaded machine's preemptions."""
     code = ("from pcverify.harness.catalogue import make_scene\n"
             "from pcverify.scene import Resolution\n"
             "from pcverify.solvers.registry import get_solver\n"
@@ -232,7 +232,7 @@ def test_kernel_seconds_of_a_fresh_process_leave_out_the_dispatcher_and_cache_lo
             "print(a.work['kernel_s'], b.work['kernel_s'], a.wall_s)\n")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     first, warm, wall = map(float, out.stdout.split())
-    assert first < 20 * warm
+    assert first < 0.05 and warm < 0.05  # the load alone takes 0.1-0.5 s; the steps take ~1e-4 s (1000x margin)
     assert first < 0.5 * wall  # the first solve's wall time holds the load; its kernel time does not
 
 
