@@ -319,7 +319,8 @@ def _share_legend(source: Any, target: Any) -> None:
 
 
 def render_3d(results: list[dict[str, Any]], path: Path, title: str) -> bool:
-    """Particles coloured by their relative value (the paper's Figs. 2-4), one panel per n."""
+    """Particles coloured by their relative value (the paper's Figs. 2-4), or by the quantity their solver
+    reports (e.g. the friction heat received), one panel per n."""
     ok = [r for r in results if is_particle(r) and _shown(r, "nodes")]
     first: dict[int, dict[str, Any]] = {}
     for r in ok:
@@ -340,7 +341,8 @@ def render_3d(results: list[dict[str, Any]], path: Path, title: str) -> bool:
         ax.set_zlabel("y [mm]", fontsize=7)
         ax.set_box_aspect((1, 3, 1))
         ax.set_title(f"{r['solver']} n={n} ({len(vals)} particles), {r['status']}", fontsize=8)
-        fig.colorbar(sc, ax=ax, shrink=0.6, label="relative hotness")
+        quantity = r.get("quantity") or "T/t_max"
+        fig.colorbar(sc, ax=ax, shrink=0.6, label="relative hotness" if quantity == "T/t_max" else quantity)
     fig.suptitle(_wrap(title, fig), fontsize=9)
     return _save(fig, path, layout="tight")
 
