@@ -44,7 +44,7 @@ from pcverify.scene import (
     SceneError,
     point_patch_note,
 )
-from pcverify.solvers.protocol import Solution, effective_params, heat_summary
+from pcverify.solvers.protocol import Solution, WorkEstimate, effective_params, heat_summary
 
 from . import heat as mca_heat
 from . import kernel as mk
@@ -56,6 +56,8 @@ from .model import COEFFICIENTS, Elastic, Model, rebuild_pairs, relax, relax_sta
 from .probe import McaProbe
 from .stiffness import mass_diagonal, stiffness
 
+BYTES_PER_AUTOMATON = 4096  # state, rotations, inelastic state and about 13 pairs of 10 arrays each
+RELAX_STEPS_PER_CELL = 1000  # relaxation steps per spacing of the longest extent (measured 390-630, bar-compression)
 ENERGY_ALARM = 1e-2  # relative energy-balance error of an undamped elastic phase that flags a run as unstable
 MIN_PEAK_STEPS = 50  # time steps up to the peak stress below which fracture is not resolved in time
 MIN_CHECK_ROWS = 10  # history rows of the elastic phase the energy check needs
@@ -122,6 +124,36 @@ class Mca:
     def stability_probe(self) -> McaProbe:
         """The probe of this solver's explicit heat and mechanics steps."""
         return McaProbe(self)
+
+    def estimate(self, scene: Scene, resolution: Resolution, **params: Any) -> WorkEstimate:
+        """Unknowns (6 per automaton; two bodies of the bar lattice in contact scenes), time steps and memory
+        of the solve, from the scene and the parameters alone: steady heat and modes 1 step (modes: a dense
+        eigenproblem up to 1500 free dofs); transient heat t_end / (heat_cfl h^2 / (6 alpha)); fracture the
+        loading time over about cfl h / (4 c); a relaxation RELAX_STEPS_PER_CELL steps per spacing of the
+        longest extent; every run of steps capped by max_steps."""
+        p = effective_params(self, params)
+        shape = scene.box.lattice_shape(resolution.n)
+        count = math.prod(shape) * (2 if "contact" in scene.physics else 1)
+        h = min(e / max(k - 1, 1) for e, k in zip(scene.box.extent, shape, strict=True))
+        mem = BYTES_PER_AUTOMATON * count
+        if "modes" in scene.physics:
+            dense = 6 * count <= 1500
+            return WorkEstimate(unknowns=6 * count, bytes=mem + (16 * (6 * count) ** 2 if dense else 0))
+        mat = scene.material
+        if "conduction" in scene.physics and "contact" not in scene.physics:
+            if scene.conduction.mode == "steady":
+                return WorkEstimate(unknowns=count, bytes=mem)
+            alpha = mat.conductivity / (mat.density * mat.heat_capacity)
+            steps = scene.conduction.t_end / (p["heat_cfl"] * h * h / (6.0 * alpha))
+            return WorkEstimate(unknowns=count, steps=max(1, math.ceil(steps)), bytes=mem)
+        youngs = mat.youngs_modulus
+        wave = math.sqrt(youngs / mat.density) if math.isfinite(youngs) else 5000.0
+        if "fracture" in scene.physics:
+            eps = 1.5 * failure_strain(scene.elasticity.response, youngs)
+            steps = eps / scene.elasticity.strain_rate / (0.25 * p["cfl"] * h / wave)
+        else:
+            steps = RELAX_STEPS_PER_CELL * max(scene.box.extent) / h
+        return WorkEstimate(unknowns=6 * count, steps=max(1, min(p["max_steps"], math.ceil(steps))), bytes=mem)
 
     def supports(self, scene: Scene) -> tuple[bool, str]:
         phys = set(scene.physics)
