@@ -127,6 +127,18 @@ def test_a_huge_name_is_not_echoed_back_whole(tmp_path, argv) -> None:
 
 # -- property: every in-range run is either non-ok with a reason or ok with finite, checked results ----------
 
+def _solve_and_check(solver: str, scene, params: dict, checks) -> None:
+    """Solve at n = 2: refused in range terms, or a status that `_check` accepts; tallied by outcome."""
+    try:
+        solution = get_solver(solver).solve(scene, Resolution(2), **params)
+    except SceneError as exc:
+        assert "allowed" in str(exc) or "out of range" in str(exc), str(exc)
+        TALLY[f"property {solver} refused"] += 1
+        return
+    _check(solution, checks)
+    TALLY[f"property {solver} {solution.status}"] += 1
+
+
 def _check(solution, checks) -> None:
     assert solution.status in STATUSES
     if solution.status != "ok":
@@ -158,14 +170,7 @@ def test_macromolecule_in_range_runs_are_checked(values) -> None:
     def checks(s):
         assert s["energy_balance_error"] <= 1e-2 and s["stationarity"] <= 0.1 and s["hops"] == 0
 
-    try:
-        sol = get_solver("macromolecule").solve(make_scene("bar-heat-paper"), Resolution(2), **values)
-    except SceneError as exc:
-        assert "allowed" in str(exc) or "out of range" in str(exc), str(exc)
-        TALLY["property macromolecule refused"] += 1
-        return
-    _check(sol, checks)
-    TALLY[f"property macromolecule {sol.status}"] += 1
+    _solve_and_check("macromolecule", make_scene("bar-heat-paper"), values, checks)
 
 
 MCA_FRACTURE = {"strain_rate": _log_uniform(1.0, 1e4), "cfl": st.floats(0.05, 10.0),
@@ -186,14 +191,7 @@ def test_mca_fracture_in_range_runs_are_checked(values) -> None:
         assert s["peak_step"] >= 50 and s.get("energy_error", 0.0) <= 1e-2 and "E_eff" in s
         assert abs(s["failure_stress"] / STRENGTH - 1.0) < 0.10, s["failure_stress"]
 
-    try:
-        sol = get_solver("mca").solve(scene, Resolution(2), **params)
-    except SceneError as exc:
-        assert "allowed" in str(exc) or "out of range" in str(exc), str(exc)
-        TALLY["property mca refused"] += 1
-        return
-    _check(sol, checks)
-    TALLY[f"property mca {sol.status}"] += 1
+    _solve_and_check("mca", scene, params, checks)
 
 
 def test_zz_solver_tally() -> None:
