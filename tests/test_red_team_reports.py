@@ -12,7 +12,9 @@
 
 from __future__ import annotations
 
+import contextlib
 import errno
+import io
 import json
 import os
 import shutil
@@ -26,11 +28,14 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 from PIL import Image
 from red_team import ENV, TALLY, cli, tally
 
 from pcverify.harness import files
 from pcverify.harness.cli import main
+from pcverify.harness.report import write_index
 
 STUDIES = {  # small studies of cheap continuum cells: tables, a claim, figures, VTU files
     "alpha": """name = "alpha"
@@ -154,6 +159,46 @@ def test_garbage_manifests_do_not_break_later_studies_and_reports(work, capsys) 
         assert "id='delta'" in index and "id='gamma'" in index and "id='junk" not in index
         bad[0].write_bytes(b"")  # (`report` rebuilt alpha from the cache: spoil it again)
     tally("report files", "accepted", len(bad))
+
+
+JSON = st.recursive(
+    st.none() | st.booleans() | st.integers() | st.floats() | st.text(max_size=12)
+    | st.sampled_from(["faces-cells.csv", "../../secret.csv", "/etc/hostname", "SECRET_PATH", "alpha", ""]),
+    lambda inner: st.lists(inner, max_size=3) | st.dictionaries(
+        st.sampled_from(["id", "title", "figures", "tables", "vtu", "name", "order", "solver"]) | st.text(max_size=6),
+        inner, max_size=4),
+    max_leaves=8)
+FIELDS = ["name", "title", "sections", "verdicts", "solvers", "orders", "plugins", "command", "rerun", "study_file",
+          "sections.0", "sections.0.id", "sections.0.title", "sections.0.figures", "sections.0.tables",
+          "sections.0.vtu"]
+
+
+@settings(derandomize=True, database=None, deadline=None, max_examples=40,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(field=st.sampled_from(FIELDS), value=JSON)
+def test_any_field_of_a_manifest_replaced_by_any_json_never_breaks_the_index(template, tmp_path_factory, field,
+                                                                             value) -> None:
+    """alpha's manifest with one field (top level or of its first section) replaced by an arbitrary JSON value,
+    a path outside --out among them: the index is written, alpha shown or skipped with a warning, and no file
+    outside --out embedded."""
+    where = tmp_path_factory.mktemp("fuzz")
+    shutil.copytree(template / "out", where / "out")
+    token = f"SECRET{uuid.uuid4().hex}"
+    (where / "secret.csv").write_text(f"column\n{token}\n")
+    path = where / "out" / "alpha" / "manifest.json"
+    doc = json.loads(path.read_text())
+    value = json.loads(json.dumps(value).replace("SECRET_PATH", str(where / "secret.csv")))
+    *parents, last = field.split(".")
+    target = doc
+    for part in parents:
+        target = target[int(part)] if part.isdigit() else target[part]
+    target[int(last) if last.isdigit() else last] = value
+    path.write_text(json.dumps(doc))
+    with contextlib.redirect_stderr(io.StringIO()) as err:
+        index = write_index(where / "out").read_text()
+    assert index.endswith("</html>") and token not in index
+    assert "id='alpha'" in index or f"{path} " in err.getvalue()
+    tally("report files", "accepted")
 
 
 @pytest.mark.parametrize("body", ["", "{", "[{\"study\": \"other\"}]", "{\"a\": 1}"])
@@ -355,6 +400,7 @@ DRIVER = r"""
 import contextlib, io, json, os, sys, traceback
 from pathlib import Path
 from pcverify.harness.cli import main
+from pcverify.harness.report import write_index
 
 def forked(argv, log):
     pid = os.fork()
