@@ -66,7 +66,7 @@ class OneLineParser(argparse.ArgumentParser):
         self.exit(2, error_line(message) + "\n")
 
 
-WORD_LIMIT = 80  # characters of one word of an error line (a hostile name may be 100 kB)
+WORD_LIMIT = 240  # characters of one word of an error line: a path fits, a hostile 100 kB name does not
 
 
 def error_line(message: str) -> str:

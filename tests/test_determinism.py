@@ -81,7 +81,10 @@ def test_serial_and_parallel_are_bit_identical(study_path, tmp_path) -> None:
     study = load_study(str(study_path))
     _, serial = execute(study, Cache(tmp_path / "serial"), jobs=1, progress=False)
     _, parallel = execute(study, Cache(tmp_path / "parallel"), jobs=2, progress=False)
-    assert serial["done"] == parallel["done"] == serial["cells"] >= 7
+    # every cell ran (a run whose own checks failed, e.g. the map's inaccurate step, counts as failed)
+    counts = ("cells", "done", "failed", "cached")
+    assert [serial[k] for k in counts] == [parallel[k] for k in counts]
+    assert serial["done"] + serial["failed"] == serial["cells"] >= 7
     a, b = _entries(tmp_path / "serial"), _entries(tmp_path / "parallel")
     assert a.keys() == b.keys() and len(a) == serial["cells"]
     for key in a:
