@@ -50,9 +50,12 @@ def _write_vtus(results: list[dict[str, Any]], folder: Path) -> list[str]:
     return names
 
 
-def write_study_report(study: Any, results: list[dict[str, Any]], out: Path, run_command: str | None = None) -> Path:
+def write_study_report(study: Any, results: list[dict[str, Any]], out: Path, run_command: str | None = None,
+                       extra: list[tuple[dict[str, Any], dict[str, pd.DataFrame]]] = ()) -> Path:
     """Write tables, plots, VTU files and verdicts of one study into out/<study>/ and its manifest (with the
-    study file, its plugin modules and the command that ran it: this process's, unless `run_command`)."""
+    study file, its plugin modules and the command that ran it: this process's, unless `run_command`).
+    `extra`: sections made elsewhere (a calibration's: id, title, figures already drawn) with their tables;
+    their tables are written and available to the claims like the groups' tables."""
     folder = out / study.name
     folder.mkdir(parents=True, exist_ok=True)
     manifest: dict[str, Any] = {"name": study.name, "title": study.title, "sections": [], "verdicts": None,
@@ -78,7 +81,16 @@ def write_study_report(study: Any, results: list[dict[str, Any]], out: Path, run
             section["vtu"] = _write_vtus(res, folder)
         all_tables.update(tables)
         manifest["sections"].append(section)
-    pd.concat(group_cells, ignore_index=True).to_csv(folder / "cells.csv", index=False)
+    for meta, tables in extra:
+        section = {"id": meta["id"], "title": meta["title"], "tables": [], "figures": list(meta.get("figures", [])),
+                   "vtu": []}
+        for name, df in tables.items():
+            _write_table(df, folder / name)
+            section["tables"].append(f"{name}.csv")
+        all_tables.update(tables)
+        manifest["sections"].append(section)
+    cells = pd.concat(group_cells, ignore_index=True) if group_cells else pd.DataFrame()
+    cells.to_csv(folder / "cells.csv", index=False)
     if study.claims:
         _write_table(verdict.verdicts(study.name, study.claims, all_tables), folder / "verdicts")
         manifest["verdicts"] = "verdicts.csv"
