@@ -3,7 +3,7 @@
 "calib-quadratic" reports, on any steady heat scene, the scalar q = (x - X0)^2 + 2 (log10 y - log10 Y0)^2
 plus noise: a seeded normal of standard deviation `noise` (the seed parameter picks the replica), so the
 objective |q - 0| has its minimum at (X0, Y0) and a noise that replicas measure.  `fail_above`: sets with
-x above it return status "defect" (a failure, never data).  Each solve appends one line to the file in
+x above it return status "defect" (a failure, never data).  Each finished solve appends one line to the file in
 $CALIB_SYNTHETIC_LOG (if set), so a test counts solver runs independently of the cache's own counts.
 """
 
@@ -32,6 +32,7 @@ class Quadratic:
         Param("noise", 0.0, "", "standard deviation of the added noise", low=0.0, high=1.0),
         Param("seed", 0, "", "replica seed of the noise", low=0, high=1000, kind=int),
         Param("fail_above", 10.0, "", "x above this: status defect", low=-10.0, high=10.0),
+        Param("sleep", 0.0, "s", "wall time a solve takes (the kill-and-rerun test)", low=0.0, high=10.0),
     )
 
     def supports(self, scene: Scene) -> tuple[bool, str]:
@@ -40,8 +41,9 @@ class Quadratic:
     def solve(self, scene: Scene, resolution: Resolution, samples: Any = None, **params: Any) -> Solution:
         t0 = time.perf_counter()
         p = {q.name: q.default for q in self.parameters} | params
+        time.sleep(p["sleep"])
         log = os.environ.get("CALIB_SYNTHETIC_LOG")
-        if log:
+        if log:  # after the work: a solve killed before this line is not counted as run
             with open(log, "a") as fh:
                 fh.write(f"{scene.name} n={resolution.n} {sorted(params.items())}\n")
         rng = np.random.default_rng([int(p["seed"]), resolution.n])
