@@ -20,6 +20,7 @@ from pcverify.scene import (
     RESPONSES,
     Box,
     Conduction,
+    Contact,
     Elasticity,
     FaceClamp,
     FaceSupport,
@@ -115,6 +116,47 @@ def _fracture(p: dict[str, Any]) -> Scene:
                  params=tuple(sorted(p.items())))
 
 
+def _contact_compression(p: dict[str, Any]) -> Scene:
+    box = box_of(p)
+    cons = (FaceSupport("z0"), FaceSupport("zL", p["strain"] * box.length))
+    return Scene("block-contact-compression", CATALOGUE["block-contact-compression"].description, box, DURALUMIN,
+                 frozenset({"elasticity", "contact"}), cons, elasticity=Elasticity(),
+                 contact=Contact(axis="z", position=box.length / 2), params=tuple(sorted(p.items())))
+
+
+def _sliding(p: dict[str, Any]) -> Scene:
+    box = box_of(p)
+    contact = Contact(axis="y", position=box.height / 2, normal_stress=p["normal_stress"], speed=p["speed"],
+                      direction="z", duration=p["duration"], span=(box.length / 3, 2 * box.length / 3))
+    return Scene("block-sliding", CATALOGUE["block-sliding"].description, box, DURALUMIN,
+                 frozenset({"elasticity", "contact"}), (FaceClamp("y0"),), elasticity=Elasticity(), contact=contact,
+                 params=tuple(sorted(p.items())))
+
+
+# duralumin with its thermal constants (handbook values of 2024, the alloy of the PHYSICS.md bar's E and nu)
+DURALUMIN_THERMAL = Material("duralumin-2024", density=2800.0, conductivity=121.0, heat_capacity=875.0,
+                             youngs_modulus=70e9, poisson_ratio=0.33)
+HEAT_SOURCES = ("friction", "flux")
+
+
+def _frictional_heating(p: dict[str, Any]) -> Scene:
+    if p["dt"] > p["t_end"]:
+        raise SceneError(f"dt={p['dt']!r} is out of range; allowed: number in (0, t_end={p['t_end']:g}] s")
+    box = box_of(p)
+    flux = p["friction"] * p["normal_stress"] * p["speed"]
+    heat = Conduction(t_max=p["t_max"], mode="transient", t_end=p["t_end"], dt=p["dt"],
+                      interface=InterfaceFlux(flux, box.length / 2, "z"))
+    physics = {"conduction", "interface-flux"}
+    if p["source"] == "flux":
+        return Scene("frictional-heating", CATALOGUE["frictional-heating"].description, box, DURALUMIN_THERMAL,
+                     frozenset(physics), (), conduction=heat, params=tuple(sorted(p.items())))
+    contact = Contact(axis="z", position=box.length / 2, normal_stress=p["normal_stress"], speed=p["speed"],
+                      direction="x", duration=p["duration"], heating=True, platen=True)
+    return Scene("frictional-heating", CATALOGUE["frictional-heating"].description, box, DURALUMIN_THERMAL,
+                 frozenset(physics | {"elasticity", "contact", "frictional-heating"}), (FaceClamp("z0"),),
+                 conduction=heat, elasticity=Elasticity(), contact=contact, params=tuple(sorted(p.items())))
+
+
 CATALOGUE: dict[str, SceneSpec] = {
     spec.name: spec
     for spec in (
@@ -177,6 +219,55 @@ CATALOGUE: dict[str, SceneSpec] = {
                 Param("strain_rate", 10.0, "1/s", "nominal axial strain rate", low=0.0, high=1e4, low_open=True),
             ),
             _fracture,
+        ),
+        SceneSpec(
+            "block-contact-compression",
+            "Two duralumin blocks stacked along z, unlinked at the interface z = L/2 (contact by the segment method), "
+            "compressed between frictionless supports on z=0 and z=L by strain * L (analytic: the uniaxial stress "
+            "E |strain| of the bonded bar crosses the interface uniformly); n even",
+            (*DIMENSIONS, Param("strain", -1e-3, "", "nominal axial strain (negative = compression)", low=-0.01,
+                                high=0.0, high_open=True)),
+            _contact_compression,
+        ),
+        SceneSpec(
+            "block-sliding",
+            "A duralumin slider (the middle third of the upper half, y > H/2) pressed by normal_stress on a base "
+            "(y < H/2, clamped at y=0) and driven along z at speed for duration after a smooth start: the macroscopic "
+            "friction coefficient mu_dr = F_dr / F_N (eq. 17) and the energy balance; n even",
+            (
+                *DIMENSIONS,
+                Param("normal_stress", 1e6, "Pa", "pressure on the slider's top face", low=0.0, high=1e9,
+                      low_open=True),
+                Param("speed", 1.0, "m/s", "sliding speed of the slider's top face", low=0.0, high=100.0,
+                      low_open=True),
+                Param("duration", 1e-3, "s", "sliding time at full speed (the averaging window)", low=0.0, high=1.0,
+                      low_open=True),
+            ),
+            _sliding,
+        ),
+        SceneSpec(
+            "frictional-heating",
+            "Two duralumin blocks stacked along z (interface z = L/2, base clamped at z=0), the upper one pressed by "
+            "normal_stress and slid along x at speed under a platen: the friction power heats both (MCA mechanics "
+            "-> MCA heat, source=friction); the reference is the same bar with the interface flux q = friction * "
+            "normal_stress * speed (source=flux: continuum solvers; analytic slab and, at short times, the "
+            "semi-infinite rise); insulated faces, from 0 K to t_end; n even",
+            (
+                *DIMENSIONS,
+                Param("source", "friction", "", "friction: MCA's sliding contact makes the heat; flux: the interface "
+                      "flux is given (any heat solver)", choices=HEAT_SOURCES, kind=str),
+                Param("normal_stress", 1e6, "Pa", "pressure on the upper block's top face", low=0.0, high=1e9,
+                      low_open=True),
+                Param("speed", 1.0, "m/s", "sliding speed", low=0.0, high=100.0, low_open=True),
+                Param("friction", 0.3, "", "friction coefficient of the declared flux q = friction normal_stress "
+                      "speed (MCA's own law must dissipate it: its mu1 defaults to the same 0.3)", low=0.0, high=5.0),
+                Param("duration", 3e-4, "s", "sliding time at full speed over which the friction power is averaged",
+                      low=0.0, high=1.0, low_open=True),
+                Param("t_end", 0.5, "s", "heating time", low=0.0, high=1e4, low_open=True),
+                Param("dt", 0.005, "s", "continuum time step", low=0.0, high=1e4, low_open=True),
+                Param("t_max", 10.0, "K", "temperature scale (relative results are T/t_max)", low=1e-3, high=1e5),
+            ),
+            _frictional_heating,
         ),
     )
 }

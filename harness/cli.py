@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import dataclasses
 import json
 import signal
 import sys
@@ -25,10 +26,11 @@ from pcverify.harness.cache import Cache
 from pcverify.harness.calibration import NotCached, calibration_section, run_calibration
 from pcverify.harness.catalogue import entries as scene_entries
 from pcverify.harness.catalogue import get_spec
-from pcverify.harness.execution import cached_results, execute, plan
+from pcverify.harness.execution import CELL_ERRORS, cached_results, execute, plan
 from pcverify.harness.interrupt import received, remember_sigint
 from pcverify.harness.limits import check_work
-from pcverify.harness.report import write_index, write_study_report
+from pcverify.harness.report import study_verdicts, write_index, write_study_report
+from pcverify.harness.reproduce import select_groups
 from pcverify.harness.study import MAX_CELLS, load_study, study_files
 from pcverify.scene import Param, Resolution, SceneError, shown
 from pcverify.solvers.protocol import skipped
@@ -44,6 +46,8 @@ examples:
   pcverify run bar-heat-faces --solver skfem --set mode=transient --set scheme=crank-nicolson
   pcverify study default                            run the default studies, write reports/
   pcverify study default --dry-run                  show what is cached and what would run
+  pcverify study stability --group limit-mca-heat   run one group of a study (from the cache where it can)
+  pcverify study my.toml --strict                   exit 1 when a claim fails (a CI gate)
   pcverify report                                   rebuild reports/index.html from the cache
   pcverify bench                                    benchmarks, saved and compared with the previous run
 
@@ -206,13 +210,21 @@ def cmd_run(args: argparse.Namespace) -> int:
     if ok:
         check_work(solver, scene, resolution, solver_vals, args.allow_large)
     with working(f"{solver.name} on {scene.name} n={resolution.n} refine={resolution.refine}", not args.json):
-        solution = solver.solve(scene, resolution, **solver_vals) if ok else skipped(scene, solver, resolution, reason)
+        try:
+            solution = solver.solve(scene, resolution, **solver_vals) if ok else skipped(scene, solver, resolution,
+                                                                                         reason)
+        except SceneError:
+            raise  # bad input: one error line
+        except CELL_ERRORS as exc:  # the solve itself failed: a result with that status, as in a study
+            solution = dataclasses.replace(skipped(scene, solver, resolution, ""), status="failed",
+                                           reason=f"{type(exc).__name__}: {' '.join(str(exc).split())}")
     out = solution.to_dict()
     out["scene_params"] = scene.param_dict
     out["scene_hash"] = scene.content_hash()
+    code = 1 if solution.status == "failed" else 0
     if args.json:
         print(json.dumps(out))
-        return 0
+        return code
     print(f"scene    {scene.name}  {scene.param_dict}")
     print(f"solver   {solver.name}  {out['params']}")
     print(f"grid     n={resolution.n} refine={resolution.refine} unknowns={out['unknowns']}  "
@@ -223,7 +235,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     for name, s in solution.samples.items():
         v = np.asarray(s["values"])
         print(f"  {name:<24} {v.size} points, {solution.quantity} in [{v.min():.6g}, {v.max():.6g}]")
-    return 0
+    return code
 
 
 def cmd_study(args: argparse.Namespace) -> int:
@@ -231,6 +243,7 @@ def cmd_study(args: argparse.Namespace) -> int:
     with remember_sigint():
         names = sorted(study_files()) if args.name == "default" else [args.name]
         studies = [load_study(n, args.allow_large) for n in names]  # validate all before running any
+        studies = selected_groups(studies, args.name, args.group)
         out = Path(args.out)
         cache = Cache(args.cache or out / "cache")
         rerun = None if args.rerun is None else frozenset(args.rerun)
@@ -256,7 +269,8 @@ def cmd_study(args: argparse.Namespace) -> int:
                 counts["calibration_runs"] = counts.get("calibration_runs", 0) + outcome.runs
                 counts["calibration_cached"] = counts.get("calibration_cached", 0) + outcome.hits
             write_study_report(study, results, out, extra=extra)
-            summary.append({"study": study.name, **counts, "wall_s": round(time.perf_counter() - t0, 3)})
+            summary.append({"study": study.name, **counts, "wall_s": round(time.perf_counter() - t0, 3),
+                            "verdicts": study_verdicts(out, study.name)})
             if not args.json:
                 calib = (f", calibrations: {counts['calibration_runs']} solver runs, {counts['calibration_cached']} "
                          "cached" if study.calibrations else "")
@@ -269,7 +283,30 @@ def cmd_study(args: argparse.Namespace) -> int:
                 print(f"report: {index}")
         if args.json:
             print(json.dumps(summary))
+        return verdict_gate([r for entry in summary for r in entry.get("verdicts", [])], args.strict)
+
+
+def selected_groups(studies: list[Any], name: str, groups: list[str] | None) -> list[Any]:
+    """`study --group ID ...`: the one study restricted to those groups (and the groups they read)."""
+    if not groups:
+        return studies
+    if name == "default":
+        raise CliError("--group needs one study; allowed: a study name or a .toml file, not default")
+    return [select_groups(studies[0], groups)]
+
+
+def verdict_gate(records: list[dict[str, Any]], strict: bool) -> int:
+    """Exit code of `study`: with --strict, 1 when a claim failed (each failed verdict listed on stderr)."""
+    failed = [r for r in records if r.get("verdict") == "fail"]
+    if not strict or not failed:
         return 0
+    for r in failed:
+        case = f" {r['case']}" if r.get("case") else ""
+        print(f"pcverify: claim failed: {r['study']}/{r['claim']}{case}: {r['metric']} = {r['value']!r}, target "
+              f"{r['target']!r} ({r['sense']}, tolerance {r['tolerance']!r}, {r['reference']}); reproduce: "
+              f"{r['command']}", file=sys.stderr)
+    print(f"pcverify: {len(failed)} failed verdicts of {len(records)} (--strict)", file=sys.stderr)
+    return 1
 
 
 def cmd_report(args: argparse.Namespace) -> int:
@@ -369,8 +406,12 @@ def build_parser() -> argparse.ArgumentParser:
                    "beyond the work and memory limits")
     p.add_argument("--rerun", nargs="*", default=None, metavar="SOLVER",
                    help="recompute cached cells: all of them, or those of the named solvers (put it last)")
-    p.add_argument("--json", action="store_true", help="print a JSON summary of the study (with --dry-run: the "
-                   "plan of every cell), nothing else on stdout")
+    p.add_argument("--json", action="store_true", help="print a JSON summary per study with its verdicts (the records "
+                   "of verdicts.json; with --dry-run: the plan of every cell), nothing else on stdout")
+    p.add_argument("--group", action="append", metavar="ID", help="run only this group of the study (repeatable; "
+                   "the groups it reads tables from are included)")
+    p.add_argument("--strict", action="store_true", help="exit 1 when any claim fails, listing the failed claims on "
+                   "stderr (a CI gate)")
     p.set_defaults(func=cmd_study)
 
     p = sub.add_parser("bench", help="run the benchmarks, save them, compare with the previous saved run")

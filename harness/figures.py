@@ -1,14 +1,19 @@
 """Report figures (PNG and SVG): convergence, cost, work-precision, stability, edge profiles, 3-D renders,
 benchmarks.
 
-Each function takes tables or cached results and a path without suffix, and writes `path.png` and
-`path.svg`; it returns True when it drew something.  Nothing here runs a solver.  `GROUP_FIGURES` is
-the registry of the figures a study group can ask for by name (its `figures` list).
+Each function takes tables or cached results and a path without suffix, and writes `path.png`, `path.svg`
+and `path.json` (what the figure draws: every series with its data, every legend entry, and how many
+drawn points a legend covers); it returns True when it drew something.  A series identical to one already
+drawn on the same axes is not drawn again: its label joins the first one's.  Legends sit outside the
+data.  Nothing here runs a solver.  `GROUP_FIGURES` is the registry of the figures a study group can ask
+for by name (its `figures` list).
 """
 
 from __future__ import annotations
 
+import io
 import json
+import math
 import textwrap
 from pathlib import Path
 from typing import Any
@@ -19,24 +24,139 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
+from matplotlib.collections import PathCollection  # noqa: E402
+from matplotlib.lines import Line2D  # noqa: E402
+from mpl_toolkits.mplot3d import Axes3D  # noqa: E402
+from PIL import Image  # noqa: E402
 
 EDGES = ("front_top_edge", "bottom_back_edge")
 CONTINUUM_STYLES = tuple(dict(lw=2.0, color=c, ls=ls, alpha=0.75)
                          for c, ls in (("k", "-"), ("0.45", "--"), ("0.25", ":"), ("0.6", "-.")))
+SAME_RTOL = 1e-9  # two series whose points agree to this relative tolerance are one series
 
 
-def _wrap(title: str, width: int = 90) -> str:
+def _wrap(title: str, fig: Any, fontsize: float = 9.0) -> str:
+    """A title wrapped to the figure's width (about 0.5 em per character)."""
+    width = max(30, int(fig.get_figwidth() * 72 / (0.52 * fontsize)))
     return "\n".join(textwrap.wrap(title, width))
 
 
-def _save(fig: Any, path: Path) -> bool:
-    title = fig.get_suptitle()
-    lines = title.count("\n") + 1 if title else 0
-    title_room = (0.17 * lines + 0.08) / fig.get_figheight() if lines else 0.0  # inches kept for the title
-    fig.tight_layout(rect=(0.0, 0.0, 1.0, 1.0 - title_room))
-    fig.savefig(path.with_suffix(".png"), dpi=110)
+def same_series(x1: Any, y1: Any, x2: Any, y2: Any) -> bool:
+    """Whether two series draw the same points (NaN where the other has NaN, else equal to SAME_RTOL)."""
+    a = [np.asarray(v, dtype=float).ravel() for v in (x1, y1, x2, y2)]
+    if a[0].shape != a[2].shape or a[1].shape != a[3].shape:
+        return False
+    return all(np.allclose(p, q, rtol=SAME_RTOL, atol=0.0, equal_nan=True) for p, q in ((a[0], a[2]), (a[1], a[3])))
+
+
+def plot_once(ax: Any, x: Any, y: Any, fmt: str, label: str, **style: Any) -> Any:
+    """ax.plot, unless a labelled series with the same points is on `ax` already: then its label gains
+    " = label" and nothing is drawn (identical series drawn once).  Returns the line that shows the data."""
+    x = np.asarray(x, dtype=float)
+    y = np.asarray(y, dtype=float)
+    for line in ax.get_lines():
+        old = line.get_label()
+        if not old.startswith("_") and same_series(line.get_xdata(), line.get_ydata(), x, y):
+            line.set_label(f"{old} = {label}")
+            return line
+    return ax.plot(*((x, y, fmt) if fmt else (x, y)), label=label, **style)[0]
+
+
+def legend_outside(ax: Any, fontsize: float = 6.5) -> None:
+    """The legend to the right of the axes, outside the data (nothing when no series is labelled)."""
+    handles, labels = ax.get_legend_handles_labels()
+    if handles:
+        ax.legend(handles, labels, fontsize=fontsize, loc="upper left", bbox_to_anchor=(1.02, 1.0),
+                  borderaxespad=0.0)
+
+
+def _visible_points(xy: np.ndarray, marker: bool, line: bool, logx: bool, logy: bool) -> np.ndarray:
+    """Mask of the points of a series that appear on the canvas: finite (and positive on a log axis),
+    and either marked or the end of a drawn segment."""
+    ok = np.all(np.isfinite(xy), axis=1) if xy.size else np.zeros(0, bool)
+    if logx and xy.size:
+        ok &= xy[:, 0] > 0
+    if logy and xy.size:
+        ok &= xy[:, 1] > 0
+    if marker:
+        return ok
+    seg = ok[:-1] & ok[1:] if line and ok.size > 1 else np.zeros(max(ok.size - 1, 0), bool)
+    shown = np.zeros_like(ok)
+    shown[:-1] |= seg
+    shown[1:] |= seg
+    return shown
+
+
+def _series(ax: Any) -> list[tuple[Any, dict[str, Any], np.ndarray]]:
+    """(artist, description, display coordinates of its visible points) of every line and point set of `ax`."""
+    logx, logy = ax.get_xscale() == "log", ax.get_yscale() == "log"
+    out = []
+    for artist in ax.get_children():
+        if isinstance(artist, Line2D):
+            xy = np.column_stack([np.asarray(artist.get_xdata(), float), np.asarray(artist.get_ydata(), float)])
+            marker = artist.get_marker() not in (None, "", " ", "None", "none")
+            line = artist.get_linestyle() not in ("None", "", " ", "none") and artist.get_linewidth() > 0
+            transform = artist.get_transform()
+            kind = "line"
+        elif isinstance(artist, PathCollection):
+            xy = np.asarray(artist.get_offsets(), dtype=float).reshape(-1, 2)
+            marker, line, transform, kind = True, False, artist.get_offset_transform(), "points"
+        else:
+            continue
+        if isinstance(ax, Axes3D):
+            logx = logy = False
+        vis = _visible_points(xy, marker, line, logx, logy)
+        pix = transform.transform(np.where(np.isfinite(xy), xy, 0.0)[vis]) if vis.any() else np.zeros((0, 2))
+        desc = {"label": artist.get_label(), "kind": kind, "marker": marker, "line": line,
+                "visible_points": int(vis.sum()),
+                "x": [None if not math.isfinite(v) else float(v) for v in xy[:, 0]],
+                "y": [None if not math.isfinite(v) else float(v) for v in xy[:, 1]]}
+        out.append((artist, desc, pix))
+    return out
+
+
+def describe(fig: Any) -> dict[str, Any]:
+    """What a drawn figure shows: per axes its labels, scales, series (data, visible point count) and legend
+    entries, and how many visible data points (of any axes) each legend covers."""
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    axes = [(ax, _series(ax)) for ax in fig.axes]
+    points = [pix for _, series in axes for _, _, pix in series]
+    every = np.vstack(points) if points else np.zeros((0, 2))
+    out = []
+    for ax, series in axes:
+        legend = ax.get_legend()
+        entry: dict[str, Any] = {"title": ax.get_title(), "xlabel": ax.get_xlabel(), "ylabel": ax.get_ylabel(),
+                                 "xscale": ax.get_xscale(), "yscale": ax.get_yscale(),
+                                 "series": [d for _, d, _ in series], "legend": [], "legend_covers": 0}
+        if legend is not None:
+            entry["legend"] = [t.get_text() for t in legend.get_texts()]
+            box = legend.get_window_extent(renderer)
+            inside = ((every[:, 0] >= box.x0) & (every[:, 0] <= box.x1) & (every[:, 1] >= box.y0)
+                      & (every[:, 1] <= box.y1)) if every.size else np.zeros(0, bool)
+            entry["legend_covers"] = int(inside.sum())
+        out.append(entry)
+    return {"suptitle": fig.get_suptitle(), "axes": out}
+
+
+def _save(fig: Any, path: Path, layout: str = "constrained") -> bool:
+    """Lay out (constrained: room for the title and for legends outside the axes; "tight" for 3-D panels
+    with colour bars), describe (path.json) and write path.png (a 256-colour palette: a third of the
+    bytes, the same picture) and path.svg."""
+    if layout == "tight":
+        title = fig.get_suptitle()
+        room = (0.17 * (title.count("\n") + 1) + 0.08) / fig.get_figheight() if title else 0.0
+        fig.tight_layout(rect=(0.0, 0.0, 1.0, 1.0 - room))
+    else:
+        fig.set_layout_engine(layout)
+    path.with_suffix(".json").write_text(json.dumps(describe(fig)))
     fig.savefig(path.with_suffix(".svg"))
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png", dpi=100)
     plt.close(fig)
+    with Image.open(buffer) as im:
+        im.convert("RGB").quantize(colors=256, method=Image.Quantize.MEDIANCUT, dither=Image.Dither.NONE).save(
+            path.with_suffix(".png"), optimize=True)
     return True
 
 
@@ -69,39 +189,63 @@ def is_particle(result: dict[str, Any]) -> bool:
 
 def convergence(levels: pd.DataFrame, columns: list[str], path: Path, title: str,
                 fits: pd.DataFrame | None = None) -> bool:
-    """log-log error (or value) against h, one line per solver sequence and column, with the fitted order."""
+    """log-log error (or value) against h, one line per solver sequence and column, with the fitted order.
+
+    Columns of one sequence with the same values (e.g. the edges' error equal to the nodes' on a 1-D
+    solution) are one line, labelled with all their names."""
     orders = {}
     if fits is not None and not fits.empty and "order" in fits:
         orders = {(r.solver, r.params, r.quantity): r.order for r in fits.itertuples() if pd.notna(r.order)}
-    fig, ax = plt.subplots(figsize=(6, 4))
+    fig, ax = plt.subplots(figsize=(9.5, 4))
     for (solver, params), seq in levels.groupby(["solver", "params"], sort=False):
         seq = seq.sort_values("h")
+        drawn: list[tuple[list[str], np.ndarray]] = []
         for col in columns:
-            y = pd.to_numeric(seq[col], errors="coerce").abs()
-            if len(y) and (y > 0).all():
-                order = orders.get((solver, params, col))
-                slope = f" (fitted order {order:.2f})" if order is not None else ""
-                ax.loglog(seq["h"], y, "o-", label=f"{solver} {params} {col}{slope}".strip())
+            y = pd.to_numeric(seq[col], errors="coerce").abs().to_numpy(float)
+            if not (len(y) and (y > 0).all()):
+                continue
+            same = next((d for d in drawn if same_series(d[1], d[1], y, y)), None)
+            if same is None:
+                drawn.append(([col], y))
+            else:
+                same[0].append(col)
+        for cols, y in drawn:
+            order = orders.get((solver, params, cols[0]))
+            slope = f" (fitted order {order:.2f})" if order is not None else ""
+            plot_once(ax, seq["h"], y, "o-", f"{solver} {params} {_columns(cols)}{slope}".replace("  ", " "))
+    ax.set_xscale("log")
+    ax.set_yscale("log")
     ax.set_xlabel("h [m]")
     errors = any(c.endswith(("l2", "linf")) or c.startswith("err.") for c in columns)
     ax.set_ylabel("error (relative for err.*)" if errors else "|value|")
-    ax.set_title(_wrap(title, 80), fontsize=8)
+    fig.suptitle(_wrap(title, fig), fontsize=9)
     ax.grid(True, which="both", alpha=0.3)
-    if ax.lines:
-        ax.legend(fontsize=6)
+    legend_outside(ax)
     return _save(fig, path)
+
+
+def _columns(cols: list[str]) -> str:
+    """Names of columns drawn as one line: "nodes=front_top_edge.linf" when they share the part after the
+    last dot, else joined by " = "."""
+    heads, _, tails = zip(*(c.rpartition(".") for c in cols), strict=True)
+    if len(cols) > 1 and all(heads) and len(set(tails)) == 1:
+        return "=".join(heads) + "." + tails[0]
+    return " = ".join(cols)
 
 
 def cost(df: pd.DataFrame, path: Path, title: str) -> bool:
     """Wall time against unknowns per solver."""
-    fig, ax = plt.subplots(figsize=(6, 4))
+    fig, ax = plt.subplots(figsize=(8, 4))
     for solver, seq in df.groupby("solver"):
-        ax.loglog(seq["unknowns"], seq["wall_s"], "o-", label=solver)
+        seq = seq.sort_values("unknowns")
+        plot_once(ax, seq["unknowns"], seq["wall_s"], "o-", str(solver))
+    ax.set_xscale("log")
+    ax.set_yscale("log")
     ax.set_xlabel("unknowns")
     ax.set_ylabel("wall time [s]")
-    ax.set_title(_wrap(title, 80), fontsize=8)
+    fig.suptitle(_wrap(title, fig), fontsize=9)
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend()
+    legend_outside(ax)
     return _save(fig, path)
 
 
@@ -109,19 +253,21 @@ def work_precision(df: pd.DataFrame, error: str, path: Path, title: str) -> bool
     """Error against wall time (left) and against the work counter (right), one line per solver."""
     if df.empty:
         return False
-    fig, (left, right) = plt.subplots(1, 2, figsize=(9, 4))
+    fig, (left, right) = plt.subplots(1, 2, figsize=(12, 4))
     for solver, seq in df.groupby("solver"):
         seq = seq.sort_values("wall_s")
-        left.loglog(seq["wall_s"], seq[error], "o-", label=solver)
+        plot_once(left, seq["wall_s"], seq[error], "o-", str(solver))
         seq = seq.sort_values("work")
-        right.loglog(seq["work"], seq[error], "o-", label=f"{solver} ({seq['work_kind'].iloc[0]})")
+        plot_once(right, seq["work"], seq[error], "o-", f"{solver} ({seq['work_kind'].iloc[0]})")
     left.set_xlabel("wall time [s]")
     right.set_xlabel("work (pair-steps or unknowns x time steps)")
     for ax in (left, right):
+        ax.set_xscale("log")
+        ax.set_yscale("log")
         ax.set_ylabel(error)
         ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=7)
-    fig.suptitle(_wrap(title, 120), fontsize=9)
+    legend_outside(right)
+    fig.suptitle(_wrap(title, fig), fontsize=9)
     return _save(fig, path)
 
 
@@ -133,7 +279,7 @@ def calibration_trace(trace: pd.DataFrame, path: Path, title: str) -> bool:
     top (they have no objective)."""
     if trace.empty:
         return False
-    fig, ax = plt.subplots(figsize=(8, 4))
+    fig, ax = plt.subplots(figsize=(9, 4))
     ok = trace[trace["status"] == "ok"]
     for phase, part in ok.groupby("phase", sort=False):
         ax.semilogy(part["evaluation"], part["objective"], PHASE_MARKERS.get(phase, "o"), ms=5, label=phase,
@@ -148,8 +294,8 @@ def calibration_trace(trace: pd.DataFrame, path: Path, title: str) -> bool:
     ax.set_xlabel("evaluation")
     ax.set_ylabel("objective (calibrated on)")
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7)
-    fig.suptitle(_wrap(title, 110), fontsize=9)
+    legend_outside(ax)
+    fig.suptitle(_wrap(title, fig), fontsize=9)
     return _save(fig, path)
 
 
@@ -158,7 +304,7 @@ def calibration_work_precision(trace: pd.DataFrame, path: Path, title: str) -> b
     ok = trace[trace["status"] == "ok"] if not trace.empty else trace
     if ok.empty:
         return False
-    fig, (left, right) = plt.subplots(1, 2, figsize=(9, 4))
+    fig, (left, right) = plt.subplots(1, 2, figsize=(11, 4))
     for phase, part in ok.groupby("phase", sort=False):
         marker = PHASE_MARKERS.get(phase, "o")
         left.loglog(part["wall_s"], part["objective"], marker, label=phase, alpha=0.8)
@@ -168,8 +314,8 @@ def calibration_work_precision(trace: pd.DataFrame, path: Path, title: str) -> b
     for ax in (left, right):
         ax.set_ylabel("objective (calibrated on)")
         ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=7)
-    fig.suptitle(_wrap(title, 120), fontsize=9)
+        legend_outside(ax)
+    fig.suptitle(_wrap(title, fig), fontsize=9)
     return _save(fig, path)
 
 
@@ -191,22 +337,23 @@ def calibration_validation(table: pd.DataFrame, tolerance: float, path: Path, ti
                   ha="right", fontsize=6)
     ax.set_ylabel("error")
     ax.set_yscale("symlog", linthresh=1e-3)
-    ax.legend(fontsize=7)
-    fig.suptitle(_wrap(title, 120), fontsize=9)
+    legend_outside(ax)
+    fig.suptitle(_wrap(title, fig), fontsize=9)
     return _save(fig, path)
 
 
 def edge_profiles(results: list[dict[str, Any]], path: Path, title: str) -> bool:
     """The paper's Fig. 9: relative value along the two edges, particle polylines against continuum curves.
 
-    One row of panels per lattice n; one line per parameter set (e.g. per damping value).
+    One row of panels per lattice n; one line per parameter set (e.g. per damping value); the legend of a
+    row beside its right panel.
     """
     ok = [r for r in results if all(_shown(r, e) for e in EDGES)]
     if not ok:
         return False
     ns = sorted({r["n"] for r in ok})
     varying = _varying(ok)
-    fig, axes = plt.subplots(len(ns), 2, figsize=(9, 2.8 * len(ns)), squeeze=False)
+    fig, axes = plt.subplots(len(ns), 2, figsize=(12, 2.8 * len(ns)), squeeze=False)
     for row, n in enumerate(ns):
         for col, edge in enumerate(EDGES):
             ax = axes[row, col]
@@ -217,18 +364,34 @@ def edge_profiles(results: list[dict[str, Any]], path: Path, title: str) -> bool
                 style = dict(marker="o", ms=3, lw=1) if is_particle(r) else next(continuum, CONTINUUM_STYLES[0])
                 label = _label(r, varying) + ("" if is_particle(r) else f" refine={r['refine']}")
                 label += "" if r["status"] == "ok" else f" ({r['status']})"
-                ax.plot(pts[:, 2] * 1e3, vals, label=label, **style)
+                plot_once(ax, pts[:, 2] * 1e3, vals, "", label, **style)
             ax.set_title(f"n = {n}: {edge.replace('_', ' ')}", fontsize=8)
             ax.set_xlabel("z [mm]")
             ax.set_ylabel("relative value")
             ax.grid(True, alpha=0.3)
-        axes[row, 1].legend(fontsize=6, loc="best")
-    fig.suptitle(_wrap(title, 120), fontsize=9)
+        _share_legend(axes[row, 0], axes[row, 1])
+    fig.suptitle(_wrap(title, fig), fontsize=9)
     return _save(fig, path)
 
 
+def _share_legend(source: Any, target: Any) -> None:
+    """One legend for a row of panels drawing the same series: the labels of `target` (merged where a
+    panel drew two series as one) and of `source`, outside `target`."""
+    labels = {line.get_label(): line for line in target.get_lines() if not line.get_label().startswith("_")}
+    listed = {part for k in labels for part in k.split(" = ")}
+    for line in source.get_lines():
+        lab = line.get_label()
+        if not lab.startswith("_") and not set(lab.split(" = ")) <= listed:
+            labels[lab] = line
+            listed |= set(lab.split(" = "))
+    if labels:
+        target.legend(list(labels.values()), list(labels), fontsize=6, loc="upper left", bbox_to_anchor=(1.02, 1.0),
+                      borderaxespad=0.0)
+
+
 def render_3d(results: list[dict[str, Any]], path: Path, title: str) -> bool:
-    """Particles coloured by their relative value (the paper's Figs. 2-4), one panel per n."""
+    """Particles coloured by their relative value (the paper's Figs. 2-4), or by the quantity their solver
+    reports (e.g. the friction heat received), one panel per n."""
     ok = [r for r in results if is_particle(r) and _shown(r, "nodes")]
     first: dict[int, dict[str, Any]] = {}
     for r in ok:
@@ -249,47 +412,80 @@ def render_3d(results: list[dict[str, Any]], path: Path, title: str) -> bool:
         ax.set_zlabel("y [mm]", fontsize=7)
         ax.set_box_aspect((1, 3, 1))
         ax.set_title(f"{r['solver']} n={n} ({len(vals)} particles), {r['status']}", fontsize=8)
-        fig.colorbar(sc, ax=ax, shrink=0.6, label="relative hotness")
-    fig.suptitle(_wrap(title, 120), fontsize=9)
-    return _save(fig, path)
+        quantity = r.get("quantity") or "T/t_max"
+        fig.colorbar(sc, ax=ax, shrink=0.6, label="relative hotness" if quantity == "T/t_max" else quantity)
+    fig.suptitle(_wrap(title, fig), fontsize=9)
+    return _save(fig, path, layout="tight")
 
 
 STATUS_STYLE = {"ok": ("o", "tab:green"), "unstable": ("x", "tab:red"), "defect": ("s", "tab:orange"),
                 "non-stationary": ("^", "tab:blue")}
 
 
+def _case_label(keys: list[str], values: tuple[Any, ...]) -> str:
+    """"n=2, D=0.01 a" for a group of measurements (NaN values left out)."""
+    names = {"drive_amplitude": ("D", " a")}
+    parts = []
+    for key, v in zip(keys, values, strict=True):
+        if isinstance(v, float) and math.isnan(v):
+            continue
+        name, unit = names.get(key, (key, ""))
+        parts.append(f"{name}={v:g}{unit}" if isinstance(v, float) else f"{name}={v}{unit}")
+    return ", ".join(parts)
+
+
+def _limit_panel(ax: Any, part: pd.DataFrame, info: dict[str, str]) -> None:
+    """One probe's panel: the theory's limit at each case, every measured limit (bounds marked as
+    such), and the linear-discrete limit where the probe computed one, against the probe's x axis."""
+    x = info["x_axis"]
+    part = part.sort_values(x)
+    theory = part[[x, "safety_theory"]].drop_duplicates().sort_values(x)
+    plot_once(ax, theory[x], theory["safety_theory"], "k-", info["theory_label"], marker="_", ms=10, lw=1.5)
+    groups = [g for g in ("n", "drive_amplitude") if g != x]
+    verdict = part.get("verdict", pd.Series("bisected", index=part.index)).fillna("bisected").astype(str)
+    bisected = part[verdict == "bisected"]
+    for values, seq in bisected.groupby(groups, dropna=False, sort=True):
+        values = values if isinstance(values, tuple) else (values,)
+        label = f"measured {_case_label(groups, values)}".strip()
+        plot_once(ax, seq[x], seq["measured_safety"], "o--", label, ms=5)
+    bounds = {"stable up to": ("^", "lower bound: stable up to ratio_hi"),
+              "unstable at every": ("v", "no time-step limit: unstable at every dt (drawn at ratio_lo)")}
+    for start, (marker, label) in bounds.items():
+        pick = part[verdict.str.startswith(start)]
+        if not pick.empty:
+            plot_once(ax, pick[x], pick["measured_safety"], marker, label, color="tab:red", ms=7, ls="none")
+    if "linear_safety" in part and part["linear_safety"].notna().any():
+        lin = part.dropna(subset=["linear_safety"])
+        by = [g for g in ("n",) if g != x]
+        markers = iter(("s", "D", "p", "h", "8") * 4)
+        for values, seq in (lin.groupby(by, sort=True) if by else [((), lin)]):
+            seq = seq.drop_duplicates([x, "linear_safety"]).sort_values(x)
+            values = values if isinstance(values, tuple) else (values,)
+            label = f"linear-discrete limit {_case_label(by, values)}".strip()
+            plot_once(ax, seq[x], seq["linear_safety"], ":", label, marker=next(markers), mfc="none", ms=8,
+                      color="0.35")
+    if x == "n":
+        ax.set_xticks(sorted(part["n"].unique()))
+    ax.set_xlabel(x.replace("_", " "))
+    ax.set_ylabel(f"limit of {info['quantity']}")
+
+
 def stability_limits(limits: pd.DataFrame, meta: dict[tuple[str, str], dict[str, str]], path: Path,
                      title: str) -> bool:
-    """Measured limits against each probe's own theory: one panel per (solver, scene) probe, the limit in the
-    probe's quantity against its x axis (damping ratio, or n), the theory's limit per case and, where
+    """Measured limits against each probe's own theory: one panel per (solver, scene) probe, the limit in
+    the probe's quantity against its x axis (damping ratio, or n), the theory's limit per case and, where
     computed, the linear-discrete limit.  `meta` gives each probe's quantity, theory label and x axis."""
-    if limits.empty:
+    keys = [k for k in sorted(meta) if not limits[(limits["solver"] == k[0]) & (limits["scene"] == k[1])].empty]
+    if limits.empty or not keys:
         return False
-    keys = sorted(meta)
-    fig, axes = plt.subplots(1, len(keys), figsize=(5.2 * len(keys), 3.8), squeeze=False)
-    for ax, key in zip(axes[0], keys, strict=True):
+    fig, axes = plt.subplots(len(keys), 1, figsize=(9.5, 3.6 * len(keys)), squeeze=False)
+    for ax, key in zip(axes[:, 0], keys, strict=True):
         solver, scene = key
-        info = meta[key]
-        part = limits[(limits["solver"] == solver) & (limits["scene"] == scene)]
-        x = info["x_axis"]
-        theory = part[[x, "safety_theory"]].drop_duplicates().sort_values(x)
-        ax.plot(theory[x], theory["safety_theory"], "k-", lw=1.5, label=info["theory_label"])
-        groups = ["n", "drive_amplitude"] if x != "n" else ["drive_amplitude"]
-        for values, seq in part.groupby(groups, dropna=False):
-            values = values if isinstance(values, tuple) else (values,)
-            label = " ".join(f"{g}={v:g}" if isinstance(v, float) else f"{g}={v}" for g, v in zip(groups, values,
-                             strict=True) if not (isinstance(v, float) and np.isnan(v)))
-            seq = seq.sort_values(x)
-            ax.plot(seq[x], seq["measured_safety"], "o--", label=f"measured {label}".strip())
-        if "linear_safety" in part and part["linear_safety"].notna().any():
-            lin = part.dropna(subset=["linear_safety"]).drop_duplicates([x, "n", "linear_safety"]).sort_values(x)
-            ax.plot(lin[x], lin["linear_safety"], ":", color="grey", marker=".", label="linear-discrete limit")
-        ax.set_xlabel(x.replace("_", " "))
-        ax.set_ylabel(f"limit of {info['quantity']}")
+        _limit_panel(ax, limits[(limits["solver"] == solver) & (limits["scene"] == scene)], meta[key])
         ax.set_title(f"{solver} on {scene}", fontsize=8)
         ax.grid(True, alpha=0.3)
-        ax.legend(fontsize=6)
-    fig.suptitle(_wrap(title, 120), fontsize=9)
+        legend_outside(ax)
+    fig.suptitle(_wrap(title, fig), fontsize=9)
     return _save(fig, path)
 
 
@@ -298,20 +494,27 @@ def stability_map(part: pd.DataFrame, path: Path, title: str) -> bool:
     if part.empty:
         return False
     amps = sorted(part["drive_amplitude"].unique())
-    fig, axes = plt.subplots(1, len(amps), figsize=(3.2 * len(amps), 3.4), sharey=True, squeeze=False)
+    fig, axes = plt.subplots(1, len(amps), figsize=(3.0 * len(amps) + 1.5, 3.4), sharey=True, squeeze=False)
     for ax, D in zip(axes[0], amps, strict=True):
         sub = part[part["drive_amplitude"] == D]
         for status, (marker, colour) in STATUS_STYLE.items():
             pick = sub[sub["status"] == status]
-            ax.scatter(pick["dt_ratio"], pick["damping_ratio"].clip(lower=1e-5), marker=marker, c=colour,
-                       label=status)
+            if not pick.empty:
+                ax.scatter(pick["dt_ratio"], pick["damping_ratio"].clip(lower=1e-5), marker=marker, c=colour,
+                           label=status)
         ax.axvline(1.0, color="k", lw=0.8)
         ax.set_yscale("log")
         ax.set_xlabel("dt / dt_theory")
         ax.set_title(f"D = {D:g} a", fontsize=8)
     axes[0][0].set_ylabel("damping ratio (0 drawn at 1e-5)")
-    axes[0][-1].legend(fontsize=6)
-    fig.suptitle(_wrap(title, 120), fontsize=9)
+    handles: dict[str, Any] = {}
+    for ax in axes[0]:
+        for h, lab in zip(*ax.get_legend_handles_labels(), strict=True):
+            handles.setdefault(lab, h)
+    if handles:
+        axes[0][-1].legend(list(handles.values()), list(handles), fontsize=6, loc="upper left",
+                           bbox_to_anchor=(1.04, 1.0), borderaxespad=0.0)
+    fig.suptitle(_wrap(title, fig), fontsize=9)
     return _save(fig, path)
 
 
@@ -339,14 +542,15 @@ def benchmark_history(runs: pd.DataFrame, path: Path) -> bool:
     """Mean time of every benchmark across the saved runs (the regression history)."""
     if runs.empty:
         return False
-    fig, ax = plt.subplots(figsize=(7, 4))
+    fig, ax = plt.subplots(figsize=(10, 4))
     for name, seq in runs.groupby("benchmark"):
-        ax.semilogy(seq["run"], seq["mean_s"], "o-", label=name)
+        plot_once(ax, seq["run"], seq["mean_s"], "o-", str(name))
+    ax.set_yscale("log")
     ax.set_xlabel("saved run")
     ax.set_ylabel("mean time [s]")
     ax.set_title("Benchmark history (tox -e bench)", fontsize=9)
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=5, ncol=2)
+    legend_outside(ax, fontsize=5)
     return _save(fig, path)
 
 
@@ -358,13 +562,15 @@ def benchmark_scaling(runs: pd.DataFrame, path: Path) -> bool:
     last = runs[runs["run"] == runs["run"].max()].dropna(subset=list(need))
     if last.empty:
         return False
-    fig, ax = plt.subplots(figsize=(6, 4))
+    fig, ax = plt.subplots(figsize=(8.5, 4))
     for family, seq in last.groupby(last["benchmark"].str.split("[").str[0]):
         seq = seq.sort_values("particles")
-        ax.loglog(seq["particles"], seq["ns_per_pair_step"], "o-", label=family)
+        plot_once(ax, seq["particles"], seq["ns_per_pair_step"], "o-", str(family))
+    ax.set_xscale("log")
+    ax.set_yscale("log")
     ax.set_xlabel("particles N")
     ax.set_ylabel("ns per pair-step")
     ax.set_title("Particle kernels: cost per pair-step against N (latest benchmark run)", fontsize=9)
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=6)
+    legend_outside(ax)
     return _save(fig, path)

@@ -1,11 +1,12 @@
-"""Reports: per-study CSV and Markdown tables, PNG/SVG plots, and one self-contained index.html.
+"""Reports: per-study CSV and Markdown tables, PNG/SVG plots, verdicts (CSV and JSON), and one
+self-contained index.html that opens with the summary and the findings.
 
-The report reads study results (or the cache through them); it never runs a solver.
+The report reads study results (or the cache through them); it never runs a solver.  Every verdict
+carries the command that reproduces its number; `verdicts.json` beside index.html lists them all.
 """
 
 from __future__ import annotations
 
-import base64
 import html
 import json
 from pathlib import Path
@@ -14,9 +15,11 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from pcverify.harness import figures, verdict
+from pcverify.harness import figures, page, verdict
 from pcverify.harness.analyses import group_report
+from pcverify.harness.findings import findings, summary_lines
 from pcverify.harness.provenance import command, provenance
+from pcverify.harness.reproduce import study_command, table_group, verdict_commands
 from pcverify.harness.tables import cells_table
 from pcverify.harness.vtu import write_vtu
 
@@ -50,17 +53,49 @@ def _write_vtus(results: list[dict[str, Any]], folder: Path) -> list[str]:
     return names
 
 
+def _orders(study: Any, tables: dict[str, pd.DataFrame]) -> list[dict[str, Any]]:
+    """Observed orders of the study's fits tables: group, solver, params, quantity, order."""
+    out = []
+    for name, df in tables.items():
+        if not name.endswith("-fits") or df.empty or not {"solver", "quantity", "order"} <= set(df.columns):
+            continue
+        for r in df.dropna(subset=["order"]).itertuples(index=False):
+            out.append({"group": table_group(study, name) or name, "solver": str(r.solver),
+                        "params": str(getattr(r, "params", "") or ""), "quantity": str(r.quantity),
+                        "order": float(r.order)})
+    return out
+
+
+def _lattice_nodes(study: Any, claims: list[verdict.Claim], table: pd.DataFrame) -> list[float]:
+    """Lattice nodes (particles) of each verdict whose case is n=K, from its group's scene box."""
+    boxes = {g.id: g.cells[0].scene.box for g in study.groups if g.cells}
+    by_claim = {c.id: c for c in claims}
+    nodes = []
+    for claim, case in zip(table["claim"], table["case"], strict=True):
+        key, _, value = str(case).partition("=")
+        box = boxes.get(table_group(study, by_claim[claim].table) or "")
+        if key == "n" and box is not None and value.isdigit():
+            nodes.append(float(np.prod(box.lattice_shape(int(value)))))
+        else:
+            nodes.append(np.nan)
+    return nodes
+
+
 def write_study_report(study: Any, results: list[dict[str, Any]], out: Path, run_command: str | None = None,
                        extra: list[tuple[dict[str, Any], dict[str, pd.DataFrame]]] = ()) -> Path:
     """Write tables, plots, VTU files and verdicts of one study into out/<study>/ and its manifest (with the
-    study file, its plugin modules and the command that ran it: this process's, unless `run_command`).
-    `extra`: sections made elsewhere (a calibration's: id, title, figures already drawn) with their tables;
-    their tables are written and available to the claims like the groups' tables."""
+    study file, its plugin modules and the command that ran it: this process's, unless `run_command`; and
+    `rerun`, the command that reruns it from the cache).  `extra`: sections made elsewhere (a calibration's:
+    id, title, figures already drawn) with their tables; their tables are written and available to the
+    claims like the groups' tables."""
     folder = out / study.name
     folder.mkdir(parents=True, exist_ok=True)
     manifest: dict[str, Any] = {"name": study.name, "title": study.title, "sections": [], "verdicts": None,
                                 "study_file": str(study.path) if study.path else None,
-                                "plugins": list(study.plugins), "command": run_command or command()}
+                                "plugins": list(study.plugins), "command": run_command or command(),
+                                "rerun": study_command(study, []),
+                                "solvers": sorted({c.solver for g in study.groups for c in g.cells}
+                                                   | {c.solver for c in getattr(study, "calibrations", [])})}
     all_tables: dict[str, pd.DataFrame] = {}
     group_cells = []
     for g in study.groups:
@@ -91,11 +126,25 @@ def write_study_report(study: Any, results: list[dict[str, Any]], out: Path, run
         manifest["sections"].append(section)
     cells = pd.concat(group_cells, ignore_index=True) if group_cells else pd.DataFrame()
     cells.to_csv(folder / "cells.csv", index=False)
+    manifest["orders"] = _orders(study, all_tables)
     if study.claims:
-        _write_table(verdict.verdicts(study.name, study.claims, all_tables), folder / "verdicts")
+        table = verdict.verdicts(study.name, study.claims, all_tables, verdict_commands(study, results))
+        table["nodes"] = _lattice_nodes(study, study.claims, table)
+        _write_table(table, folder / "verdicts")
+        (folder / "verdicts.json").write_text(json.dumps(verdict.records(table), indent=1))
         manifest["verdicts"] = "verdicts.csv"
     (folder / "manifest.json").write_text(json.dumps(manifest, indent=1))
     return folder
+
+
+def study_verdicts(out: Path, study: str) -> list[dict[str, Any]]:
+    """The verdict records a study's report wrote (from verdicts.csv for a report written before verdicts.json
+    existed; empty when the study has no claims)."""
+    path = out / study / "verdicts.json"
+    if path.exists():
+        return json.loads(path.read_text())
+    table = _read_csv(path.with_suffix(".csv")) if path.with_suffix(".csv").exists() else pd.DataFrame()
+    return verdict.records(table.astype(object).where(table.notna(), None)) if not table.empty else []
 
 
 def _write_table(df: pd.DataFrame, stem: Path) -> None:
@@ -103,20 +152,6 @@ def _write_table(df: pd.DataFrame, stem: Path) -> None:
     stem.with_suffix(".md").write_text(_markdown(df))
 
 
-CSS = ("body{font-family:sans-serif;max-width:1150px;margin:auto}table{border-collapse:collapse;font-size:12px;"
-       "margin-bottom:1em}td,th{border:1px solid #ccc;padding:2px 6px}h2{border-bottom:1px solid #888}"
-       "img{max-width:100%}.pass{background:#d8f5d0}.fail{background:#f8d0d0}.not-applicable{background:#eee}")
-
-
-def _html_table(df: pd.DataFrame, table_id: str) -> str:
-    if df.empty:
-        return f"<table id='{html.escape(table_id)}' class='data'><tr><td>(no rows)</td></tr></table>"
-    body = df.to_html(index=False, float_format=lambda v: f"{v:.6g}", na_rep="", classes="data",
-                      table_id=table_id, escape=True)
-    if "verdict" in df.columns:
-        for word in ("pass", "fail", "not-applicable"):
-            body = body.replace(f"<td>{word}</td>", f"<td class='{word}'>{word}</td>")
-    return f"<div class='scroll'>{body}</div>"
 
 
 def _read_csv(path: Path) -> pd.DataFrame:
@@ -126,62 +161,51 @@ def _read_csv(path: Path) -> pd.DataFrame:
         return pd.DataFrame()
 
 
-def _img(path: Path) -> str:
-    data = base64.b64encode(path.read_bytes()).decode()
-    return f"<img alt='{html.escape(path.name)}' src='data:image/png;base64,{data}'>"
-
-
 def _benchmarks(out: Path) -> list[str]:
     """The benchmark section: history of saved runs and the kernels' cost per pair-step against N."""
     storage = out / "benchmarks"
     runs = figures.benchmark_runs(storage)
     if runs.empty:
-        return ["<h2 id='benchmarks'>Benchmarks</h2><p>No saved benchmark runs under "
-                f"{html.escape(str(storage))} (run <code>tox -e bench</code>).</p>"]
+        return ["<section id='benchmarks'><h2>Benchmarks</h2><p>No saved benchmark runs under "
+                f"{html.escape(str(storage))} (run <code>tox -e bench</code>).</p></section>"]
     folder = out / "benchmark-figures"
     folder.mkdir(exist_ok=True)
-    parts = ["<h2 id='benchmarks'>Benchmarks</h2>"]
+    parts = ["<section id='benchmarks'><h2>Benchmarks</h2>"]
     for name, draw in (("history", figures.benchmark_history), ("scaling", figures.benchmark_scaling)):
         if draw(runs, folder / name):
-            parts.append(_img(folder / f"{name}.png"))
+            parts.append(page.figure(folder, "benchmark-figures", f"{name}.png"))
     last = runs[runs["run"] == runs["run"].max()].dropna(axis=1, how="all")
-    parts.append("<p><b>latest run</b></p>" + _html_table(last, "benchmarks-latest"))
+    last.to_csv(folder / "latest.csv", index=False)
+    parts.append(page.table_details(last, "benchmark-figures/latest.csv", "benchmarks-latest") + "</section>")
     return parts
 
 
+def _manifests(out: Path) -> list[tuple[Path, dict[str, Any]]]:
+    return [(p.parent, json.loads(p.read_text())) for p in sorted(out.glob("*/manifest.json"))]
+
+
 def write_index(out: Path) -> Path:
-    """One self-contained index.html (images embedded): verdicts first, then every study, benchmarks, provenance."""
-    manifests = [(p.parent, json.loads(p.read_text())) for p in sorted(out.glob("*/manifest.json"))]
-    parts = ["<!doctype html><html lang='en'><head><meta charset='utf-8'><title>pcverify report</title>",
-             f"<style>{CSS}</style></head><body><h1>pcverify report</h1>"]
-    verdict_tables = [_read_csv(folder / man["verdicts"]) for folder, man in manifests if man.get("verdicts")]
-    verdict_tables = [v for v in verdict_tables if not v.empty]
-    parts.append("<h2 id='verdicts'>Verdicts</h2><p>Each claim with the kind of reference it stands on, the value, "
-                 "its error against the target, the uncertainty of the number, the tolerance and the verdict.</p>")
-    if verdict_tables:
-        table = pd.concat(verdict_tables, ignore_index=True)
-        counts = table["verdict"].value_counts().to_dict()
-        parts.append("<p>" + ", ".join(f"{v}: {counts[v]}" for v in sorted(counts)) + "</p>")
-        parts.append(_html_table(table, "verdicts-table"))
-    else:
-        parts.append("<p>No study with claims has results yet.</p>")
-    for folder, man in manifests:
-        parts.append(f"<h2 id='{html.escape(man['name'])}'>{html.escape(man['title'])}</h2>")
-        for sec in man["sections"]:
-            parts.append(f"<h3>{html.escape(sec['title'])}</h3>")
-            parts += [_img(folder / fig) for fig in sec["figures"]]
-            for tab in sec["tables"]:
-                parts.append(f"<p><b>{html.escape(tab)}</b></p>")
-                parts.append(_html_table(_read_csv(folder / tab), f"{man['name']}-{Path(tab).stem}"))
-            if sec.get("vtu"):
-                parts.append(f"<p>VTU (ParaView) under {html.escape(str(folder / 'vtu'))}: {len(sec['vtu'])} files</p>")
-    parts += _benchmarks(out)
+    """One self-contained index.html (images embedded) and verdicts.json: the summary and findings first,
+    then the verdicts by claim, every study, benchmarks, provenance."""
+    manifests = _manifests(out)
+    records = [r for _, man in manifests for r in study_verdicts(out, man["name"])]
+    _atomic_write(out / "verdicts.json", json.dumps(records, indent=1))
     prov = provenance([man for _, man in manifests])
-    parts.append("<h2 id='provenance'>Provenance</h2><table id='provenance-table'>")
-    parts += [f"<tr><th>{html.escape(k)}</th><td>{html.escape(v)}</td></tr>" for k, v in prov.items()]
-    parts.append("</table></body></html>")
+    studies = [{"name": m["name"], "title": m["title"], "solvers": m.get("solvers", []), "orders": m.get("orders", [])}
+               for _, m in manifests]
+    meta = f"generated {prov['generated']} · commit {prov['git commit']} · {len(manifests)} studies"
+    body = [page.summary_section(summary_lines(studies, records), records, meta),
+            page.findings_section(findings(records)), page.verdicts_section(records)]
+    body += [page.study_section(folder, man, records, _read_csv) for folder, man in manifests]
+    bench = _benchmarks(out)
+    body += bench
+    body.append(page.provenance_section(prov))
     index = out / "index.html"
-    tmp = index.with_suffix(".html.tmp")
-    tmp.write_text("\n".join(parts))
-    tmp.replace(index)
+    _atomic_write(index, page.page(page.navigation(manifests, bool(bench)), body))
     return index
+
+
+def _atomic_write(path: Path, text: str) -> None:
+    tmp = path.with_name(f".{path.name}.tmp")
+    tmp.write_text(text)
+    tmp.replace(path)

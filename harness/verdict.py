@@ -6,12 +6,14 @@ reference the number stands on (analytic / extrapolated / mesh-dependent / same-
 `per` splits a claim into one verdict per value of a column (e.g. per n); `against` takes the
 target from other rows (of `against_table`, default the same table; column `against_metric`,
 default the metric), matched by the `per` value unless `against` fixes that column itself.
-A claim with no usable rows is "not-applicable" with the reason, never a pass.
+A claim with no usable rows is "not-applicable" with the reason, never a pass.  Each verdict names the
+solvers its value comes from and, given a `command` function, the command that reproduces its number.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -23,8 +25,8 @@ from pcverify.scene import SceneError, shown
 REFERENCE_KINDS = ("analytic", "extrapolated", "mesh-dependent", "same-grid", "theory", "paper")
 SENSES = ("within", "at-most", "at-least")
 AGGREGATES = {"max": np.max, "min": np.min, "median": np.median, "mean": np.mean}
-VERDICT_COLUMNS = ("study", "claim", "statement", "case", "reference", "value", "target", "error", "uncertainty",
-                   "tolerance", "verdict", "note")
+VERDICT_COLUMNS = ("study", "claim", "statement", "case", "solver", "reference", "metric", "value", "target", "error",
+                   "uncertainty", "tolerance", "sense", "verdict", "note", "command")
 
 
 @dataclass(frozen=True)
@@ -123,16 +125,28 @@ def _aggregate(df: pd.DataFrame, column: str, how: str) -> float:
     return float(AGGREGATES[how](values)) if values.size else math.nan
 
 
-def judge(study: str, claim: Claim, tables: dict[str, pd.DataFrame]) -> list[dict[str, Any]]:
+# the command that reproduces a verdict's number, from the claim, its value rows and its target rows (or None)
+Command = Callable[["Claim", pd.DataFrame, "pd.DataFrame | None"], str]
+
+
+def _solvers(rows: pd.DataFrame) -> str:
+    return ", ".join(sorted({str(s) for s in rows["solver"].dropna()})) if "solver" in rows else ""
+
+
+def judge(study: str, claim: Claim, tables: dict[str, pd.DataFrame], command: Command | None = None
+          ) -> list[dict[str, Any]]:
     """Verdict rows for one claim (one per `per` value)."""
     base = {"study": study, "claim": claim.id, "statement": claim.text, "reference": claim.reference,
-            "tolerance": claim.tolerance}
+            "metric": claim.metric, "tolerance": claim.tolerance, "sense": claim.sense}
     df = tables.get(claim.table)
     if df is None or df.empty:
-        return [base | {"case": "", "verdict": "not-applicable", "note": f"table {claim.table} has no rows"}]
+        cmd = command(claim, pd.DataFrame(), None) if command else ""
+        return [base | {"case": "", "verdict": "not-applicable", "note": f"table {claim.table} has no rows",
+                        "command": cmd}]
     missing = [c for c in (claim.metric, claim.per, *claim.select) if c and c not in df.columns]
     if missing:
-        return [base | {"case": "", "verdict": "not-applicable",
+        cmd = command(claim, pd.DataFrame(), None) if command else ""
+        return [base | {"case": "", "verdict": "not-applicable", "command": cmd,
                         "note": f"column {missing[0]} is not in table {claim.table} (columns: "
                                 f"{', '.join(map(str, df.columns))})"}]
     rows = _rows(df, claim.select)
@@ -144,13 +158,15 @@ def judge(study: str, claim: Claim, tables: dict[str, pd.DataFrame]) -> list[dic
     out = []
     for case in cases:
         part = rows if case is None else rows[rows[claim.per] == case]
-        row = base | {"case": "" if case is None else f"{claim.per}={case}"}
+        row = base | {"case": "" if case is None else f"{claim.per}={case}", "solver": _solvers(part)}
         value = _aggregate(part, claim.metric, claim.aggregate)
         target = claim.target
+        ref = None
         if others is not None:
             matched = case is None or claim.per in claim.against or claim.per not in others
             ref = others if matched else others[others[claim.per] == case]
             target = _aggregate(ref, claim.against_metric or claim.metric, claim.aggregate)
+        row["command"] = command(claim, part, ref) if command else ""
         if not (math.isfinite(value) and math.isfinite(target)):
             reasons = sorted(set(str(r) for r in part.get("reason", pd.Series(dtype=str)).dropna() if r))
             statuses = sorted(set(part.get("status", pd.Series(dtype=str)).dropna()))
@@ -175,7 +191,17 @@ def judge(study: str, claim: Claim, tables: dict[str, pd.DataFrame]) -> list[dic
     return out
 
 
-def verdicts(study: str, claims: list[Claim], tables: dict[str, pd.DataFrame]) -> pd.DataFrame:
+def verdicts(study: str, claims: list[Claim], tables: dict[str, pd.DataFrame], command: Command | None = None
+             ) -> pd.DataFrame:
     """All verdict rows of a study, in the fixed column order."""
-    rows = [r for c in claims for r in judge(study, c, tables)]
+    rows = [r for c in claims for r in judge(study, c, tables, command)]
     return pd.DataFrame(rows, columns=list(VERDICT_COLUMNS))
+
+
+def records(table: pd.DataFrame) -> list[dict[str, Any]]:
+    """Verdict rows as JSON-ready records (NaN as None), the form of verdicts.json and `study --json`."""
+    def native(v: Any) -> Any:
+        v = v.item() if isinstance(v, np.generic) else v
+        return None if v is None or (isinstance(v, float) and not math.isfinite(v)) else v
+
+    return [{k: native(v) for k, v in row.items()} for row in table.to_dict("records")]

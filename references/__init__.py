@@ -10,14 +10,14 @@ from __future__ import annotations
 import numpy as np
 
 from pcverify.references.slab import Slab
-from pcverify.scene import FaceTemperature, Scene
+from pcverify.scene import FaceTemperature, Scene, TemperatureConstraint
 
 
 def slab_of(scene: Scene) -> tuple[Slab, int] | None:
     """The one-dimensional problem a heat scene reduces to, and its axis, or None.
 
-    It does when every constraint is a FaceTemperature and they hold the two faces of one axis (or there
-    is none: an insulated body), and an interface flux, if any, lies across that axis; the initial
+    It does when every temperature constraint is a FaceTemperature and they hold the two faces of one axis
+    (or there is none: an insulated body), and an interface flux, if any, lies across that axis; the initial
     temperature and the volumetric source are uniform in every scene.
     """
     heat = scene.conduction
@@ -25,7 +25,8 @@ def slab_of(scene: Scene) -> tuple[Slab, int] | None:
         return None
     plane = heat.interface if heat.interface is not None and heat.interface.flux != 0.0 else None
     faces = {c.face: c.value for c in scene.constraints if isinstance(c, FaceTemperature)}
-    if len(faces) != len(scene.constraints):
+    thermal = [c for c in scene.constraints if isinstance(c, TemperatureConstraint)]
+    if len(faces) != len(thermal):  # mechanical supports do not touch the heat problem
         return None
     if faces:
         axes = {face[0] for face in faces}

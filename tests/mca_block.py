@@ -5,7 +5,7 @@ force-free "3-2-1" set against rigid motion); face zL is moved along z through a
 are free.  Each increment is applied as a ramp over `ramp_periods` periods 2 pi / gamma and relaxed with
 viscous damping gamma (2 Model.relaxation_rate) until the largest free residual force is below
 tol * E eps_scale h^2: a quasi-static loading.  The stress is the reaction on zL over the face area.  With
-the automata's exact geometric identities (mca_lattice) a homogeneous block is in a uniaxial stress state,
+the automata's exact geometric identities (automata.py) a homogeneous block is in a uniaxial stress state,
 so the curve must be the response function's own sigma = f(eps) (response.uniaxial_curve).
 """
 
@@ -57,7 +57,7 @@ def block_curve(resp: Response | None, youngs: float, poisson: float, strain_pat
     for k, target in enumerate(path):
         du = (target - current) * extent
         model.fixv[zl, 2] = du / t_inc
-        model.fp[mk.F_TSTOP] = model.time + t_inc
+        model.params = model.params._replace(t_stop=float(st.clock[0]) + t_inc)
         status, res, _ = relax(model, st, scale, tol=tol, chunk=200)
         if status != mk.OK:
             break

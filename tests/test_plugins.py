@@ -46,8 +46,10 @@ def _fresh_env(where: Path) -> Path:
 
 
 def _pip(python: Path, *args: str) -> None:
-    subprocess.run([python, "-m", "pip", "install", "-q", "--no-deps", *args], check=True, env=ENV,
-                   capture_output=True, text=True)
+    """Install into the fresh environment even when the parent environment (seen through the .pth file)
+    holds the same version: pip may otherwise call it satisfied and install nothing (seen under tox)."""
+    subprocess.run([python, "-m", "pip", "install", "-q", "--no-deps", "--force-reinstall", *args], check=True,
+                   env=ENV, capture_output=True, text=True)
 
 
 def _pcverify(python: Path | str, *args: str, cwd: Path, env: dict[str, str] | None = None,

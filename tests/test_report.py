@@ -7,6 +7,7 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pandas as pd
 import pytest
+from figure_checks import report_problems
 
 from pcverify.harness.cli import main
 from pcverify.harness.verdict import parse_claims, verdicts
@@ -98,6 +99,24 @@ scene = "bar-heat-faces"
 scene_params = { mode = "transient", t_end = 0.5, dt = 0.05 }
 solvers = ["fipy"]
 n = [2, 3, 4]
+[[group]]
+id = "conv"
+title = "transient faces: MCA and FiPy errors against h (the edges' errors equal the nodes' on this 1-D field)"
+analysis = "convergence"
+scene = "bar-heat-faces"
+scene_params = { mode = "transient", t_end = 0.5, dt = 0.05 }
+solvers = ["mca", "fipy"]
+n = [2, 3, 4]
+[[group]]
+id = "heat-limit"
+title = "MCA explicit heat: measured limit of dt / dt_Gershgorin against the guarantee and 2 / lambda_max"
+analysis = "stability"
+probe = "limit"
+scene = "bar-heat-faces"
+scene_params = { mode = "transient", t_end = 1.0, dt = 0.005 }
+solvers = ["mca"]
+n = [2, 3]
+solver_params = { linear = true, ratio_hi = 3.0 }
 [[claim]]
 id = "exact-line"
 text = "FiPy reproduces the steady linear profile"
@@ -154,55 +173,110 @@ def test_study_report_has_verdicts_figures_and_vtu(report):
     # completed runs are drawn whatever their diagnostic status; a figure of blown-up runs would prove nothing
     assert set(paper["status"]) <= {"ok", "non-stationary", "defect"}
     html = (report / "index.html").read_text()
-    assert html.index("id='verdicts'") < html.index("id='mini'") < html.index("id='provenance'")
-    assert html.count("<img ") == 3 and "class='fail'" in html and "command" in html
+    order = [html.index(f"id='{i}'") for i in ("summary", "findings", "verdicts", "mini", "provenance")]
+    assert order == sorted(order)
+    figs = [f for s in manifest["sections"] for f in s["figures"]]
+    assert html.count("<img ") == len(figs) >= 5 and "case fail" in html and "--group wp" in html
+
+
+def test_every_figure_draws_what_its_legend_lists(report):
+    """For every figure in the manifest: each legend entry has a visible point, no series duplicates
+    another, no legend covers data (tests/figure_checks.py on the description saved beside it)."""
+    found = report_problems(report)
+    assert len(found) >= 5 and all(v == [] for v in found.values()), found
+    heat = json.loads((report / "mini" / "heat-limit-limits.json").read_text())["axes"][0]
+    series = {s["label"]: s for s in heat["series"]}
+    assert heat["ylabel"] == "limit of dt / dt_Gershgorin" and series["measured"]["visible_points"] == 2
+    limits = pd.read_csv(report / "mini" / "heat-limit-limits.csv")
+    assert series["measured"]["y"] == limits.sort_values("n")["measured_safety"].tolist()
+    assert series["linear-discrete limit"]["y"] == limits.sort_values("n")["linear_safety"].tolist()
+    conv = json.loads((report / "mini" / "conv.json").read_text())["axes"][0]
+    labels = [s["label"] for s in conv["series"]]
+    assert len(labels) == 2 and all("nodes=front_top_edge=bottom_back_edge.linf" in x for x in labels)
 
 
 CHROMIUM = "/usr/bin/chromium"
+CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
+                 "--disable-component-update", "--no-first-run"]
+VIEWPORT = {"width": 1400, "height": 900}
+HOLDS = """() => ({
+    images: Array.from(document.images).map(i => [i.alt, i.complete && i.naturalWidth > 0]),
+    tables: Array.from(document.querySelectorAll('table')).map(t => t.id),
+    sections: Array.from(document.querySelectorAll('section')).map(s => s.id),
+    summary: document.getElementById('summary') && document.getElementById('summary').getBoundingClientRect().toJSON(),
+    width: document.documentElement.scrollWidth})"""
+ROWS = """() => Array.from(document.querySelectorAll('#verdicts-table tr.claim'))
+    .map(r => [r.dataset.state, !r.hidden])"""
 
 
-def _browse(url: str, screenshot=None) -> tuple[list[str], dict]:
-    """Load `url` in headless Chromium; return the console errors and what the page holds."""
+def _browser(p):
+    """Debian's chromium through playwright; skipped where it is absent, unless PCVERIFY_REQUIRE_BROWSER
+    is set (CI installs it: there the check must run)."""
     import os
 
     if not os.path.exists(CHROMIUM):
+        if os.environ.get("PCVERIFY_REQUIRE_BROWSER"):
+            pytest.fail(f"{CHROMIUM} is absent but PCVERIFY_REQUIRE_BROWSER is set")
         pytest.skip(f"{CHROMIUM} is absent (Debian package chromium); the browser check needs it")
+    return p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
+
+
+def _open(browser, url: str, errors: list[str]):
+    page = browser.new_page(viewport=VIEWPORT)
+    page.on("console", lambda m: errors.append(f"console.{m.type}: {m.text}") if m.type == "error" else None)
+    page.on("pageerror", lambda exc: errors.append(f"page error: {exc}"))
+    page.on("requestfailed", lambda r: errors.append(f"request failed: {r.url[:80]}"))
+    page.goto(url, wait_until="load")
+    return page
+
+
+def test_index_in_headless_chromium(report, tmp_path):
+    """At 1400 x 900: the summary fits the first screen, every figure decodes, nothing is wider than the
+    page, the filter hides the passing claims on a click, no browser error; screenshots of the first
+    screen and of a study section are saved beside the report."""
     sync_api = pytest.importorskip("playwright.sync_api", reason="playwright (test extra) is not installed")
     errors: list[str] = []
     with sync_api.sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=CHROMIUM, args=["--no-sandbox"])
-        page = browser.new_page(viewport={"width": 1200, "height": 900})
-        page.on("console", lambda m: errors.append(f"console.{m.type}: {m.text}") if m.type == "error" else None)
-        page.on("pageerror", lambda e: errors.append(f"page error: {e}"))
-        page.on("requestfailed", lambda r: errors.append(f"request failed: {r.url[:80]}"))
-        page.goto(url, wait_until="load")
-        held = page.evaluate("""() => ({
-            images: Array.from(document.images).map(i => [i.alt, i.complete && i.naturalWidth > 0]),
-            tables: Array.from(document.querySelectorAll('table')).map(t => t.id),
-            headings: Array.from(document.querySelectorAll('h2')).map(h => h.id)})""")
-        if screenshot is not None:
-            page.screenshot(path=str(screenshot), full_page=True)
+        browser = _browser(p)
+        page = _open(browser, (report / "index.html").as_uri(), errors)
+        held = page.evaluate(HOLDS)
+        page.screenshot(path=str(report / "first-screen.png"))
+        rows = page.evaluate(ROWS)
+        page.click("#hide-passing")
+        hidden = page.evaluate(ROWS)
+        page.select_option("#filter-verdict", "not-applicable")
+        only_na = page.evaluate(ROWS)
+        page.evaluate("document.getElementById('mini').scrollIntoView()")
+        page.screenshot(path=str(report / "study-section.png"))
         browser.close()
-    return errors, held
-
-
-def test_index_renders_in_headless_chromium(report, tmp_path):
-    """Every table and figure the manifests list is in the page, every image decodes, no browser errors."""
-    shot = report / "index-screenshot.png"
-    errors, held = _browse((report / "index.html").as_uri(), shot)
     assert errors == []
+    assert held["sections"][:3] == ["summary", "findings", "verdicts"] and "provenance" in held["sections"]
+    assert held["summary"]["top"] >= 0 and held["summary"]["bottom"] <= VIEWPORT["height"]
+    assert held["width"] <= VIEWPORT["width"]
     manifest = json.loads((report / "mini" / "manifest.json").read_text())
     figures = [f for s in manifest["sections"] for f in s["figures"]]
     assert sorted(alt for alt, _ in held["images"]) == sorted(figures)
     assert all(ok for _, ok in held["images"])
-    tables = {f"mini-{t[:-4]}" for s in manifest["sections"] for t in s["tables"]}
-    assert tables | {"verdicts-table", "provenance-table"} <= set(held["tables"])
-    assert held["headings"][0] == "verdicts" and "provenance" in held["headings"]
-    assert shot.stat().st_size > 20_000
-    # the same check catches a broken page: a script error and an image that does not decode
+    assert {"summary-table", "verdicts-table", "provenance-table"} <= set(held["tables"])
+    states = [state for state, _ in rows]
+    assert all(shown for _, shown in rows) and {"pass", "fail", "not-applicable"} <= set(states)
+    assert [shown for _, shown in hidden] == [state != "pass" for state in states]
+    assert [shown for _, shown in only_na] == [state == "not-applicable" for state in states]
+    for shot in ("first-screen", "study-section"):
+        assert (report / f"{shot}.png").stat().st_size > 20_000
+
+
+def test_browser_check_catches_a_broken_page(tmp_path):
+    """The same checks see a script error and an image that does not decode."""
+    sync_api = pytest.importorskip("playwright.sync_api", reason="playwright (test extra) is not installed")
     bad = tmp_path / "bad.html"
     bad.write_text("<!doctype html><img alt='x' src='data:image/png;base64,AAAA'><script>nope();</script>")
-    errors, held = _browse(bad.as_uri())
+    errors: list[str] = []
+    with sync_api.sync_playwright() as p:
+        browser = _browser(p)
+        page = _open(browser, bad.as_uri(), errors)
+        held = page.evaluate(HOLDS)
+        browser.close()
     assert any("nope" in e for e in errors) and held["images"] == [["x", False]]
 
 

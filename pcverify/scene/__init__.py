@@ -16,6 +16,7 @@ from .constraints import (
     Support,
     TemperatureConstraint,
 )
+from .contact import Contact
 from .geometry import Box, Resolution
 from .loads import InterfaceFlux
 from .material import ALUMINIUM, DURALUMIN, MATERIALS, RESPONSES, Material, Response
@@ -25,7 +26,7 @@ from .spec import SceneSpec
 
 __all__ = [
     "ALUMINIUM", "DURALUMIN", "FACES", "MATERIALS", "MODES", "PHYSICS", "RESPONSES", "Box", "Conduction", "Constraint",
-    "Elasticity", "FaceClamp", "FaceSupport", "FaceTemperature", "InterfaceFlux", "Material", "Param",
+    "Contact", "Elasticity", "FaceClamp", "FaceSupport", "FaceTemperature", "InterfaceFlux", "Material", "Param",
     "PatchTemperature", "PointTemperature", "Resolution", "Response", "Scene", "SceneError", "SceneSpec", "Support",
     "TemperatureConstraint", "resolve_params", "shown",
 ]

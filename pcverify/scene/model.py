@@ -1,8 +1,9 @@
 """The scene: an immutable, validated value that says what is simulated.
 
 A scene declares its geometry (`Box`), material, constraints, the physics it needs and one part per
-physics: `Conduction` (temperature scale, steady or transient, volumetric source, interface flux) and `Elasticity`
-(eigenfrequencies asked for, loading rate, response function).  New physics adds a part; it does not
+physics: `Conduction` (temperature scale, steady or transient, volumetric source, interface flux),
+`Elasticity` (eigenfrequencies asked for, loading rate, response function) and `Contact` (two bodies across
+a plane, pressed, possibly sliding and heated by friction).  New physics adds a part; it does not
 grow the scene.  Solvers read what a scene declares, never its name.
 """
 
@@ -18,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from .constraints import Constraint, FaceClamp, FaceSupport, TemperatureConstraint
+from .contact import Contact
 from .geometry import Box
 from .loads import InterfaceFlux
 from .material import Material, Response
@@ -30,6 +32,8 @@ PHYSICS = {
     "elasticity": "linear elasticity (an Elasticity part)",
     "modes": "eigenfrequencies (Elasticity.modes >= 1)",
     "fracture": "loading to failure with a response function (Elasticity.response, strain_rate > 0)",
+    "contact": "two bodies touching across a plane, pressed and possibly sliding (a Contact part)",
+    "frictional-heating": "the power dissipated by friction heats the bodies (Contact.heating, with conduction)",
 }
 MODES = ("steady", "transient")
 
@@ -102,6 +106,7 @@ class Scene:
     conduction: Conduction | None = None
     elasticity: Elasticity | None = None
     params: tuple[tuple[str, Any], ...] = field(default=())
+    contact: Contact | None = None
 
     def __post_init__(self) -> None:
         unknown = sorted(set(self.physics) - set(PHYSICS))
@@ -109,11 +114,13 @@ class Scene:
             raise SceneError(f"physics={unknown[0]!r} is unknown; allowed: {', '.join(PHYSICS)}")
         self._check_part("conduction", self.conduction, Conduction)
         self._check_part("elasticity", self.elasticity, Elasticity)
+        self._check_part("contact", self.contact, Contact)
         cond, el = self.conduction, self.elasticity
         derived = {"heat-source": cond is not None and cond.source != 0.0,
                    "interface-flux": cond is not None and cond.interface is not None and cond.interface.flux != 0.0,
                    "modes": el is not None and el.modes > 0,
-                   "fracture": el is not None and el.response is not None and el.strain_rate > 0}
+                   "fracture": el is not None and el.response is not None and el.strain_rate > 0,
+                   "frictional-heating": self.contact is not None and self.contact.heating}
         for word, present in derived.items():
             if present != (word in self.physics):
                 raise SceneError(f"physics {sorted(self.physics)} and the scene's parts disagree on {word!r}: "
@@ -127,11 +134,30 @@ class Scene:
                                  f"{span:g}) m (inside the body along {plane.axis})")
         if el is not None:
             self.material.require("youngs_modulus", "poisson_ratio")
+        if self.contact is not None:
+            self._check_contact(self.contact)
         for c in self.constraints:
             heat = isinstance(c, TemperatureConstraint)
             if heat and cond is None or isinstance(c, (FaceSupport, FaceClamp)) and el is None:
                 raise SceneError(f"constraint {type(c).__name__} needs the {'conduction' if heat else 'elasticity'} "
                                  "physics, which the scene does not have")
+
+    def _check_contact(self, contact: Contact) -> None:
+        """The interface lies inside the box, body 2's span along the sliding direction too; heating needs
+        conduction, and a contact needs elasticity."""
+        if self.elasticity is None:
+            raise SceneError("contact needs the elasticity physics, which the scene does not have")
+        if contact.heating and self.conduction is None:
+            raise SceneError("frictional heating needs the conduction physics, which the scene does not have")
+        span = float(self.box.extent[contact.axis_index])
+        if not contact.position < span:
+            raise SceneError(f"contact position={contact.position!r} is out of range; allowed: number in (0, {span:g})"
+                             f" m (inside the box along {contact.axis})")
+        if contact.span is not None:
+            length = float(self.box.extent[contact.direction_index])
+            if contact.span[1] > length * (1 + 1e-12):
+                raise SceneError(f"contact span={contact.span!r} is out of range; allowed: inside [0, {length:g}] m "
+                                 f"along {contact.direction}")
 
     def _check_part(self, word: str, part: Any, kind: type) -> None:
         if (word in self.physics) != (part is not None) or (part is not None and not isinstance(part, kind)):

@@ -19,6 +19,8 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from scipy.optimize import brentq
 
+from pcverify.scene import SceneError
+
 from .force import SevenRoot, force_slope_array
 
 DENSE_MAX = 1500  # free DOFs up to which dense eigensolvers are used
@@ -102,11 +104,13 @@ def damped_top_mode(
     Solved in state space on the modal basis of `modal_basis`: exact when it holds all modes,
     else in the subspace of the highest undamped modes (the ones C couples the top mode to
     most).  The top mode is the underdamped eigenvalue of largest |lambda|;
-    zeta = -Re(lambda)/|lambda|.  Returns (zeta, |lambda|, method).
+    zeta = -Re(lambda)/|lambda|.  When no mode oscillates (heavy damping) the damping ratio is 1 (critical,
+    the bound of every overdamped mode) and the method says so.  Returns (zeta, |lambda|, method).
     """
     omega, phi, method = basis
     Cr = phi.T @ (C[dofs][:, dofs] @ phi)
-    return _damped_top(omega, Cr) + (method,)
+    zeta, modulus = _damped_top(omega, Cr)
+    return zeta, modulus, method if zeta < 1.0 else f"{method}; no mode oscillates (every mode overdamped)"
 
 
 def _damped_top(omega: np.ndarray, Cr: np.ndarray) -> tuple[float, float]:
@@ -117,6 +121,8 @@ def _damped_top(omega: np.ndarray, Cr: np.ndarray) -> tuple[float, float]:
     ss[m:, m:] = -Cr
     lam = sla.eigvals(ss)
     under = lam[lam.imag > 1e-12 * np.abs(lam).max()]
+    if under.size == 0:  # overdamped: every eigenvalue real
+        return 1.0, float(np.abs(lam).max())
     top = under[np.argmax(np.abs(under))]
     return float(-top.real / abs(top)), float(abs(top))
 
@@ -174,6 +180,9 @@ def discrete_stability_limit(basis: tuple[np.ndarray, np.ndarray, str], C: sp.cs
     # 31 of a bisection, each solve the costly part.  Bracketed from h = 1e-3, not 0: at dt = 0 the step
     # matrix is defective (double eigenvalue 1) and its computed spectral radius can exceed 1 by more than tol
     lo = 1e-3
-    if rho(lo) > 1 + tol:
-        raise ArithmeticError(f"the linearised step is unstable already at omega_max dt / 2 = {lo:g}")
-    return float(brentq(lambda h: rho(h) - 1.0 - tol, lo, 1.0, xtol=1e-9))
+    while rho(lo) > 1 + tol:  # heavy damping: the limit is set by the damping, far below 2 / omega_max
+        if lo < 1e-9:
+            raise SceneError("the pair damping makes the explicit step unstable at every omega_max dt / 2 down to "
+                             "1e-9; allowed: a smaller delta or damping_ratio")
+        lo /= 10.0
+    return float(brentq(lambda h: rho(h) - 1.0 - tol, lo, 1.0, xtol=min(1e-9, 1e-6 * lo)))

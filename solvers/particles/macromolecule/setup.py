@@ -25,6 +25,7 @@ from .modal import (
 )
 
 DEFAULT_DAMPING_RATIO = 0.01
+MIN_WINDOW_STEPS = 100  # hotness is a time average: fewer steps cannot make one
 
 
 @dataclass(frozen=True, eq=False)
@@ -56,8 +57,11 @@ def prepare(scene: Scene, n: int, p: dict[str, Any]) -> Setup:
     omega0, phi, method = modal_basis(K0, lat.mass, dofs)  # at A = 1; K = A K0 has the same shapes
     w0 = float(omega0[-1])
     A = p["stiffness"] if p["stiffness"] is not None else (2 * np.pi * p["f_top"] / w0) ** 2
-    model = SevenRoot(A, p["p"], p["s"], p["unstable_fraction"])
     w_top = w0 * math.sqrt(A)
+    if not (0.0 < w_top < math.inf and A > 0.0):
+        raise SceneError(f"the force scale A = {A:.3g} N (from f_top={p['f_top']:g} Hz or stiffness) leaves the "
+                         "lattice without stiffness in floating point; allowed: f_top in [1e-3, 1e5] Hz")
+    model = SevenRoot(A, p["p"], p["s"], p["unstable_fraction"])
     fx = make_fixes(scene, lat, p, omega_top=w_top)
     basis = (omega0 * math.sqrt(A), phi, method)
     C1 = damping_matrix(lat.positions, lat.pairs, 1.0)
@@ -75,11 +79,18 @@ def prepare(scene: Scene, n: int, p: dict[str, Any]) -> Setup:
     single = 2.0 * (math.sqrt(1 + zeta**2) - zeta) / w_top
     limit = 2.0 * discrete_stability_limit(basis, C1 * delta, dofs) / w_top if delta > 0 else 2.0 / w_top
     dt = p["dt"] if p["dt"] is not None else p["safety"] * 2.0 / w_top
+    if p["dt"] is None and dt > p["safety"] * limit:  # heavy damping: the damped limit is far below 2 / omega_max
+        dt = p["safety"] * limit
     if dt > limit:
         raise SceneError(f"dt={dt:.6g} s is above the stability limit {limit:.6g} s of the linearised scheme "
                          f"(spectral radius 1; single-mode estimate 2 (sqrt(1+zeta^2) - zeta) / omega_max = "
                          f"{single:.6g} s, omega_max = {w_top:.6g} rad/s, zeta = {zeta:.3g}); allowed: dt <= limit")
     steps = p["t_end"] / dt
+    window = (p["t_end"] - p["t_start"]) / dt
+    if window < MIN_WINDOW_STEPS:
+        raise SceneError(f"(t_end - t_start) / dt = {window:.3g} steps is out of range; allowed: at least "
+                         f"{MIN_WINDOW_STEPS} steps in the averaging window (dt = {dt:.3g} s from omega_max = "
+                         f"{w_top:.3g} rad/s); raise t_end or f_top")
     if steps > p["max_steps"]:
         raise SceneError(f"t_end / dt = {p['t_end']:g} s / {dt:.3g} s = {steps:.3g} steps is out of range; "
                          f"allowed: at most max_steps={p['max_steps']}; lower t_end or f_top, or raise max_steps")

@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 
 from pcverify.scene import FaceTemperature, Param, Resolution, Scene, SceneError
-from pcverify.solvers.protocol import Solution, effective_params, heat_summary
+from pcverify.solvers.protocol import Solution, WorkEstimate, effective_params, heat_summary
 
 from . import codes
 from .elastic_modes import macromolecule_modes
@@ -36,9 +36,10 @@ from .probe import MacromoleculeProbe
 from .setup import DEFAULT_DAMPING_RATIO, Setup, prepare
 from .simulate import RunResult, energy_balance_error, run_status, simulate
 
+BYTES_PER_PARTICLE = 3_000
+
 PARAMETERS: tuple[Param, ...] = (
-    Param("f_top", 50.0, "Hz", "target highest natural frequency of the held lattice; sets A", low=0.0, high=1e5,
-          low_open=True),
+    Param("f_top", 50.0, "Hz", "target highest natural frequency of the held lattice; sets A", low=1e-3, high=1e5),
     Param("stiffness", None, "N", "force scale A (overrides f_top)", low=0.0, high=1e12, low_open=True, optional=True),
     Param("p", 2.0, "", "envelope exponent of (a/r)^p", low=0.0, high=12.0),
     Param("s", 0.9, "", "STEP start 2 s a (STEP ends at 2a)", low=0.5, high=0.99),
@@ -99,6 +100,19 @@ class Macromolecule:
     def stability_probe(self) -> MacromoleculeProbe:
         """The probe that runs this solver's set-up and kernel at steps beyond its own guard."""
         return MacromoleculeProbe(self)
+
+    def estimate(self, scene: Scene, resolution: Resolution, **params: Any) -> WorkEstimate:
+        """Unknowns (3 per particle), time steps (t_end / dt; dt = safety * 2 / omega_top with omega_top the
+        target 2 pi f_top when no dt is given) and memory (about 3 kB per particle: state, pair list, the
+        sparse Hessian of the set-up) of the run, before anything is built."""
+        p = effective_params(self, params)
+        particles = math.prod(scene.box.lattice_shape(resolution.n))
+        if "modes" in scene.physics:
+            return WorkEstimate(unknowns=3 * particles, steps=1, bytes=BYTES_PER_PARTICLE * particles
+                                + 8 * (3 * particles) ** 2)  # a dense eigenproblem
+        dt = p["dt"] if p["dt"] is not None else p["safety"] / (math.pi * p["f_top"])
+        return WorkEstimate(unknowns=3 * particles, steps=max(1, round(p["t_end"] / dt)),
+                            bytes=BYTES_PER_PARTICLE * particles)
 
     def supports(self, scene: Scene) -> tuple[bool, str]:
         if scene.physics == frozenset({"elasticity", "modes"}):

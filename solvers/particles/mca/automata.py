@@ -20,7 +20,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from pcverify.scene import Box, SceneError
+from pcverify.scene import Box, Contact, SceneError
+
+WHOLE = 1e-9  # relative tolerance of "on a node plane" / "midway between node planes"
 
 
 @dataclass(frozen=True, eq=False)
@@ -38,6 +40,7 @@ class Automata:
     r0: np.ndarray
     area: np.ndarray
     axis: np.ndarray  # lattice axis (0, 1, 2) of each pair
+    body: np.ndarray | None = None  # (N,) body of each automaton (contact scenes: 0 below the interface, 1 above)
 
     @property
     def size(self) -> int:
@@ -52,6 +55,12 @@ class Automata:
             raise SceneError(f"sample point {pts[bad[0]].tolist()} is not an automaton centre; the mca solver "
                              "reports at its automata only")
         return idx.astype(np.int64)
+
+    def holds(self, points: np.ndarray) -> np.ndarray:
+        """Mask of the `points` (k, 3) that are automaton centres."""
+        pts = np.atleast_2d(np.asarray(points, dtype=float))
+        dist, _ = cKDTree(self.positions).query(pts)
+        return dist <= 1e-6 * float(self.spacing.min())
 
     def on_face(self, face: str, box_extent: np.ndarray) -> np.ndarray:
         """Indices of the automata whose centre lies on `face` (x0, xW, y0, yH, z0, zL)."""
@@ -107,6 +116,68 @@ def bar_automata(box: Box, n: int, density: float) -> Automata:
     if int(n) != n or n < 2:
         raise SceneError(f"n={n!r} is out of range; allowed: integer >= 2")
     return build_automata(box.extent, box.lattice_shape(int(n)), density)
+
+
+def body_automata(box: Box, n: int, density: float, contact: Contact) -> tuple[Automata, Automata]:
+    """The automata of the two bodies of a contact scene, and the same automata bonded across the interface.
+
+    The nodes are those of the box's lattice of resolution n; body 1 holds the nodes below the interface
+    plane, body 2 those above it (within `span` along the sliding direction, if given).  Each automaton is the
+    Voronoi cell of its node clipped by its body: half cells on the free faces, which pass through the nodes,
+    and full cells at the interface, which lies midway between two node planes, so the two bodies' cells
+    meet on it (automata of size d touching at the plane: rest height h0 = d across it).  Pairs link face
+    neighbours of the same body.  The bonded automata add the interface pairs (what the stack would be with
+    the interface welded): the reference geometry, and the stiffness that bounds the stable step."""
+    whole = bar_automata(box, n, density)
+    a = float(whole.spacing[contact.axis_index])
+    cells = contact.position / a - 0.5
+    inside = 0 <= round(cells) < whole.shape[contact.axis_index] - 1
+    if abs(cells - round(cells)) > WHOLE * max(1.0, cells) or not inside:
+        raise SceneError(f"contact position={contact.position!r} is not midway between two node planes at n={n} "
+                         f"(spacing {a:.6g} m); allowed: n with position / spacing - 1/2 a whole number")
+    pos = whole.positions
+    upper = pos[:, contact.axis_index] > contact.position
+    keep = np.ones(whole.size, dtype=bool)
+    lo = np.zeros(3)
+    hi = np.asarray(box.extent, dtype=float).copy()
+    lo2, hi2 = lo.copy(), hi.copy()
+    lo2[contact.axis_index] = hi[contact.axis_index] = contact.position  # body 1 below, body 2 above the plane
+    if contact.span is not None:
+        d = contact.direction_index
+        for end in contact.span:
+            k = end / float(whole.spacing[d])
+            if abs(k - round(k)) > WHOLE * max(1.0, k):
+                raise SceneError(f"contact span end {end!r} is not on a node plane at n={n}; allowed: a whole number "
+                                 "of spacings")
+        along = pos[:, d]
+        tol = WHOLE * float(box.extent[d])
+        keep = ~upper | ((along >= contact.span[0] - tol) & (along <= contact.span[1] + tol))
+        lo2[d], hi2[d] = contact.span
+    idx = np.flatnonzero(keep)
+    body = upper[idx].astype(np.int64)
+    p = pos[idx]
+    h = whole.spacing
+    low = np.where(body[:, None] == 1, lo2, lo)
+    high = np.where(body[:, None] == 1, hi2, hi)
+    extent = np.minimum(p + h / 2, high) - np.maximum(p - h / 2, low)
+    vol = extent.prod(axis=1)
+    mass = density * vol
+    inertia = mass * (extent**2).sum(axis=1) / 18.0
+    new_index = np.full(whole.size, -1)
+    new_index[idx] = np.arange(idx.size)
+    pairs = new_index[whole.pairs]
+    both = np.all(pairs >= 0, axis=1)
+    pairs, axis = pairs[both], whole.axis[both]
+    same = body[pairs[:, 0]] == body[pairs[:, 1]]
+    other = np.array([(1, 2), (0, 2), (0, 1)])[axis]
+    area = np.take_along_axis(extent[pairs[:, 0]], other, axis=1).prod(axis=1)
+    r0 = h[axis]
+
+    def make(sel: np.ndarray) -> Automata:
+        return Automata(shape=whole.shape, spacing=h, positions=p, extent=extent, volume=vol, mass=mass,
+                        inertia=inertia, pairs=pairs[sel], r0=r0[sel], area=area[sel], axis=axis[sel], body=body)
+
+    return make(same), make(np.ones(len(pairs), dtype=bool))
 
 
 def math_finite(x: float) -> bool:

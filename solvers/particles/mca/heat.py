@@ -6,19 +6,30 @@ Transient: explicit (forward Euler) with the stable step dt <= min_i C_i / sum_j
 the Gershgorin bound: forward Euler is stable for dt <= 2 / rho(C^-1 L) and rho <= 2 max_i sum_j G_ij / C_i),
 times `cfl` <= 1; the step count is rounded up so that the last step lands on t_end.
 Steady: the same operator's steady state, solved directly (sparse LU) instead of stepping to it.
-Held automata (temperature constraints) keep their value from t = 0+.
+Held automata (temperature constraints) keep their value from t = 0+.  Sources (`sources`): the volumetric
+source s Omega_i and an interface flux shared between the node planes around its plane; the frictional
+heating of contact scenes brings its own per-automaton power.
 """
 
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 import scipy.sparse as sp
 from numba import njit
 from scipy.sparse.linalg import spsolve
 
-from pcverify.scene import FaceTemperature, PatchTemperature, PointTemperature, Scene, SceneError
+from pcverify.scene import (
+    FaceClamp,
+    FaceSupport,
+    FaceTemperature,
+    PatchTemperature,
+    PointTemperature,
+    Scene,
+    SceneError,
+)
 
 from .automata import Automata
 
@@ -34,22 +45,59 @@ def stable_step(aut: Automata, cap: np.ndarray, g: np.ndarray, free: np.ndarray)
     return float(np.min(cap[free] / rowsum[free]))
 
 
+class HeatState(NamedTuple):
+    """Arrays of the explicit heat kernel: temperatures (advanced), heat capacities C_i, the conducting pairs
+    and their conductances G_p, the held mask (1 = held), a scratch array for the net heat flows, and the
+    heat sources P_i (W, constant; None: none)."""
+
+    temp: np.ndarray
+    cap: np.ndarray
+    pi: np.ndarray
+    pj: np.ndarray
+    g: np.ndarray
+    held: np.ndarray
+    flow: np.ndarray
+    power: np.ndarray | None = None
+
+
+class HeatParams(NamedTuple):
+    """Scalars of the explicit heat kernel: the time step (s)."""
+
+    dt: float
+
+
+def heat_state(aut: Automata, temp: np.ndarray, cap: np.ndarray, g: np.ndarray, held: np.ndarray,
+               power: np.ndarray | None = None) -> HeatState:
+    """The kernel state of the automata's pairs (a copy of temp is advanced); power: sources P_i (W) or None."""
+    return HeatState(temp=np.asarray(temp, dtype=float).copy(), cap=cap, pi=aut.pairs[:, 0].copy(),
+                     pj=aut.pairs[:, 1].copy(), g=g, held=np.asarray(held, dtype=np.int64), flow=np.zeros(aut.size),
+                     power=None if power is None else np.asarray(power, dtype=float))
+
+
 @njit(cache=True)
-def explicit_run(temp, cap, pi, pj, g, held, dt, nsteps):
-    """Forward Euler: T_i += dt / C_i sum_j G_ij (T_j - T_i) for the free automata, `nsteps` times."""
+def explicit_run(st, par, nsteps):
+    """Forward Euler: T_i += dt / C_i (sum_j G_ij (T_j - T_i) + P_i) for the free automata, `nsteps` times."""
+    _explicit(st, par, st.power, nsteps)
+
+
+@njit(cache=True)
+def _explicit(st, par, power, nsteps):
+    temp, cap, pi, pj, g, held, flow = st.temp, st.cap, st.pi, st.pj, st.g, st.held, st.flow
     n = temp.shape[0]
-    flux = np.zeros(n)
+    dt = par.dt
     for _ in range(nsteps):
         for i in range(n):
-            flux[i] = 0.0
+            flow[i] = 0.0
         for p in range(pi.shape[0]):
             q = g[p] * (temp[pj[p]] - temp[pi[p]])
-            flux[pi[p]] += q
-            flux[pj[p]] -= q
+            flow[pi[p]] += q
+            flow[pj[p]] -= q
+        if power is not None:
+            for i in range(n):
+                flow[i] += power[i]
         for i in range(n):
             if held[i] == 0:
-                temp[i] += dt * flux[i] / cap[i]
-    return temp
+                temp[i] += dt * flow[i] / cap[i]
 
 
 def explicit_system(aut: Automata, conductivity: float, rho_c: float, held: np.ndarray
@@ -69,19 +117,19 @@ def laplacian(aut: Automata, g: np.ndarray) -> sp.csr_matrix:
 
 
 def transient(aut: Automata, conductivity: float, rho_c: float, temp0: np.ndarray, held: np.ndarray, t_end: float,
-              cfl: float) -> tuple[np.ndarray, float, int]:
-    """Temperatures at t_end from temp0 (held automata keep theirs); returns (T, dt, steps)."""
+              cfl: float, power: np.ndarray | None = None) -> tuple[HeatState, HeatParams, int]:
+    """The explicit run from temp0 to t_end (held automata keep theirs; sources P_i in W): (state, params,
+    steps); the step is cfl times the Gershgorin step, shortened so that a whole number of steps lands on
+    t_end."""
     cap, g, dt_g = explicit_system(aut, conductivity, rho_c, held)
     dt_max = cfl * dt_g
     steps = max(1, math.ceil(t_end / dt_max * (1 - 1e-12)))
-    dt = t_end / steps
-    temp = explicit_run(temp0.astype(float).copy(), cap, aut.pairs[:, 0].copy(), aut.pairs[:, 1].copy(), g,
-                        held.astype(np.int64), dt, steps)
-    return temp, dt, steps
+    return heat_state(aut, temp0, cap, g, held, power), HeatParams(t_end / steps), steps
 
 
-def steady(aut: Automata, conductivity: float, values: np.ndarray, held: np.ndarray) -> np.ndarray:
-    """Steady state of the same scheme: sum_j G_ij (T_j - T_i) = 0 on the free automata."""
+def steady(aut: Automata, conductivity: float, values: np.ndarray, held: np.ndarray,
+           power: np.ndarray | None = None) -> np.ndarray:
+    """Steady state of the same scheme: sum_j G_ij (T_j - T_i) + P_i = 0 on the free automata."""
     lap = laplacian(aut, conductances(aut, conductivity))
     n = aut.size
     free = np.flatnonzero(held == 0)
@@ -89,8 +137,29 @@ def steady(aut: Automata, conductivity: float, values: np.ndarray, held: np.ndar
     temp = np.zeros(n)
     temp[fixed] = values[fixed]
     rhs = -(lap[free][:, fixed] @ temp[fixed])
+    if power is not None:
+        rhs = rhs + power[free]
     temp[free] = spsolve(lap[free][:, free].tocsc(), rhs)
     return temp
+
+
+def sources(scene: Scene, aut: Automata) -> np.ndarray | None:
+    """Heat sources P_i (W) of the scene's Conduction part on the automata, or None: the volumetric source
+    s Omega_i, and the interface flux q shared between the two node planes around its plane by hat weights
+    max(0, 1 - |x_i - x_p| / a) times the cell's face A_i normal to the axis (all of it on a node plane; half
+    to each side at mid-plane, which is the finite-volume split of a source on a cell face)."""
+    heat = scene.conduction
+    plane = heat.interface if heat.interface is not None and heat.interface.flux != 0.0 else None
+    if heat.source == 0.0 and plane is None:
+        return None
+    power = heat.source * aut.volume
+    if plane is not None:
+        ax = plane.axis_index
+        a = float(aut.spacing[ax])
+        hat = np.maximum(0.0, 1.0 - np.abs(aut.positions[:, ax] - plane.position) / a)
+        face = np.prod(np.delete(aut.extent, ax, axis=1), axis=1)
+        power = power + plane.flux * face * hat
+    return power
 
 
 def held_temperatures(scene: Scene, aut: Automata) -> tuple[np.ndarray, np.ndarray]:
@@ -99,6 +168,8 @@ def held_temperatures(scene: Scene, aut: Automata) -> tuple[np.ndarray, np.ndarr
     held = np.zeros(aut.size, dtype=np.int64)
     values = np.full(aut.size, scene.conduction.initial_temperature, dtype=float)
     for c in scene.constraints:
+        if isinstance(c, (FaceSupport, FaceClamp)) and scene.elasticity is not None:
+            continue  # a mechanical support of a coupled scene: no heat condition
         if isinstance(c, FaceTemperature):
             idx = aut.on_face(c.face, scene.box.extent)
         elif isinstance(c, PointTemperature):

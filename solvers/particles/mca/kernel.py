@@ -1,4 +1,4 @@
-"""Numba kernels of the MCA solver: pair and many-body forces in incremental form, velocity Verlet.
+"""Numba kernel of the MCA mechanics: pair and many-body forces in incremental form, velocity Verlet.
 
 Pair state (per listed pair p = (i, j), n the unit vector from i to j, q = r0/2 on either side):
 - normal stress sig (tension > 0) and tangential stress vector tau (in the pair's tangent plane), both
@@ -7,43 +7,158 @@ Pair state (per listed pair p = (i, j), n the unit vector from i to j, q = r0/2 
 - linked (1) or unlinked (0).  Unlinked pairs carry compression only, sig = kc min(0, (r - r0)/r0), and
   Coulomb friction |tau| <= mu |sig|.
 Increments over one step (strain split: equal automata, so q_ij = q_ji = r0/2 and equal stresses give
-equal pair strains on both sides, see mca.py for the derivation of the many-body coefficient):
+equal pair strains on both sides; model.py derives the many-body coefficient):
     d sig = kn d r / r0 + lam (d theta_i + d theta_j) / 2,
     d tau = (2 G / r0) d delta_t,   d delta = d x_j - d x_i - q (d phi_i + d phi_j) x n  (contact points),
 theta_i = sum_j S_ij (r_ij - r0_ij) / (2 Omega_i) is the automaton's volume strain from the displacements
 of its contact points (eq. 9 of PHYSICS.md §4); kn = 2G and lam = 1 - 2G/(3K) times K with the many-body
 term, kn = E and lam = 0 without it (pair-only).  tau is carried to the new tangent plane each step
 (projection, magnitude kept).
-Automaton state: average stress (from the pair stresses, sigma = (1/Omega) sum q S (sig n n + sym(n tau))),
-equivalent plastic strain alpha (radial return), kappa (largest effective stress intensity) and damage d.
+Automaton state (the inelastic part): average stress (from the pair stresses, sigma = (1/Omega) sum q S
+(sig n n + sym(n tau))), equivalent plastic strain alpha (radial return), kappa (largest effective stress
+intensity) and damage d.
+
+The kernel family (kernels.py): a kernel takes (state, params, nsteps).  `State` holds every array (the
+automata, their pairs and fixes, and what a step advances) and `Params` the run's scalars, both
+typing.NamedTuple values that numba compiles as structures.  The parts a scene may not need -- rotations,
+the inelastic state (response functions, fracture), loads, contact of two bodies (contact.py), a moving
+damping frame -- are None in the state; numba prunes the
+branches on a None argument, so a scene without rotation compiles and runs no rotation terms.  Each
+combination of parts is compiled (and cached) once.
 """
 
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
 
-# float parameters (fp)
-F_DT, F_G, F_LAM, F_KN, F_KC, F_MU, F_GAMMA, F_T, F_TSTOP, F_SKIN, F_KEMAX = range(11)
-F_SC, F_KDP, F_SY, F_HP, F_SD, F_HDE, F_KROT, F_RELINK = range(11, 19)
-N_FP = 19
-# int parameters (ip)
-I_KIND, I_FRACTURE, I_ROT, I_RELINK, I_REC = range(5)
-N_IP = 5
+from . import contact as ct
+
+# fix kinds of a degree of freedom (State.fixm)
+FREE, PRESCRIBED = 0, 1
 # counters
 C_STEPS, C_STATUS, C_UNLINK, C_RELINK, C_PAIRSTEPS, C_ROWS = range(6)
 N_C = 6
-# energy accumulators
-E_WORK, E_DISS = range(2)
+# energy accumulators: work of the prescribed motions, energy removed by damping, work of the loads, energy
+# dissipated by contact friction
+E_WORK, E_DISS, E_LOAD, E_FRIC = range(4)
+N_E = 4
 # status codes
 OK, NAN, GROWTH, MOVED = 0, 1, 2, 3
 STATUS_TEXT = {OK: "ok", NAN: "non-finite state", GROWTH: "kinetic energy above the blow-up limit",
                MOVED: "an automaton moved further than the skin: pair list to be rebuilt"}
 # history columns
-H_T, H_KE, H_U, H_WORK, H_DISS, H_R1, H_R2, H_U1, H_LINKED, H_KEROT = range(10)
-N_H = 10
+H_T, H_KE, H_U, H_WORK, H_DISS, H_R1, H_R2, H_U1, H_LINKED, H_KEROT, H_LOAD, H_FRIC, H_FT, H_FN, H_NC = range(15)
+N_H = 15
+HISTORY_COLUMNS = ("t", "kinetic", "potential", "work", "dissipated", "reaction_zL", "reaction_z0", "u_zL", "linked",
+                   "kinetic_rot", "load_work", "friction_heat", "friction_force", "normal_force", "contacts")
+
+
+class Rotation(NamedTuple):
+    """Rotational degrees of freedom: angles, angular velocities, moments, the step's increments, inertia."""
+
+    phi: np.ndarray  # (N, 3)
+    w: np.ndarray  # (N, 3)
+    mom: np.ndarray  # (N, 3)
+    dphi: np.ndarray  # (N, 3)
+    inertia: np.ndarray  # (N,)
+
+
+class Inelastic(NamedTuple):
+    """Automaton state of response functions and fracture: damage, kappa, plastic strain, average stress,
+    equivalent stress, and two scratch arrays (return factor, mean stress)."""
+
+    dmg: np.ndarray
+    kappa: np.ndarray
+    alpha: np.ndarray
+    savg: np.ndarray  # (N, 6): xx, yy, zz, yz, xz, xy
+    seq: np.ndarray
+    mfac: np.ndarray
+    smean: np.ndarray
+
+
+class Load(NamedTuple):
+    """External forces on the automata (N), constant during a run."""
+
+    force: np.ndarray  # (N, 3)
+
+
+class Frame(NamedTuple):
+    """Reference velocities (N, 3) that damping acts relative to (scaled by the drive's ramp): a body driven
+    along at V is damped about its rigid motion at V, not about rest."""
+
+    vel: np.ndarray
+
+
+class State(NamedTuple):
+    """Every array of a mechanical run.  Fixed during a run: rest positions, masses, volumes, fixes (fixm: FREE
+    or PRESCRIBED per translation and rotation; fixv: the prescribed velocities), face groups of the record,
+    the pair list (pi, pj, r0, area).  Advanced: positions, velocities, forces, the step's displacement, the
+    positions at the last pair-list build, pair states, volume strains, the clock, counters, energy
+    accumulators and the history rows.  Optional parts: None when the run has none."""
+
+    x0: np.ndarray
+    mass: np.ndarray
+    vol: np.ndarray
+    fixm: np.ndarray  # (N, 6) uint8
+    fixv: np.ndarray  # (N, 6)
+    group: np.ndarray  # (N,) 1 = driven face, 2 = opposite face
+    pi: np.ndarray
+    pj: np.ndarray
+    r0: np.ndarray
+    area: np.ndarray
+    x: np.ndarray
+    v: np.ndarray
+    f: np.ndarray
+    dx: np.ndarray
+    xref: np.ndarray
+    linked: np.ndarray
+    sig: np.ndarray
+    tau: np.ndarray
+    rprev: np.ndarray
+    theta: np.ndarray
+    clock: np.ndarray  # (1,) time (s)
+    counters: np.ndarray
+    energy: np.ndarray
+    hist: np.ndarray  # (rows, N_H)
+    rot: Rotation | None
+    inel: Inelastic | None
+    load: Load | None
+    contact: ct.ContactState | None
+    frame: Frame | None = None
+
+
+class Params(NamedTuple):
+    """Scalars of a mechanical run (SI units).  kind: response function code (response.KINDS); with ramp > 0
+    the prescribed velocities rise smoothly from 0 at ramp_start to fixv at ramp_start + ramp."""
+
+    dt: float
+    shear: float
+    lam: float
+    kn: float
+    kc: float
+    mu: float
+    gamma: float
+    t_stop: float
+    skin: float
+    ke_max: float
+    krot: float
+    relink: float
+    sigma_c: float
+    kdp: float
+    sigma_y: float
+    hp: float
+    sigma_d: float
+    hde: float
+    kind: int
+    fracture: bool
+    relink_on: bool
+    record_every: int
+    ramp_start: float = 0.0
+    ramp: float = 0.0
 
 
 @njit(cache=True)
@@ -52,23 +167,40 @@ def _cross(a0, a1, a2, b0, b1, b2):
 
 
 @njit(cache=True)
-def compute_forces(x, phi, dx, dphi, vol, pi, pj, r0, area, linked, sig, tau, rprev, theta, dmg, kappa, alpha,
-                   savg, fp, ip, f, mom, nvec, rr, theta_new, mfac, smean, seq, counters):
-    """Update every pair's stress for the step's increments and return forces f and moments mom."""
+def forces(st, par):
+    """Forces (and moments) of the current positions for the step's increments st.dx (and dphi): one
+    evaluation of the pair-force function, outside time stepping."""
+    _evaluate(st, par, st.rot, st.inel, st.load, st.contact)
+
+
+@njit(cache=True)
+def _evaluate(st, par, rot, inel, load, con):
+    n_pair = st.pi.shape[0]
+    _forces(st, par, rot, inel, load, con, np.empty((n_pair, 3)), np.empty(n_pair), np.empty(st.x.shape[0]))
+
+
+@njit(cache=True, inline="always")
+def _forces(st, par, rot, inel, load, con, nvec, rr, theta_new):
+    """The pair-force function: update every pair's stress for the step's increments and return the forces
+    st.f (and moments rot.mom); nvec, rr, theta_new are scratch (pair normals, lengths, new volume strains).
+    Inlined into its callers (whose None arguments then prune it): called per step with the state, it cost
+    a reference count per array of the state, 2-5 % of a step at n = 4."""
+    x, pi, pj, r0, area, linked, sig, tau, rprev, theta = (st.x, st.pi, st.pj, st.r0, st.area, st.linked, st.sig,
+                                                          st.tau, st.rprev, st.theta)
+    f = st.f
     n_aut = x.shape[0]
     n_pair = pi.shape[0]
-    g_mod = fp[F_G]
-    lam = fp[F_LAM]
-    kn = fp[F_KN]
-    kc = fp[F_KC]
-    mu = fp[F_MU]
-    kind = ip[I_KIND]
-    rot = ip[I_ROT]
+    g_mod = par.shear
+    lam = par.lam
+    kn = par.kn
+    kc = par.kc
+    mu = par.mu
     for i in range(n_aut):
         theta_new[i] = 0.0
         for c in range(3):
             f[i, c] = 0.0
-            mom[i, c] = 0.0
+            if rot is not None:
+                rot.mom[i, c] = 0.0
     # pass 1: geometry and the automata's volume strain
     for p in range(n_pair):
         i = pi[p]
@@ -83,9 +215,12 @@ def compute_forces(x, phi, dx, dphi, vol, pi, pj, r0, area, linked, sig, tau, rp
         nvec[p, 2] = d2 / r
         if linked[p] == 1 or r < r0[p]:
             e = 0.5 * area[p] * (r - r0[p])
-            theta_new[i] += e / vol[i]
-            theta_new[j] += e / vol[j]
+            theta_new[i] += e / st.vol[i]
+            theta_new[j] += e / st.vol[j]
+    if con is not None:
+        ct.geometry(x, st.vol, con, theta_new)
     # pass 2: incremental pair stresses
+    dx = st.dx
     for p in range(n_pair):
         i = pi[p]
         j = pj[p]
@@ -111,11 +246,12 @@ def compute_forces(x, phi, dx, dphi, vol, pi, pj, r0, area, linked, sig, tau, rp
             t0 *= s
             t1 *= s
             t2 *= s
-        q = 0.5 * r0[p]
         e0 = dx[j, 0] - dx[i, 0]
         e1 = dx[j, 1] - dx[i, 1]
         e2 = dx[j, 2] - dx[i, 2]
-        if rot == 1:
+        if rot is not None:
+            q = 0.5 * r0[p]
+            dphi = rot.dphi
             c0, c1, c2 = _cross(dphi[i, 0] + dphi[j, 0], dphi[i, 1] + dphi[j, 1], dphi[i, 2] + dphi[j, 2], n0, n1, n2)
             e0 -= q * c0
             e1 -= q * c1
@@ -139,70 +275,29 @@ def compute_forces(x, phi, dx, dphi, vol, pi, pj, r0, area, linked, sig, tau, rp
         rprev[p] = r
     for i in range(n_aut):
         theta[i] = theta_new[i]
-    need_state = kind != 0 or ip[I_FRACTURE] == 1
-    if need_state:
-        _average_stress(vol, pi, pj, r0, area, sig, tau, nvec, savg)
-        for i in range(n_aut):
-            mfac[i] = 1.0
-            sm = (savg[i, 0] + savg[i, 1] + savg[i, 2]) / 3.0
-            smean[i] = sm
-            sint = _intensity(savg[i], sm)
-            if kind == 2 or kind == 3:
-                sy = fp[F_SY] + fp[F_HP] * alpha[i]
-                if sint > sy:
-                    dg = (sint - sy) / (3.0 * g_mod + fp[F_HP])
-                    alpha[i] += dg
-                    mfac[i] = (sy + fp[F_HP] * dg) / sint
-                    for c in range(3):
-                        savg[i, c] = sm + mfac[i] * (savg[i, c] - sm)
-                        savg[i, 3 + c] *= mfac[i]
-                    sint *= mfac[i]
-            if kind == 1 or kind == 3:
-                if sint > kappa[i]:
-                    kappa[i] = sint
-                if kappa[i] > fp[F_SD]:
-                    dmg[i] = 1.0 - (fp[F_SD] + fp[F_HDE] * (kappa[i] - fp[F_SD])) / kappa[i]
-            kdp = fp[F_KDP]
-            seq[i] = (1.0 - dmg[i]) * (0.5 * (kdp + 1.0) * sint + 1.5 * (kdp - 1.0) * sm)
-        if kind == 2 or kind == 3:
-            for p in range(n_pair):
-                if linked[p] == 1:
-                    i = pi[p]
-                    j = pj[p]
-                    mb = 0.5 * (mfac[i] + mfac[j])
-                    if mb < 1.0:
-                        smb = 0.5 * (smean[i] + smean[j])
-                        sig[p] = smb + mb * (sig[p] - smb)
-                        for c in range(3):
-                            tau[p, c] *= mb
-        if ip[I_FRACTURE] == 1:
-            for p in range(n_pair):
-                if linked[p] == 1 and 0.5 * (seq[pi[p]] + seq[pj[p]]) >= fp[F_SC]:
-                    linked[p] = 0
-                    counters[C_UNLINK] += 1
-                    sig[p] = kc * min(0.0, (rr[p] - r0[p]) / r0[p])
-                    cap = mu * abs(sig[p])
-                    mag = math.sqrt(tau[p, 0] ** 2 + tau[p, 1] ** 2 + tau[p, 2] ** 2)
-                    if mag > cap:
-                        for c in range(3):
-                            tau[p, c] *= cap / mag
-    if ip[I_RELINK] == 1:
+    if inel is not None:
+        _inelastic(pi, pj, r0, area, linked, sig, tau, st.vol, st.counters, par, inel, nvec, rr)
+    if par.relink_on:
         for p in range(n_pair):
-            if linked[p] == 0 and sig[p] <= -fp[F_RELINK]:
+            if linked[p] == 0 and sig[p] <= -par.relink:
                 linked[p] = 1
-                counters[C_RELINK] += 1
+                st.counters[C_RELINK] += 1
     # forces and moments
-    krot = fp[F_KROT] * g_mod
+    krot = par.krot * g_mod
     for p in range(n_pair):
         i = pi[p]
         j = pj[p]
-        db = area[p] * (1.0 - 0.5 * (dmg[i] + dmg[j]))
+        if inel is not None:
+            db = area[p] * (1.0 - 0.5 * (inel.dmg[i] + inel.dmg[j]))
+        else:
+            db = area[p]
         s = sig[p]
         for c in range(3):
             fc = db * (s * nvec[p, c] + tau[p, c])
             f[i, c] += fc
             f[j, c] -= fc
-        if rot == 1:
+        if rot is not None:
+            mom = rot.mom
             q = 0.5 * r0[p]
             m0, m1, m2 = _cross(nvec[p, 0], nvec[p, 1], nvec[p, 2], tau[p, 0], tau[p, 1], tau[p, 2])
             mom[i, 0] += q * db * m0
@@ -214,9 +309,74 @@ def compute_forces(x, phi, dx, dphi, vol, pi, pj, r0, area, linked, sig, tau, rp
             if krot > 0.0 and linked[p] == 1:
                 kr = krot * area[p] * r0[p]
                 for c in range(3):
-                    mr = kr * (phi[j, c] - phi[i, c])
+                    mr = kr * (rot.phi[j, c] - rot.phi[i, c])
                     mom[i, c] += mr
                     mom[j, c] -= mr
+    if con is not None:
+        ct.forces(x, st.v, f, theta, st.mass, kn, lam, par.dt, con)
+    if load is not None:
+        for i in range(n_aut):
+            for c in range(3):
+                f[i, c] += load.force[i, c]
+
+
+@njit(cache=True)
+def _inelastic(pi, pj, r0, area, linked, sig, tau, vol, counters, par, inel, nvec, rr):
+    """Average stress, plastic return, damage and fracture of the automata (response functions, PHYSICS.md §4).
+    Arrays, not the state: a structure passed to a function per step costs a reference count per array."""
+    n_aut = vol.shape[0]
+    n_pair = pi.shape[0]
+    kind = par.kind
+    g_mod = par.shear
+    savg, mfac, smean, alpha, kappa, dmg, seq = inel.savg, inel.mfac, inel.smean, inel.alpha, inel.kappa, inel.dmg, \
+        inel.seq
+    _average_stress(vol, pi, pj, r0, area, sig, tau, nvec, savg)
+    for i in range(n_aut):
+        mfac[i] = 1.0
+        sm = (savg[i, 0] + savg[i, 1] + savg[i, 2]) / 3.0
+        smean[i] = sm
+        sint = _intensity(savg[i], sm)
+        if kind == 2 or kind == 3:
+            sy = par.sigma_y + par.hp * alpha[i]
+            if sint > sy:
+                dg = (sint - sy) / (3.0 * g_mod + par.hp)
+                alpha[i] += dg
+                mfac[i] = (sy + par.hp * dg) / sint
+                for c in range(3):
+                    savg[i, c] = sm + mfac[i] * (savg[i, c] - sm)
+                    savg[i, 3 + c] *= mfac[i]
+                sint *= mfac[i]
+        if kind == 1 or kind == 3:
+            if sint > kappa[i]:
+                kappa[i] = sint
+            if kappa[i] > par.sigma_d:
+                dmg[i] = 1.0 - (par.sigma_d + par.hde * (kappa[i] - par.sigma_d)) / kappa[i]
+        kdp = par.kdp
+        seq[i] = (1.0 - dmg[i]) * (0.5 * (kdp + 1.0) * sint + 1.5 * (kdp - 1.0) * sm)
+    if kind == 2 or kind == 3:
+        for p in range(n_pair):
+            if linked[p] == 1:
+                i = pi[p]
+                j = pj[p]
+                mb = 0.5 * (mfac[i] + mfac[j])
+                if mb < 1.0:
+                    smb = 0.5 * (smean[i] + smean[j])
+                    sig[p] = smb + mb * (sig[p] - smb)
+                    for c in range(3):
+                        tau[p, c] *= mb
+    if par.fracture:
+        kc = par.kc
+        mu = par.mu
+        for p in range(n_pair):
+            if linked[p] == 1 and 0.5 * (seq[pi[p]] + seq[pj[p]]) >= par.sigma_c:
+                linked[p] = 0
+                counters[C_UNLINK] += 1
+                sig[p] = kc * min(0.0, (rr[p] - r0[p]) / r0[p])
+                cap = mu * abs(sig[p])
+                mag = math.sqrt(tau[p, 0] ** 2 + tau[p, 1] ** 2 + tau[p, 2] ** 2)
+                if mag > cap:
+                    for c in range(3):
+                        tau[p, c] *= cap / mag
 
 
 @njit(cache=True)
@@ -260,20 +420,22 @@ def _average_stress(vol, pi, pj, r0, area, sig, tau, nvec, savg):
 
 
 @njit(cache=True)
-def potential_energy(vol, r0, area, linked, tau, rr, theta, fp):
+def potential_energy(st, par, rr):
     """Elastic energy sum_p [kn S (r - r0)^2 / (2 r0) + S r0 |tau|^2 / (4G)] + sum_i lam Omega theta^2 / 2
-    (exact for the elastic, undamaged state the kernel integrates; unlinked pairs in contact use kc)."""
+    (exact for the elastic, undamaged state the kernel integrates; unlinked pairs in contact use kc);
+    rr: the pairs' current lengths."""
     u = 0.0
-    g_mod = fp[F_G]
+    g_mod = par.shear
+    r0, area, linked, tau, theta, vol = st.r0, st.area, st.linked, st.tau, st.theta, st.vol
     for p in range(r0.shape[0]):
         dr = rr[p] - r0[p]
         if linked[p] == 1:
-            u += 0.5 * fp[F_KN] * area[p] * dr * dr / r0[p]
+            u += 0.5 * par.kn * area[p] * dr * dr / r0[p]
         elif dr < 0.0:
-            u += 0.5 * fp[F_KC] * area[p] * dr * dr / r0[p]
+            u += 0.5 * par.kc * area[p] * dr * dr / r0[p]
         u += area[p] * r0[p] * (tau[p, 0] ** 2 + tau[p, 1] ** 2 + tau[p, 2] ** 2) / (4.0 * g_mod)
     for i in range(vol.shape[0]):
-        u += 0.5 * fp[F_LAM] * vol[i] * theta[i] * theta[i]
+        u += 0.5 * par.lam * vol[i] * theta[i] * theta[i]
     return u
 
 
@@ -297,87 +459,116 @@ def _second_half(u, load, damp, m, inv_m, dt):
 
 
 @njit(cache=True)
-def advance(x, v, phi, w, f, mom, dx, dphi, x0, xref, mass, inertia, vol, fixm, fixv, group,
-            pi, pj, r0, area, linked, sig, tau, rprev, theta, dmg, kappa, alpha, savg, seq,
-            fp, ip, nsteps, hist, counters, energy):
-    """Advance `nsteps` velocity-Verlet steps (f, mom hold the forces of the current state on entry).
+def advance(st, par, nsteps):
+    """Advance `nsteps` velocity-Verlet steps (st.f and the moments hold the forces of the current state on
+    entry); the status is left in st.counters[C_STATUS].
 
-    Constrained degrees of freedom (fixm[i, c] = 1; c = 0..2 translation, 3..5 rotation) move with the
-    prescribed velocity fixv[i, c] until time fp[F_TSTOP], then stay (the step across t_stop moves by the
-    remaining fraction, so the prescribed displacement is reached exactly).  Viscous damping gamma (1/s) acts
-    on the free ones (exact exponential decay per half step; the energy removed is accumulated).
-    Work of the constraints: trapezoid of sum (-f) . v over each step.  A history row every ip[I_REC]
-    steps.  Returns when done or when the state is non-finite, blows up, or moved beyond the skin."""
+    Prescribed degrees of freedom (fixm[i, c] = PRESCRIBED; c = 0..2 translation, 3..5 rotation) move with
+    fixv[i, c] (ramped in when par.ramp > 0) until time par.t_stop, then stay (the step across t_stop moves by
+    the remaining fraction, so the prescribed displacement is reached exactly).  Viscous damping gamma (1/s)
+    acts on the free ones (exact exponential decay per half step, of the velocity relative to st.frame's
+    reference velocities when there is a frame; the kinetic energy it removes is accumulated).  Work of
+    the prescribed motions: trapezoid of sum (-f) . v over each step; work of the loads: trapezoid of sum
+    f_load . v; friction dissipation of the contacts: their power times dt.  A history row every
+    par.record_every steps.  Returns when done or when the state is non-finite, blows up,
+    or moved beyond the skin."""
+    _advance(st, par, st.rot, st.inel, st.load, st.contact, st.frame, nsteps)
+
+
+@njit(cache=True)
+def _advance(st, par, rot, inel, load, con, frame, nsteps):
+    x, v, f, dx, fixm, fixv, mass = st.x, st.v, st.f, st.dx, st.fixm, st.fixv, st.mass
+    counters = st.counters
     n_aut = x.shape[0]
-    n_pair = pi.shape[0]
-    dt = fp[F_DT]
-    damp = math.exp(-0.5 * fp[F_GAMMA] * dt)
-    rot = ip[I_ROT]
+    n_pair = st.pi.shape[0]
+    dt = par.dt
+    damp = math.exp(-0.5 * par.gamma * dt)
     nvec = np.empty((n_pair, 3))
     rr = np.empty(n_pair)
     theta_new = np.empty(n_aut)
-    mfac = np.ones(n_aut)
-    smean = np.zeros(n_aut)
     inv_m = 1.0 / mass
-    inv_j = 1.0 / inertia
-    skin2 = fp[F_SKIN] * fp[F_SKIN]
-    power_old = _power(f, mom, v, w, fixm, rot)
+    if rot is not None:
+        inertia = rot.inertia
+        inv_j = 1.0 / inertia
+    skin2 = par.skin * par.skin
+    power_old = _power(f, v, fixm, rot)
+    load_old = _load_power(v, load)
     for _ in range(nsteps):
-        t = fp[F_T]
-        drive = min(1.0, max(0.0, (fp[F_TSTOP] - t) / dt))  # the last partial step lands on t_stop exactly
+        t = st.clock[0]
+        drive = _drive(par, t, dt)
         diss = 0.0
         for i in range(n_aut):
             for c in range(3):
-                if fixm[i, c] == 1:
+                if fixm[i, c] == PRESCRIBED:
                     v[i, c] = fixv[i, c] * drive
+                elif frame is not None:
+                    ref = frame.vel[i, c] * drive
+                    un = ref + (v[i, c] - ref) * damp
+                    diss += 0.5 * mass[i] * (v[i, c] * v[i, c] - un * un)
+                    v[i, c] = un + 0.5 * dt * f[i, c] * inv_m[i]
                 else:
                     v[i, c], e = _first_half(v[i, c], f[i, c], damp, mass[i], inv_m[i], dt)
                     diss += e
                 dx[i, c] = dt * v[i, c]
                 x[i, c] += dx[i, c]
-                if rot == 1:
-                    if fixm[i, 3 + c] == 1:
+                if rot is not None:
+                    w = rot.w
+                    if fixm[i, 3 + c] == PRESCRIBED:
                         w[i, c] = fixv[i, 3 + c] * drive
                     else:
-                        w[i, c], e = _first_half(w[i, c], mom[i, c], damp, inertia[i], inv_j[i], dt)
+                        w[i, c], e = _first_half(w[i, c], rot.mom[i, c], damp, inertia[i], inv_j[i], dt)
                         diss += e
-                    dphi[i, c] = dt * w[i, c]
-                    phi[i, c] += dphi[i, c]
-        fp[F_T] = t + dt
-        compute_forces(x, phi, dx, dphi, vol, pi, pj, r0, area, linked, sig, tau, rprev, theta, dmg, kappa,
-                       alpha, savg, fp, ip, f, mom, nvec, rr, theta_new, mfac, smean, seq, counters)
+                    rot.dphi[i, c] = dt * w[i, c]
+                    rot.phi[i, c] += rot.dphi[i, c]
+        st.clock[0] = t + dt
+        _forces(st, par, rot, inel, load, con, nvec, rr, theta_new)
         ke = 0.0
         kerot = 0.0
         moved = False
         for i in range(n_aut):
             for c in range(3):
-                if fixm[i, c] == 0:
-                    v[i, c], e = _second_half(v[i, c], f[i, c], damp, mass[i], inv_m[i], dt)
-                    diss += e
+                if fixm[i, c] == FREE:
+                    if frame is not None:
+                        ref = frame.vel[i, c] * drive
+                        uh = v[i, c] + 0.5 * dt * f[i, c] * inv_m[i]
+                        vn = ref + (uh - ref) * damp
+                        diss += 0.5 * mass[i] * (uh * uh - vn * vn)
+                        v[i, c] = vn
+                    else:
+                        v[i, c], e = _second_half(v[i, c], f[i, c], damp, mass[i], inv_m[i], dt)
+                        diss += e
                 ke += 0.5 * mass[i] * v[i, c] * v[i, c]
-                if rot == 1:
-                    if fixm[i, 3 + c] == 0:
-                        w[i, c], e = _second_half(w[i, c], mom[i, c], damp, inertia[i], inv_j[i], dt)
+                if rot is not None:
+                    w = rot.w
+                    if fixm[i, 3 + c] == FREE:
+                        w[i, c], e = _second_half(w[i, c], rot.mom[i, c], damp, inertia[i], inv_j[i], dt)
                         diss += e
                     kerot += 0.5 * inertia[i] * w[i, c] * w[i, c]
-            dd = (x[i, 0] - xref[i, 0]) ** 2 + (x[i, 1] - xref[i, 1]) ** 2 + (x[i, 2] - xref[i, 2]) ** 2
+            dd = (x[i, 0] - st.xref[i, 0]) ** 2 + (x[i, 1] - st.xref[i, 1]) ** 2 + (x[i, 2] - st.xref[i, 2]) ** 2
             if dd > skin2:
                 moved = True
-        power = _power(f, mom, v, w, fixm, rot)
-        energy[E_WORK] += 0.5 * dt * (power_old + power)
-        energy[E_DISS] += diss
+        power = _power(f, v, fixm, rot)
+        st.energy[E_WORK] += 0.5 * dt * (power_old + power)
+        st.energy[E_DISS] += diss
         power_old = power
+        if load is not None:
+            load_new = _load_power(v, load)
+            st.energy[E_LOAD] += 0.5 * dt * (load_old + load_new)
+            load_old = load_new
+        if con is not None:
+            st.energy[E_FRIC] += ct.after_step(con, dt)
         counters[C_STEPS] += 1
         counters[C_PAIRSTEPS] += n_pair
-        rec = ip[I_REC] > 0 and counters[C_STEPS] % ip[I_REC] == 0 and counters[C_ROWS] < hist.shape[0]
+        hist = st.hist
+        rec = par.record_every > 0 and counters[C_STEPS] % par.record_every == 0 and counters[C_ROWS] < hist.shape[0]
         if not (math.isfinite(ke) and math.isfinite(kerot)):
             counters[C_STATUS] = NAN
             return
-        if ke + kerot > fp[F_KEMAX]:
+        if ke + kerot > par.ke_max:
             counters[C_STATUS] = GROWTH
             rec = counters[C_ROWS] < hist.shape[0]
         if rec:
-            _record(hist, counters, fp, ke, kerot, energy, vol, r0, area, linked, tau, rr, theta, f, group, x, x0)
+            _record(st, par, con, ke, kerot, rr)
         if counters[C_STATUS] != OK:
             return
         if moved:
@@ -386,20 +577,50 @@ def advance(x, v, phi, w, f, mom, dx, dphi, x0, xref, mass, inertia, vol, fixm, 
 
 
 @njit(cache=True)
-def _power(f, mom, v, w, fixm, rot):
-    """Power of the constraints on the automata: sum over constrained dofs of (-force) . velocity."""
+def _drive(par, t, dt):
+    """Factor of the prescribed velocities over the step from t: the stop (the last partial step lands on
+    t_stop exactly) times the smooth ramp."""
+    drive = min(1.0, max(0.0, (par.t_stop - t) / dt))
+    if par.ramp > 0.0:
+        drive *= _smoothstep((t + 0.5 * dt - par.ramp_start) / par.ramp)
+    return drive
+
+
+@njit(inline="always")
+def _smoothstep(s):
+    """0 below 0, 1 above 1, s^2 (3 - 2 s) between: a velocity ramp with continuous acceleration."""
+    s = min(1.0, max(0.0, s))
+    return s * s * (3.0 - 2.0 * s)
+
+
+@njit(cache=True)
+def _power(f, v, fixm, rot):
+    """Power of the prescribed motions on the automata: sum over prescribed dofs of (-force) . velocity."""
     pw = 0.0
     for i in range(f.shape[0]):
         for c in range(3):
-            if fixm[i, c] == 1:
+            if fixm[i, c] == PRESCRIBED:
                 pw -= f[i, c] * v[i, c]
-            if rot == 1 and fixm[i, 3 + c] == 1:
-                pw -= mom[i, c] * w[i, c]
+            if rot is not None:
+                if fixm[i, 3 + c] == PRESCRIBED:
+                    pw -= rot.mom[i, c] * rot.w[i, c]
     return pw
 
 
 @njit(cache=True)
-def _record(hist, counters, fp, ke, kerot, energy, vol, r0, area, linked, tau, rr, theta, f, group, x, x0):
+def _load_power(v, load):
+    """Power of the external loads: sum f_load . v."""
+    pw = 0.0
+    if load is not None:
+        for i in range(v.shape[0]):
+            for c in range(3):
+                pw += load.force[i, c] * v[i, c]
+    return pw
+
+
+@njit(cache=True)
+def _record(st, par, con, ke, kerot, rr):
+    hist, counters, f, x, x0, group = st.hist, st.counters, st.f, st.x, st.x0, st.group
     row = counters[C_ROWS]
     r1 = 0.0
     r2 = 0.0
@@ -413,16 +634,21 @@ def _record(hist, counters, fp, ke, kerot, energy, vol, r0, area, linked, tau, r
         elif group[i] == 2:
             r2 -= f[i, 2]
     nl = 0
-    for p in range(linked.shape[0]):
-        nl += linked[p]
-    hist[row, H_T] = fp[F_T]
+    for p in range(st.linked.shape[0]):
+        nl += st.linked[p]
+    hist[row, H_T] = st.clock[0]
     hist[row, H_KE] = ke + kerot
-    hist[row, H_U] = potential_energy(vol, r0, area, linked, tau, rr, theta, fp)
-    hist[row, H_WORK] = energy[E_WORK]
-    hist[row, H_DISS] = energy[E_DISS]
+    hist[row, H_U] = potential_energy(st, par, rr)
+    hist[row, H_WORK] = st.energy[E_WORK]
+    hist[row, H_DISS] = st.energy[E_DISS]
     hist[row, H_R1] = r1
     hist[row, H_R2] = r2
     hist[row, H_U1] = u1 / max(n1, 1)
     hist[row, H_LINKED] = nl
     hist[row, H_KEROT] = kerot
+    hist[row, H_LOAD] = st.energy[E_LOAD]
+    if con is not None:
+        hist[row, H_U] += par.kn * ct.energy(con)
+        hist[row, H_FRIC] = st.energy[E_FRIC]
+        hist[row, H_FT], hist[row, H_FN], hist[row, H_NC] = ct.resultants(con)
     counters[C_ROWS] = row + 1

@@ -1,14 +1,14 @@
 """MCA model: material constants, the automata's state and the two ways of running it.
 
-`Model` binds automata, elastic constants and the kernel's parameters; `State` holds every array the
-kernel advances.  `run` integrates in time (dynamic loading, energy history); `relax` integrates with
-viscous damping until the residual force on the free degrees of freedom is below a tolerance
-(dynamic relaxation: the quasi-static approach for static scenes).
+`Model` binds automata, elastic constants, fixes and loads and builds the kernel's parameters and its rest
+state (kernel.State, kernel.Params).  `Model.advance` integrates in time (dynamic loading, energy history);
+`relax` integrates with viscous damping until the residual force on the free degrees of freedom is below a
+tolerance (dynamic relaxation: the quasi-static approach for static scenes).
 
 Many-body coefficient (PHYSICS.md §4 gives 1 - 2G/K and 1 - 2G/(3K)).  The pair's normal stress is
     sig_ij = 2 G eps_ij + D P_i,  P_i = K theta_i (mean stress of the automaton, theta its volume strain),
 eps_ij = n.eps.n the normal strain of the pair.  For a homogeneous strain eps of the lattice every automaton
-has theta = tr eps (the geometric identities of mca_lattice), so sig_ij = n.(2 G eps + D K tr(eps) I).n,
+has theta = tr eps (the geometric identities of automata.py), so sig_ij = n.(2 G eps + D K tr(eps) I).n,
 which is Hooke's law n.sigma.n = n.(2 G eps + lambda tr(eps) I).n for every direction n exactly when
     D K = lambda = K - 2G/3,  i.e.  D = 1 - 2G/(3K).
 The other form, D = 1 - 2G/K, gives lambda' = K - 2G and so Poisson's ratio lambda'/(2(lambda' + G))
@@ -22,7 +22,6 @@ normal springs along the cube axes has no lateral coupling, so nu_eff = 0 (measu
 from __future__ import annotations
 
 import math
-import time
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -30,9 +29,11 @@ from scipy.spatial import cKDTree
 
 from pcverify.scene import Response, SceneError
 
+from . import contact as ct
 from . import kernel as mk
 from . import response as rf
 from .automata import Automata
+from .kernels import timed
 from .stiffness import mass_diagonal, omega_max_bound, stiffness
 
 COEFFICIENTS = ("hooke", "psakhie-2G/K")
@@ -83,36 +84,9 @@ class Elastic:
 
 
 @dataclass(eq=False)
-class State:
-    """Every array the kernel advances (see mca_kernel for the meaning)."""
-
-    x: np.ndarray
-    v: np.ndarray
-    phi: np.ndarray
-    w: np.ndarray
-    f: np.ndarray
-    mom: np.ndarray
-    dx: np.ndarray
-    dphi: np.ndarray
-    xref: np.ndarray
-    linked: np.ndarray
-    sig: np.ndarray
-    tau: np.ndarray
-    rprev: np.ndarray
-    theta: np.ndarray
-    dmg: np.ndarray
-    kappa: np.ndarray
-    alpha: np.ndarray
-    savg: np.ndarray
-    seq: np.ndarray
-    counters: np.ndarray = field(default_factory=lambda: np.zeros(mk.N_C, dtype=np.int64))
-    energy: np.ndarray = field(default_factory=lambda: np.zeros(2))
-    kernel_s: float = 0.0
-
-
-@dataclass(eq=False)
 class Model:
-    """Automata + constants + constraints: everything fixed during a run except `fp`'s clock."""
+    """Automata + constants + fixes + loads: everything fixed during a run.  `params` are the kernel's scalars
+    (a NamedTuple: replace fields with `_replace` to change the drive's stop time between runs)."""
 
     aut: Automata
     elastic: Elastic
@@ -124,16 +98,20 @@ class Model:
     relink_stress: float | None = None
     cfl: float = 0.5
     gamma: float = 0.0
-    fixm: np.ndarray = field(default=None)  # (N, 6) uint8
+    fixm: np.ndarray = field(default=None)  # (N, 6) uint8: kernel.FREE or PRESCRIBED
     fixv: np.ndarray = field(default=None)  # (N, 6) prescribed velocities
     group: np.ndarray = field(default=None)  # (N,) 1 = driven face, 2 = opposite face
     t_stop: float = math.inf
     skin: float = 0.25  # in units of the smallest spacing
     ke_limit: float = math.inf  # kinetic energy above which the run stops as blown up (J)
-    fp: np.ndarray = field(init=False)
-    ip: np.ndarray = field(init=False)
+    load: np.ndarray | None = None  # (N, 3) external forces (N), constant
+    contact: ct.ContactLaw | None = None  # the contact law of body 2's surface on body 1's (aut.body set)
+    step_automata: Automata | None = None  # automata whose stiffness bounds the step (default aut)
+    frame: np.ndarray | None = None  # (N, 3) reference velocities of the damping (ramped with the drive)
+    params: mk.Params = field(init=False)
     dt: float = field(init=False)
     omega_max: float = field(init=False)
+    kernel_s: float = field(init=False, default=0.0)  # seconds in the kernel's steps (dispatch excluded)
 
     def __post_init__(self) -> None:
         n = self.aut.size
@@ -144,66 +122,63 @@ class Model:
         if self.group is None:
             self.group = np.zeros(n, dtype=np.int64)
         if not self.rotations:
-            self.fixm[:, 3:] = 1
+            self.fixm[:, 3:] = mk.PRESCRIBED
             self.fixv[:, 3:] = 0.0
         el = self.elastic
-        k = stiffness(self.aut, el.shear, el.lam, el.kn, self.krot, rotations=True)
-        self.omega_max = omega_max_bound(k, mass_diagonal(self.aut, rotations=True))
+        bound = self.aut if self.step_automata is None else self.step_automata
+        k = stiffness(bound, el.shear, el.lam, el.kn, self.krot, rotations=True)
+        self.omega_max = omega_max_bound(k, mass_diagonal(bound, rotations=True))
         self.dt = 2.0 * self.cfl / self.omega_max
-        code = rf.kind_code(self.response)
-        fp = np.zeros(mk.N_FP)
-        fp[mk.F_DT] = self.dt
-        fp[mk.F_G], fp[mk.F_LAM], fp[mk.F_KN], fp[mk.F_KC] = el.shear, el.lam, el.kn, el.contact
-        fp[mk.F_MU], fp[mk.F_GAMMA], fp[mk.F_TSTOP] = self.friction, self.gamma, self.t_stop
-        fp[mk.F_SKIN] = self.skin * float(self.aut.spacing.min())
-        fp[mk.F_KEMAX] = self.ke_limit
-        fp[mk.F_SC:mk.F_HDE + 1] = rf.kernel_params(self.response, el.youngs)
-        fp[mk.F_KROT] = self.krot
-        fp[mk.F_RELINK] = math.inf if self.relink_stress is None else self.relink_stress
-        self.fp = fp
-        ip = np.zeros(mk.N_IP, dtype=np.int64)
-        ip[mk.I_KIND] = code
-        ip[mk.I_FRACTURE] = int(self.fracture)
-        ip[mk.I_ROT] = int(self.rotations)
-        ip[mk.I_RELINK] = int(self.relink_stress is not None)
-        self.ip = ip
+        sc, kdp, sy, hp, sd, hde = rf.kernel_params(self.response, el.youngs)
+        self.params = mk.Params(
+            dt=float(self.dt), shear=float(el.shear), lam=float(el.lam), kn=float(el.kn), kc=float(el.contact),
+            mu=float(self.friction), gamma=float(self.gamma), t_stop=float(self.t_stop),
+            skin=self.skin * float(self.aut.spacing.min()), ke_max=float(self.ke_limit), krot=float(self.krot),
+            relink=math.inf if self.relink_stress is None else float(self.relink_stress), sigma_c=float(sc),
+            kdp=float(kdp), sigma_y=float(sy), hp=float(hp), sigma_d=float(sd), hde=float(hde),
+            kind=rf.kind_code(self.response), fracture=bool(self.fracture), relink_on=self.relink_stress is not None,
+            record_every=0)
 
     @property
-    def time(self) -> float:
-        return float(self.fp[mk.F_T])
+    def inelastic(self) -> bool:
+        """Whether the automata carry the inelastic state (a response function or fracture)."""
+        return self.params.kind != 0 or self.params.fracture
 
-    def new_state(self) -> State:
-        """The rest state: undeformed, linked, at rest except the prescribed velocities."""
+    def new_state(self, hist_rows: int = 0) -> mk.State:
+        """The rest state: undeformed, linked, at rest except the prescribed velocities; room for `hist_rows`
+        history rows."""
         a = self.aut
         n, p = a.size, len(a.pairs)
         v = self.fixv[:, :3] * self.fixm[:, :3]
         w = self.fixv[:, 3:] * self.fixm[:, 3:]
         z3 = np.zeros((n, 3))
-        return State(x=a.positions.copy(), v=v.copy(), phi=z3.copy(), w=w.copy(), f=z3.copy(), mom=z3.copy(),
-                     dx=z3.copy(), dphi=z3.copy(), xref=a.positions.copy(), linked=np.ones(p, dtype=np.int64),
-                     sig=np.zeros(p), tau=np.zeros((p, 3)), rprev=a.r0.copy(), theta=np.zeros(n), dmg=np.zeros(n),
-                     kappa=np.zeros(n), alpha=np.zeros(n), savg=np.zeros((n, 6)), seq=np.zeros(n))
+        rot = mk.Rotation(phi=z3.copy(), w=w.copy(), mom=z3.copy(), dphi=z3.copy(), inertia=a.inertia) \
+            if self.rotations else None
+        inel = mk.Inelastic(dmg=np.zeros(n), kappa=np.zeros(n), alpha=np.zeros(n), savg=np.zeros((n, 6)),
+                            seq=np.zeros(n), mfac=np.ones(n), smean=np.zeros(n)) if self.inelastic else None
+        load = None if self.load is None else mk.Load(np.asarray(self.load, dtype=float))
+        return mk.State(x0=a.positions, mass=a.mass, vol=a.volume, fixm=self.fixm, fixv=self.fixv, group=self.group,
+                        pi=a.pairs[:, 0].copy(), pj=a.pairs[:, 1].copy(), r0=a.r0, area=a.area,
+                        x=a.positions.copy(), v=v.copy(), f=z3.copy(), dx=z3.copy(), xref=a.positions.copy(),
+                        linked=np.ones(p, dtype=np.int64), sig=np.zeros(p), tau=np.zeros((p, 3)), rprev=a.r0.copy(),
+                        theta=np.zeros(n), clock=np.zeros(1), counters=np.zeros(mk.N_C, dtype=np.int64),
+                        energy=np.zeros(mk.N_E), hist=np.zeros((hist_rows, mk.N_H)), rot=rot, inel=inel, load=load,
+                        contact=None if self.contact is None else ct.new_state(a, a.positions, self.contact,
+                                                                               self.params.skin),
+                        frame=None if self.frame is None else mk.Frame(np.asarray(self.frame, dtype=float)))
 
-    def advance(self, st: State, nsteps: int, hist: np.ndarray | None = None, record_every: int = 0) -> int:
-        """Run up to `nsteps` steps; returns the kernel status (mca_kernel.OK, NAN, GROWTH, MOVED)."""
-        a = self.aut
-        if hist is None:
-            hist = np.zeros((0, mk.N_H))
-        self.ip[mk.I_REC] = record_every
+    def advance(self, st: mk.State, nsteps: int, record_every: int = 0) -> int:
+        """Run up to `nsteps` steps, a history row every `record_every` steps (rows from 0 in st.hist); returns
+        the kernel status (kernel.OK, NAN, GROWTH, MOVED)."""
         st.counters[mk.C_ROWS] = 0
-        t0 = time.perf_counter()
-        mk.advance(st.x, st.v, st.phi, st.w, st.f, st.mom, st.dx, st.dphi, a.positions, st.xref, a.mass, a.inertia,
-                   a.volume, self.fixm, self.fixv, self.group, a.pairs[:, 0].copy(), a.pairs[:, 1].copy(), a.r0,
-                   a.area, st.linked, st.sig, st.tau, st.rprev, st.theta, st.dmg, st.kappa, st.alpha, st.savg,
-                   st.seq, self.fp, self.ip, int(nsteps), hist, st.counters, st.energy)
-        st.kernel_s += time.perf_counter() - t0
-        status = int(st.counters[mk.C_STATUS])
-        return status
+        self.kernel_s += timed("mechanics", st, self.params._replace(record_every=int(record_every)), int(nsteps))
+        return int(st.counters[mk.C_STATUS])
 
-    def residual(self, st: State) -> float:
+    def residual(self, st: mk.State) -> float:
         """Largest force (or moment / spacing) on a free degree of freedom."""
-        free_f = np.where(self.fixm[:, :3] == 0, st.f, 0.0)
-        free_m = np.where(self.fixm[:, 3:] == 0, st.mom, 0.0) / float(self.aut.spacing.min())
+        free_f = np.where(self.fixm[:, :3] == mk.FREE, st.f, 0.0)
+        mom = st.rot.mom if st.rot is not None else np.zeros_like(st.f)
+        free_m = np.where(self.fixm[:, 3:] == mk.FREE, mom, 0.0) / float(self.aut.spacing.min())
         return float(max(np.abs(free_f).max(initial=0.0), np.abs(free_m).max(initial=0.0)))
 
     def relaxation_rate(self) -> float:
@@ -217,10 +192,10 @@ class Model:
         return math.pi * c / (4.0 * float(ext.max()))
 
 
-def relax(model: Model, st: State, force_scale: float, tol: float = 1e-8, chunk: int = 500,
+def relax(model: Model, st: mk.State, force_scale: float, tol: float = 1e-8, chunk: int = 500,
           max_steps: int = 2_000_000) -> tuple[int, float, int]:
     """Damped run until max residual force <= tol * force_scale, never before the drive has stopped
-    (time >= fp[F_TSTOP]); returns (status, residual, steps)."""
+    (time >= params.t_stop); returns (status, residual, steps)."""
     steps = 0
     res = math.inf
     status = mk.OK
@@ -228,13 +203,25 @@ def relax(model: Model, st: State, force_scale: float, tol: float = 1e-8, chunk:
         status = model.advance(st, chunk)
         steps += chunk
         res = model.residual(st) / force_scale
-        if status != mk.OK or (res <= tol and model.time >= model.fp[mk.F_TSTOP]):
+        if status != mk.OK or (res <= tol and st.clock[0] >= model.params.t_stop):
             break
     return status, res, steps
 
 
-def rebuild_pairs(model: Model, st: State) -> int:
-    """Extend the pair list after automata moved beyond the skin; returns the number of pairs added.
+def relax_status(code: int, res: float, tol: float, steps: int, max_steps: int) -> tuple[str, str]:
+    """(Solution status, reason) of a relaxation that ended with kernel status `code` and residual `res`."""
+    if code in (mk.NAN, mk.GROWTH):
+        return "unstable", f"{mk.STATUS_TEXT[code]} after {steps} steps; state at that step kept"
+    if code == mk.MOVED:
+        return "failed", mk.STATUS_TEXT[code]
+    if not res <= tol:
+        return "failed", f"residual {res:.3g} above relax_tol {tol:g} after {steps} steps (max_steps {max_steps})"
+    return "ok", ""
+
+
+def rebuild_pairs(model: Model, st: mk.State) -> tuple[mk.State, int]:
+    """Extend the pair list (and relist the contact candidates) after automata moved beyond the skin;
+    returns the new state and the number of pairs added.
 
     Listed pairs keep their state (an unlinked pair stays listed: it may come back into contact).  Every
     unlisted pair of automata closer than d (1 + 2 skin) -- d = the smallest spacing, the automata's
@@ -245,20 +232,25 @@ def rebuild_pairs(model: Model, st: State) -> int:
     d = float(aut.spacing.min())
     cand = cKDTree(st.x).query_pairs(d * (1 + 2 * model.skin), output_type="ndarray").astype(np.int64)
     cand = np.sort(cand, axis=1)
+    if aut.body is not None:  # bodies meet through the contact, never through pairs
+        cand = cand[aut.body[cand[:, 0]] == aut.body[cand[:, 1]]]
     n = aut.size
     listed = np.sort(aut.pairs, axis=1)
     new = cand[~np.isin(cand[:, 0] * n + cand[:, 1], listed[:, 0] * n + listed[:, 1])]
     st.xref[:] = st.x
     st.counters[mk.C_STATUS] = mk.OK
+    if st.contact is not None:
+        st = st._replace(contact=ct.relisted(st.contact, aut, st.x, model.params.skin))
     if len(new) == 0:
-        return 0
+        return st, 0
     face = aut.volume ** (2.0 / 3.0)
     r = np.linalg.norm(st.x[new[:, 1]] - st.x[new[:, 0]], axis=1)
-    model.aut = replace(aut, pairs=np.concatenate([aut.pairs, new]), r0=np.concatenate([aut.r0, np.full(len(new), d)]),
-                        area=np.concatenate([aut.area, 0.5 * (face[new[:, 0]] + face[new[:, 1]])]),
-                        axis=np.concatenate([aut.axis, np.full(len(new), -1)]))
-    st.linked = np.concatenate([st.linked, np.zeros(len(new), dtype=np.int64)])
-    st.sig = np.concatenate([st.sig, np.zeros(len(new))])
-    st.tau = np.concatenate([st.tau, np.zeros((len(new), 3))])
-    st.rprev = np.concatenate([st.rprev, r])
-    return int(len(new))
+    model.aut = aut = replace(aut, pairs=np.concatenate([aut.pairs, new]),
+                              r0=np.concatenate([aut.r0, np.full(len(new), d)]),
+                              area=np.concatenate([aut.area, 0.5 * (face[new[:, 0]] + face[new[:, 1]])]),
+                              axis=np.concatenate([aut.axis, np.full(len(new), -1)]))
+    st = st._replace(pi=aut.pairs[:, 0].copy(), pj=aut.pairs[:, 1].copy(), r0=aut.r0, area=aut.area,
+                     linked=np.concatenate([st.linked, np.zeros(len(new), dtype=np.int64)]),
+                     sig=np.concatenate([st.sig, np.zeros(len(new))]),
+                     tau=np.concatenate([st.tau, np.zeros((len(new), 3))]), rprev=np.concatenate([st.rprev, r]))
+    return st, int(len(new))

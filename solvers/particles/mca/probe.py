@@ -21,6 +21,7 @@ from pcverify.solvers.protocol import ProbeRun, ProbeSetup, Solver, effective_pa
 
 from . import heat as mca_heat
 from .automata import bar_automata
+from .kernels import KERNELS
 
 HEAT_STEPS = 20_000  # a mode amplified by 1 + 1e-3 per step grows e^20 times: bisection to 1e-3 resolves it
 THEORY = ("velocity Verlet: undamped, stable for omega_max dt < 2; MCA sets dt = cfl * 2 / omega_G with omega_G >= "
@@ -89,9 +90,9 @@ class McaProbe:
         # a seeded 1e-9 t_max perturbation of the free automata excites every mode: symmetric data alone
         # never reach the antisymmetric top mode, and the measured limit would be that of the symmetric modes
         noise = np.random.default_rng(0).standard_normal(aut.size) * 1e-9 * t_max * (held == 0)
-        temp = mca_heat.explicit_run(values.astype(float) + noise, cap, aut.pairs[:, 0].copy(),
-                                     aut.pairs[:, 1].copy(), g, held.astype(np.int64), dt, HEAT_STEPS)
-        rel = temp / t_max
+        st = mca_heat.heat_state(aut, values.astype(float) + noise, cap, g, held)
+        KERNELS["heat"](st, mca_heat.HeatParams(dt), HEAT_STEPS)
+        rel = st.temp / t_max
         blown = not bool(np.all(np.isfinite(rel))) or float(np.max(np.abs(rel - 0.5))) > 1.5
         status, reason = ("unstable", "temperature left [-1, 2] t_max (or not finite)") if blown else ("ok", "")
         return ProbeRun(status=status, reason=reason, dt=dt, dt_ratio=dt_ratio, steps=HEAT_STEPS,

@@ -1,11 +1,11 @@
 """The movable cellular automaton (MCA) solver: elasticity, fracture, eigenfrequencies and heat of the bar.
 
-Pieces: `mca_lattice` (automata: Voronoi cells of the bar's simple-cubic lattice, d = a), `mca_kernel`
-(numba: incremental pair and many-body stresses, rotations, response functions, unlinking, velocity
-Verlet), `mca_model` (constants, state, dynamic relaxation; the derivation of the many-body coefficient
-is in its docstring), `mca_stiffness` (the linearised model: modes, stable step), `mca_heat` (conduction
-between linked automata), `response` (sigma = f(eps) and its exact uniaxial curve).  This module maps a
-scene onto them and turns the results into a Solution.
+Pieces: `automata` (Voronoi cells of the bar's simple-cubic lattice, d = a), `kernel` (numba: incremental
+pair and many-body stresses, rotations, response functions, unlinking, velocity Verlet), `kernels` (the
+kernel family by name, one signature), `model` (constants, rest state, dynamic relaxation; the derivation of
+the many-body coefficient is in its docstring), `stiffness` (the linearised model: modes, stable step),
+`heat` (conduction between linked automata), `response` (sigma = f(eps) and its exact uniaxial curve).  This
+module maps a scene onto them and turns the results into a Solution.
 
 Scenes:
 - conduction (bar-heat-*): steady by a direct solve of the automata's heat balance, transient by explicit
@@ -49,7 +49,9 @@ from . import heat as mca_heat
 from . import kernel as mk
 from . import response as rf
 from .automata import Automata, bar_automata
-from .model import COEFFICIENTS, Elastic, Model, rebuild_pairs, relax
+from .contact_scenes import solve_contact
+from .kernels import timed
+from .model import COEFFICIENTS, Elastic, Model, rebuild_pairs, relax, relax_status
 from .probe import McaProbe
 from .stiffness import mass_diagonal, stiffness
 
@@ -78,7 +80,31 @@ PARAMETERS: tuple[Param, ...] = (
     Param("max_steps", 5_000_000, "", "largest number of time steps of a run", low=1, high=1e9, kind=int),
     Param("heat_cfl", 0.9, "", "heat: explicit step as a fraction of the Gershgorin-stable step", low=0.0,
           high=1.0, low_open=True),
-    Param("records", 2000, "", "fracture: history rows kept", low=10, high=1e6, kind=int),
+    Param("records", 2000, "", "fracture and sliding: history rows kept", low=10, high=1e6, kind=int),
+    Param("mu0", 0.0, "Pa s/m", "contact friction, viscous part: tau = mu0 |V_t| + ...", low=0.0, high=1e12),
+    Param("mu1", 0.3, "", "contact friction, dry part: mu1 (1 + K_mu) min(sigma_N, sigma0) (Coulomb)", low=0.0,
+          high=5.0),
+    Param("sigma0", None, "Pa", "contact friction: cap of the normal stress that counts (elastic limit; none = no "
+          "cap)", low=0.0, high=1e12, low_open=True, optional=True),
+    Param("v_reg", 0.05, "m/s", "contact friction: below this tangential speed the dry part is regularised "
+          "linearly (no static friction)", low=0.0, high=1e3, low_open=True),
+    Param("roughness_a1", 0.0, "", "micro-roughness K_mu, sinusoid 1: mean amplitude A1/A (0 = no roughness)",
+          low=0.0, high=10.0),
+    Param("roughness_a2", 0.0, "", "micro-roughness K_mu, sinusoid 2: mean amplitude A2/A", low=0.0, high=10.0),
+    Param("roughness_d1", 2e-4, "m", "micro-roughness, sinusoid 1: regularity d1, the mean half-period", low=0.0,
+          high=1.0, low_open=True),
+    Param("roughness_d2", 5e-5, "m", "micro-roughness, sinusoid 2: regularity d2, the mean half-period", low=0.0,
+          high=1.0, low_open=True),
+    Param("roughness_spread", 0.5, "", "micro-roughness: half-periods and amplitudes drawn uniformly within "
+          "(1 +- spread) times their means", low=0.0, high=0.9),
+    Param("seed", 0, "", "micro-roughness: seed of the counter-based generator", low=0, high=2**62, kind=int),
+    Param("slide_ramp", None, "s", "sliding: time over which the drive speed rises smoothly (default: 2 periods "
+          "2 pi / relaxation rate)", low=0.0, high=1e3, low_open=True, optional=True),
+    Param("preload_tol", 1e-7, "", "sliding: residual force tolerance of the preload in units of normal_stress a^2 "
+          "(measured: 1e-9 costs the frictional-heating preload 108 000 steps instead of 2 500 and changes no "
+          "result beyond 1e-9)", low=0.0, high=1e-2, low_open=True),
+    Param("slide_damping", None, "1/s", "sliding: viscous damping rate of the automata's motion relative to their "
+          "body's drive (default: the relaxation rate; 0 = undamped)", low=0.0, high=1e9, optional=True),
 )
 
 
@@ -95,9 +121,19 @@ class Mca:
 
     def supports(self, scene: Scene) -> tuple[bool, str]:
         phys = set(scene.physics)
-        if phys == {"conduction"}:
+        if "conduction" in phys and phys <= {"conduction", "heat-source", "interface-flux"}:
             if scene.conduction.mode == "steady" and not scene.constraints:
                 return False, "steady conduction without any prescribed temperature is singular"
+            return True, ""
+        if "contact" in phys:
+            extra = phys - {"elasticity", "contact", "conduction", "frictional-heating", "interface-flux"}
+            if extra:
+                return False, f"mca contact scenes do not model {sorted(extra)}"
+            contact = scene.contact
+            if ("conduction" in phys) != contact.heating:
+                return False, "mca couples contact and conduction through frictional heating only"
+            if contact.heating and not (contact.sliding and scene.conduction.mode == "transient"):
+                return False, "frictional heating needs sliding and a transient conduction part"
             return True, ""
         if "elasticity" in phys:
             extra = phys - {"elasticity", "modes", "fracture"}
@@ -117,7 +153,10 @@ class Mca:
         t_wall = time.perf_counter()
         n = resolution.n
         pts = scene.sample_sets(n) if samples is None else samples
-        if "conduction" in scene.physics:
+        if "contact" in scene.physics:
+            out, aut = solve_contact(scene, n, p)
+            pts = {k: v[aut.holds(v)] for k, v in pts.items()}  # a slider shorter than its base: its automata only
+        elif "conduction" in scene.physics:
             aut = bar_automata(scene.box, n, scene.material.density)
             out = self._heat(scene, aut, p)
         else:
@@ -145,18 +184,20 @@ class Mca:
     def _heat(self, scene: Scene, aut: Automata, p: dict[str, Any]) -> dict[str, Any]:
         mat = scene.material
         held, values = mca_heat.held_temperatures(scene, aut)
-        t0 = time.perf_counter()
         summary: dict[str, Any] = {}
         work: dict[str, Any] = {"unknowns": aut.size}
+        power = mca_heat.sources(scene, aut)
         if scene.conduction.mode == "steady":
-            temp = mca_heat.steady(aut, mat.conductivity, values, held)
-            work["time_steps"] = 0
+            t0 = time.perf_counter()
+            temp = mca_heat.steady(aut, mat.conductivity, values, held, power)
+            work.update(time_steps=0, kernel_s=time.perf_counter() - t0)
         else:
-            temp, dt, steps = mca_heat.transient(aut, mat.conductivity, mat.density * mat.heat_capacity, values,
-                                                 held, scene.conduction.t_end, p["heat_cfl"])
-            summary.update(dt=dt, steps=steps)
+            st, par, steps = mca_heat.transient(aut, mat.conductivity, mat.density * mat.heat_capacity, values, held,
+                                                scene.conduction.t_end, p["heat_cfl"], power)
+            work["kernel_s"] = timed("heat", st, par, steps)
+            temp = st.temp
+            summary.update(dt=par.dt, steps=steps)
             work.update(time_steps=steps, pair_steps=steps * len(aut.pairs))
-        work["kernel_s"] = time.perf_counter() - t0
         rel = temp / scene.conduction.t_max
         status, reason = ("ok", "") if np.all(np.isfinite(rel)) else ("unstable", "non-finite temperature")
         summary.update(heat_summary(rel, float((rel * aut.volume).sum() / aut.volume.sum())))
@@ -249,24 +290,14 @@ class Mca:
             area = scene.box.width * scene.box.height
             summary.update(axial_strain=axial, lateral_strain=lateral, E_eff=react / area / axial,
                            nu_eff=-lateral / axial)
-        kstat, reason = self._status(status, res, p["relax_tol"], steps, p["max_steps"])
+        kstat, reason = relax_status(status, res, p["relax_tol"], steps, p["max_steps"])
         return {"field": u, "unknowns": 6 * aut.size, "quantity": "u (m)", "summary": summary, "status": kstat,
-                "reason": reason, "work": self._work(st, aut), "diagnostics": {"notes": notes}}
+                "reason": reason, "work": self._work(model, st), "diagnostics": {"notes": notes}}
 
     @staticmethod
-    def _work(st, aut: Automata) -> dict[str, Any]:
+    def _work(model: Model, st: mk.State) -> dict[str, Any]:
         return {"pair_steps": int(st.counters[mk.C_PAIRSTEPS]), "time_steps": int(st.counters[mk.C_STEPS]),
-                "kernel_s": st.kernel_s, "unknowns": 6 * aut.size}
-
-    @staticmethod
-    def _status(code: int, res: float, tol: float, steps: int, max_steps: int) -> tuple[str, str]:
-        if code in (mk.NAN, mk.GROWTH):
-            return "unstable", f"{mk.STATUS_TEXT[code]} after {steps} steps; state at that step kept"
-        if code == mk.MOVED:
-            return "failed", mk.STATUS_TEXT[code]
-        if not res <= tol:
-            return "failed", f"residual {res:.3g} above relax_tol {tol:g} after {steps} steps (max_steps {max_steps})"
-        return "ok", ""
+                "kernel_s": model.kernel_s, "unknowns": 6 * model.aut.size}
 
     # -- fracture ------------------------------------------------------------------------------------
 
@@ -285,8 +316,7 @@ class Mca:
         t_end = 1.5 * eps_fail / scene.elasticity.strain_rate
         steps_total = min(p["max_steps"], math.ceil(t_end / model.dt))
         every = max(1, steps_total // p["records"])
-        hist = np.zeros((steps_total // every + 2, mk.N_H))
-        st = model.new_state()
+        st = model.new_state(hist_rows=steps_total // every + 2)
         area = scene.box.width * scene.box.height
         ke0 = 0.5 * float((aut.mass[:, None] * st.v**2).sum())
         rows = []
@@ -295,11 +325,12 @@ class Mca:
         chunk = max(every, 2000 // every * every)
         rebuilds = added = 0
         while done < steps_total:
-            code = model.advance(st, min(chunk, steps_total - done), hist, every)
-            rows.append(hist[: st.counters[mk.C_ROWS]].copy())
+            code = model.advance(st, min(chunk, steps_total - done), every)
+            rows.append(st.hist[: st.counters[mk.C_ROWS], :mk.H_LOAD].copy())
             done = int(st.counters[mk.C_STEPS])
             if code == mk.MOVED:
-                added += rebuild_pairs(model, st)
+                st, more = rebuild_pairs(model, st)
+                added += more
                 rebuilds += 1
                 code = mk.OK
                 continue
@@ -309,7 +340,7 @@ class Mca:
             peak = h[:, mk.H_R1].max()
             if st.counters[mk.C_UNLINK] > 0 and h[-1, mk.H_R1] < 0.05 * peak:
                 break
-        h = np.concatenate(rows) if rows else np.zeros((0, mk.N_H))
+        h = np.concatenate(rows) if rows else np.zeros((0, mk.H_LOAD))
         n_pairs = len(aut.pairs)
         summary: dict[str, Any] = {"dt": model.dt, "steps": done, "damping": gamma}
         if len(h):
@@ -339,11 +370,9 @@ class Mca:
         elif st.counters[mk.C_UNLINK] == 0:
             status, reason = "failed", f"no pair unlinked up to strain {h[-1, mk.H_U1] / length:.3g}"
         aut = model.aut
-        diag = {"notes": notes, "history": {"columns": ["t", "kinetic", "potential", "work", "dissipated",
-                                                        "reaction_zL", "reaction_z0", "u_zL", "linked",
-                                                        "kinetic_rot"], "rows": h}}
+        diag = {"notes": notes, "history": {"columns": list(mk.HISTORY_COLUMNS[:mk.H_LOAD]), "rows": h}}
         return {"field": st.x - aut.positions, "unknowns": 6 * aut.size, "quantity": "u (m)", "summary": summary,
-                "status": status, "reason": reason, "work": self._work(st, aut), "diagnostics": diag}
+                "status": status, "reason": reason, "work": self._work(model, st), "diagnostics": diag}
 
     # -- modes ---------------------------------------------------------------------------------------
 

@@ -1,6 +1,6 @@
 """Linearised MCA: the stiffness and mass matrices of the automata about the rest state.
 
-The elastic MCA kernel (mca_kernel) derives from the potential
+The elastic MCA kernel (kernel.py) derives from the potential
     U = sum_p [ kn S (n.du)^2 / (2 r0) + G S |P delta|^2 / r0 + krot G S r0 |phi_j - phi_i|^2 / 2 ]
         + sum_i lam Omega_i theta_i^2 / 2,
     delta = u_j - u_i - q (phi_i + phi_j) x n,   theta_i = sum_j S (n.(u_j - u_i)) / (2 Omega_i),

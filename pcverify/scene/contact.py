@@ -1,0 +1,81 @@
+"""Contact of two bodies: what a scene declares when two bodies touch and may slide (the physics "contact").
+
+The scene's box is split by the interface plane `position` across `axis` into body 1 (below the plane) and
+body 2 (above it); `span`, if given, limits body 2 along the sliding `direction` (a slider shorter than its
+base).  Body 2's far face (the box face at the upper end of `axis`) is pressed onto body 1 by the uniform
+`normal_stress` and, with `speed` > 0, driven along `direction` for `duration` seconds of sliding.  With
+`heating`, the power dissipated by friction enters the two bodies as heat (the physics "frictional-heating",
+which needs a Conduction part).  Body 1 is held by the scene's constraints (a clamp or supports); body 2's
+far face by the drive, or by supports when the contact is only compressed.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from .params import SceneError, shown
+
+AXES = ("x", "y", "z")
+
+
+def _number(name: str, v: object, low: float, high: float, unit: str, low_open: bool = False) -> None:
+    ok = isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+    ok = ok and (v > low if low_open else v >= low) and v <= high
+    if not ok:
+        raise SceneError(f"{name}={shown(v)} is out of range; allowed: number in {'(' if low_open else '['}{low:g}, "
+                         f"{high:g}] {unit}".rstrip())
+
+
+@dataclass(frozen=True)
+class Contact:
+    """Two bodies across the plane `position` (m) normal to `axis`; body 2 pressed by `normal_stress` (Pa) and
+    slid along `direction` at `speed` (m/s) for `duration` (s); `span` = (low, high) in m along `direction`
+    limits body 2 (default: the whole box); `heating`: friction heats the bodies; `platen`: once pressed, body
+    2's far face is held at its height along `axis` while it slides (a rigid platen takes the friction's
+    moment), instead of staying under the applied stress."""
+
+    axis: str = "z"
+    position: float = 0.015
+    normal_stress: float = 0.0
+    speed: float = 0.0
+    direction: str = "x"
+    duration: float = 0.0
+    span: tuple[float, float] | None = None
+    heating: bool = False
+    platen: bool = False
+
+    def __post_init__(self) -> None:
+        for name in ("axis", "direction"):
+            if getattr(self, name) not in AXES:
+                raise SceneError(f"{name}={shown(getattr(self, name))} is not allowed; allowed: {', '.join(AXES)}")
+        if self.direction == self.axis:
+            raise SceneError(f"direction={self.direction!r} is not allowed; allowed: an axis other than the "
+                             f"contact axis {self.axis!r} (sliding is tangential)")
+        _number("position", self.position, 0.0, 1e3, "m", low_open=True)
+        _number("normal_stress", self.normal_stress, 0.0, 1e10, "Pa")
+        _number("speed", self.speed, 0.0, 1e3, "m/s")
+        _number("duration", self.duration, 0.0, 1e3, "s")
+        if self.speed > 0 and (self.normal_stress <= 0 or self.duration <= 0):
+            raise SceneError(f"normal_stress={self.normal_stress!r}, duration={self.duration!r} are out of range for "
+                             "sliding; allowed: both > 0 when speed > 0")
+        if self.span is not None:
+            ok = isinstance(self.span, tuple) and len(self.span) == 2 and all(
+                isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in self.span)
+            if not ok or not 0 <= self.span[0] < self.span[1]:
+                raise SceneError(f"span={shown(self.span)} is not valid; allowed: (low, high) with 0 <= low < high m")
+        for name in ("heating", "platen"):
+            if not isinstance(getattr(self, name), bool):
+                raise SceneError(f"{name}={shown(getattr(self, name))} is not valid; allowed: true/false")
+
+    @property
+    def axis_index(self) -> int:
+        return AXES.index(self.axis)
+
+    @property
+    def direction_index(self) -> int:
+        return AXES.index(self.direction)
+
+    @property
+    def sliding(self) -> bool:
+        return self.speed > 0.0

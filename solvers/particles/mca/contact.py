@@ -1,0 +1,425 @@
+"""Contact of two MCA bodies by the segment method, in 3-D: surface facets, contact search, friction.
+
+Surfaces (from the linked pairs): an automaton faces direction +-e_a when it has no linked pair on that
+side; four such automata joined by linked pairs around a lattice square form a facet square, split into two
+triangles (i, j1, j12) and (i, j12, j2), ordered so that their normal points out of the body.
+
+Segment method (eqs. 10-15 of the MCA seed; PHYSICS.md §4), one pass: every surface automaton k of body 2
+(a slave) interacts with one facet of body 1: the nearest listed facet that contains its foot point (the
+projection of k on the facet's plane), else the one whose foot lies least outside (largest smallest
+barycentric weight) if that is at most EDGE outside (barycentric units, about half a spacing: a slave
+whose own cell still overlaps the facet); k must be in front of the facet, at a height h < h0.  The
+weights w_v of the foot point (clipped to >= 0) share every force on k among the facet's three automata:
+F_v = -w_v F_k.  On a segment (a foot on a facet edge, the third weight 0) these are the seed's l_j / r_ij
+and l_i / r_ij of eqs. 11-12 and 14-15.
+- Normal: h0 = d, the rest distance of face neighbours (automata of size d whose cells touch at the
+  interface; the seed's sqrt(3) R is the height of a disc resting in the hollow of two discs in 2-D close
+  packing).  The contact is the compressive half of a linked pair written for a foot point: its strain
+  (h - h0) / h0 enters the volume strains of k and of the facet's automata (by w_v), and its normal stress is
+      sigma_c = min(0, kn (h - h0) / h0 + lam (theta_k + sum_v w_v theta_v) / 2),
+  the pair law of kernel.py.  In uniaxial stress it is eq. 10's E (h - h0) / h0 (2G eps + lam (1 - 2 nu)
+  eps = E eps), and a stack compressed across a flat interface is exactly its bonded lattice.
+  Force on k: -sigma_c S_k n, S_k the face of k's cell normal to the facet's dominant axis.
+- Friction (eq. 16), the project's choice of the dry part f:
+      tau = mu0 |V_t| + mu1 (1 + K_mu) min(sigma_N, sigma0) min(1, |V_t| / v_reg),   sigma_N = -sigma_c,
+  against the relative tangential velocity V_t of k and the foot point (sum_v w_v v_v); force on k
+  -tau S_k V_t / |V_t| (at the automata's centres: the couple F_R h of eqs. 13-15 is not applied either).
+  Below v_reg the dry part is a viscous regularisation (no static friction); above it, it is Coulomb's
+  mu1 (1 + K) sigma_N exactly.  The explicit step caps the regularised slope: the friction force never
+  exceeds what stops the relative velocity in one step, m_red |V_t| / dt (1/m_red = 1/m_k + sum_v w_v/m_v),
+  so a sticking contact neither chatters nor grows; the width of the regularisation is then in effect
+  max(v_reg, tau S dt / m_red).  Without the cap a pressed stack (70 MPa, n = 2 and 4) never relaxed: the
+  stiff regularised damper chattered.
+- Heat: the dissipated power tau S |V_t| enters k and the facet's automata as heat, half to each body (the
+  two bodies have the same material, so this is also the split by effusivity).
+
+The candidate list (facets whose centroid lies within h0 + 0.75 d + 2 skin of a slave that faces them,
+nearest first) is rebuilt with the pair list, whenever an automaton has moved further than the skin.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+from scipy.spatial import cKDTree
+
+from . import roughness as rg
+from .automata import Automata
+
+EDGE = 0.5  # a foot point this far outside a facet (barycentric units) still counts (half a spacing)
+
+
+class ContactLaw(NamedTuple):
+    """Constants of the contact: rest height h0 (m), viscous coefficient mu0 (Pa s/m), dry coefficient mu1,
+    normal-stress cap sigma0 (Pa), regularisation width v_reg (m/s), the roughness process, and the axes
+    (indices) along which the record resolves the forces: the contact axis and the sliding direction."""
+
+    h0: float
+    mu0: float
+    mu1: float
+    sigma0: float
+    v_reg: float
+    rough: rg.Roughness
+    axis: int
+    direction: int
+
+
+class ContactState(NamedTuple):
+    """Slaves (automata of body 2 on its surface), master facets (triangles of body 1), the candidate list
+    (CSR: cand_ptr, cand), the cells' extents; per slave the current contact (facet or -1, weights, normal,
+    height, area, normal stress, friction force, tangential speed, power) and the energy its friction
+    dissipated; per automaton the heat received (J); the roughness process; and the law."""
+
+    slave: np.ndarray
+    faces: np.ndarray  # (ns, 6) open sides of each slave
+    facets: np.ndarray  # (nf, 3)
+    side: np.ndarray  # (nf,) side each facet faces
+    cand_ptr: np.ndarray
+    cand: np.ndarray
+    extent: np.ndarray  # (N, 3)
+    facet: np.ndarray  # (ns,) int64
+    w: np.ndarray  # (ns, 3)
+    nrm: np.ndarray  # (ns, 3)
+    gap: np.ndarray  # (ns,) h
+    area: np.ndarray  # (ns,)
+    sigma: np.ndarray  # (ns,) normal stress (compression < 0)
+    fric: np.ndarray  # (ns, 3) friction force on the slave
+    speed: np.ndarray  # (ns,) |V_t|
+    power: np.ndarray  # (ns,) friction power of the current step (W)
+    dissipated: np.ndarray  # (ns,) energy dissipated by each slave's friction (J)
+    heat: np.ndarray  # (N,) heat received (J)
+    rough: rg.RoughState
+    law: ContactLaw
+
+
+def lattice_index(aut: Automata) -> np.ndarray:
+    """Integer lattice coordinates (N, 3) of the automata."""
+    base = aut.positions.min(axis=0)
+    return np.rint((aut.positions - base) / aut.spacing).astype(np.int64)
+
+
+def neighbours(aut: Automata) -> np.ndarray:
+    """(N, 6) index of the linked face neighbour of each automaton at -x, +x, -y, +y, -z, +z (-1: none)."""
+    nb = np.full((aut.size, 6), -1, dtype=np.int64)
+    lattice = aut.axis >= 0
+    i, j, ax = aut.pairs[lattice, 0], aut.pairs[lattice, 1], aut.axis[lattice]
+    up = (aut.positions[j, ax] > aut.positions[i, ax])
+    lo, hi = np.where(up, i, j), np.where(up, j, i)
+    nb[lo, 2 * ax + 1] = hi
+    nb[hi, 2 * ax] = lo
+    return nb
+
+
+def facets(aut: Automata, body: int) -> tuple[np.ndarray, np.ndarray]:
+    """Triangles (nf, 3) of body `body`'s surface, ordered so that their normals point out of the body, and the
+    side each faces (nf,): 2 a + (0 for -e_a, 1 for +e_a)."""
+    nb = neighbours(aut)
+    mine = aut.body == body if aut.body is not None else np.ones(aut.size, dtype=bool)
+    out, sides = [], []
+    for ax in range(3):
+        e1, e2 = (ax + 1) % 3, (ax + 2) % 3
+        for side in (0, 1):
+            face = (nb[:, 2 * ax + side] < 0) & mine
+            i = np.flatnonzero(face)
+            j1 = nb[i, 2 * e1 + 1]
+            j2 = nb[i, 2 * e2 + 1]
+            ok = (j1 >= 0) & (j2 >= 0)
+            i, j1, j2 = i[ok], j1[ok], j2[ok]
+            j12 = nb[j1, 2 * e2 + 1]
+            ok = (j12 >= 0) & (nb[j2, 2 * e1 + 1] == j12)
+            i, j1, j2, j12 = i[ok], j1[ok], j2[ok], j12[ok]
+            ok = face[j1] & face[j2] & face[j12]
+            i, j1, j2, j12 = i[ok], j1[ok], j2[ok], j12[ok]
+            if side == 1:  # e1 x e2 = +e_ax: counter-clockwise seen from outside
+                out += [np.stack([i, j1, j12], 1), np.stack([i, j12, j2], 1)]
+            else:
+                out += [np.stack([i, j12, j1], 1), np.stack([i, j2, j12], 1)]
+            sides += [np.full(2 * len(i), 2 * ax + side)]
+    if not out:
+        return np.zeros((0, 3), dtype=np.int64), np.zeros(0, dtype=np.int64)
+    return np.concatenate(out).astype(np.int64), np.concatenate(sides).astype(np.int64)
+
+
+def surface(aut: Automata, body: int) -> tuple[np.ndarray, np.ndarray]:
+    """Automata of body `body` on its free surface (a missing linked neighbour on some side), and the sides
+    (ns, 6) each faces (-x, +x, -y, +y, -z, +z)."""
+    mine = aut.body == body if aut.body is not None else np.ones(aut.size, dtype=bool)
+    open_side = neighbours(aut) < 0
+    idx = np.flatnonzero(mine & np.any(open_side, axis=1)).astype(np.int64)
+    return idx, open_side[idx]
+
+
+def candidates(x: np.ndarray, slave: np.ndarray, faces: np.ndarray, tri: np.ndarray, side: np.ndarray,
+               radius: float, skin: float) -> tuple[np.ndarray, np.ndarray]:
+    """CSR list (ptr, facet) of the facets each slave may touch, nearest first: centroid within `radius`, the
+    slave facing the facet (its open side opposite the facet's) and not behind the facet's plane by more than
+    2 skin."""
+    if len(tri) == 0 or len(slave) == 0:
+        return np.zeros(len(slave) + 1, dtype=np.int64), np.zeros(0, dtype=np.int64)
+    centroid = x[tri].mean(axis=1)
+    normal = np.zeros((len(tri), 3))
+    normal[np.arange(len(tri)), side // 2] = np.where(side % 2 == 1, 1.0, -1.0)
+    opposite = side + 1 - 2 * (side % 2)
+    lists = cKDTree(centroid).query_ball_point(x[slave], radius)
+    ptr = np.zeros(len(slave) + 1, dtype=np.int64)
+    chosen = []
+    for s, hits in enumerate(lists):
+        f = np.asarray(hits, dtype=np.int64)
+        if f.size:
+            d = x[slave[s]] - centroid[f]
+            keep = faces[s, opposite[f]] & (np.einsum("ij,ij->i", d, normal[f]) > -2.0 * skin)
+            f, d = f[keep], d[keep]
+            f = f[np.lexsort((f, np.einsum("ij,ij->i", d, d)))]
+        chosen.append(f)
+        ptr[s + 1] = ptr[s] + f.size
+    return ptr, (np.concatenate(chosen) if ptr[-1] else np.zeros(0)).astype(np.int64)
+
+
+def search_radius(aut: Automata, law: ContactLaw, skin: float) -> float:
+    """Centroid distance within which a facet is listed for a slave: h0 + 0.75 d + 2 skin (m)."""
+    return law.h0 + 0.75 * float(aut.spacing.max()) + 2.0 * skin
+
+
+def new_state(aut: Automata, x: np.ndarray, law: ContactLaw, skin: float) -> ContactState:
+    """Contact state of body 2's surface automata against body 1's facets, candidates listed at x."""
+    tri, side = facets(aut, 0)
+    slave, faces = surface(aut, 1)
+    ptr, cand = candidates(x, slave, faces, tri, side, search_radius(aut, law, skin), skin)
+    ns = len(slave)
+    rs = rg.new_state(ns)
+    if law.rough.on:
+        rg.start(rs, law.rough)
+    return ContactState(slave=slave, faces=faces, facets=tri, side=side, cand_ptr=ptr, cand=cand, extent=aut.extent,
+                        facet=np.full(ns, -1, dtype=np.int64), w=np.zeros((ns, 3)), nrm=np.zeros((ns, 3)),
+                        gap=np.zeros(ns), area=np.zeros(ns), sigma=np.zeros(ns), fric=np.zeros((ns, 3)),
+                        speed=np.zeros(ns), power=np.zeros(ns), dissipated=np.zeros(ns), heat=np.zeros(aut.size),
+                        rough=rs, law=law)
+
+
+def rest_partners(con: ContactState, aut: Automata) -> ContactState:
+    """A copy of the contact state with each slave's facet and weights found at the rest positions (the rest
+    geometry's partners: in an aligned stack, the automaton right across the interface)."""
+    ns = len(con.slave)
+    rest = con._replace(facet=np.full(ns, -1, dtype=np.int64), w=np.zeros((ns, 3)), nrm=np.zeros((ns, 3)),
+                        gap=np.zeros(ns), area=np.zeros(ns))
+    x = aut.positions.copy()
+    x[aut.body == 1, con.law.axis] -= 1e-9 * con.law.h0  # just closed (at rest the gap is exactly h0)
+    rest = relisted(rest, aut, x, 0.0)
+    geometry(x, aut.volume, rest, np.zeros(aut.size))
+    return rest
+
+
+def relisted(con: ContactState, aut: Automata, x: np.ndarray, skin: float) -> ContactState:
+    """The same contact state with its candidate list rebuilt at positions x."""
+    ptr, cand = candidates(x, con.slave, con.faces, con.facets, con.side, search_radius(aut, con.law, skin), skin)
+    return con._replace(cand_ptr=ptr, cand=cand)
+
+
+@njit(cache=True)
+def geometry(x, vol, con, theta_new):
+    """Pass 1 of the contact: each slave's facet, weights, normal and height; the contacts' volume strains
+    0.5 S (h - h0) / Omega added to theta_new (k's, and the facet automata's by their weights)."""
+    law = con.law
+    h0 = law.h0
+    for s in range(con.slave.shape[0]):
+        k = con.slave[s]
+        best = -1
+        bmin = -1e300
+        bh = 0.0
+        b0 = b1 = b2 = 0.0
+        n0 = n1 = n2 = 0.0
+        for c in range(con.cand_ptr[s], con.cand_ptr[s + 1]):
+            f = con.cand[c]
+            a = con.facets[f, 0]
+            b = con.facets[f, 1]
+            d = con.facets[f, 2]
+            e10 = x[b, 0] - x[a, 0]
+            e11 = x[b, 1] - x[a, 1]
+            e12 = x[b, 2] - x[a, 2]
+            e20 = x[d, 0] - x[a, 0]
+            e21 = x[d, 1] - x[a, 1]
+            e22 = x[d, 2] - x[a, 2]
+            m0 = e11 * e22 - e12 * e21
+            m1 = e12 * e20 - e10 * e22
+            m2 = e10 * e21 - e11 * e20
+            area2 = math.sqrt(m0 * m0 + m1 * m1 + m2 * m2)
+            m0 /= area2
+            m1 /= area2
+            m2 /= area2
+            h = m0 * (x[k, 0] - x[a, 0]) + m1 * (x[k, 1] - x[a, 1]) + m2 * (x[k, 2] - x[a, 2])
+            if h <= -h0 or h >= h0:
+                continue
+            p0 = x[k, 0] - h * m0
+            p1 = x[k, 1] - h * m1
+            p2 = x[k, 2] - h * m2
+            wa = _sub_area(x[b, 0] - p0, x[b, 1] - p1, x[b, 2] - p2, x[d, 0] - p0, x[d, 1] - p1, x[d, 2] - p2,
+                           m0, m1, m2) / area2
+            wb = _sub_area(x[d, 0] - p0, x[d, 1] - p1, x[d, 2] - p2, x[a, 0] - p0, x[a, 1] - p1, x[a, 2] - p2,
+                           m0, m1, m2) / area2
+            wd = 1.0 - wa - wb
+            low = min(wa, wb, wd)
+            if low > bmin:
+                best = f
+                bmin = low
+                bh = h
+                b0 = wa
+                b1 = wb
+                b2 = wd
+                n0 = m0
+                n1 = m1
+                n2 = m2
+                if low >= 0.0:  # the foot lies in this facet: the nearest containing one is taken
+                    break
+        if best < 0 or bmin < -EDGE:
+            con.facet[s] = -1
+            continue
+        b0 = max(b0, 0.0)
+        b1 = max(b1, 0.0)
+        b2 = max(b2, 0.0)
+        tot = b0 + b1 + b2
+        con.facet[s] = best
+        con.w[s, 0] = b0 / tot
+        con.w[s, 1] = b1 / tot
+        con.w[s, 2] = b2 / tot
+        con.nrm[s, 0] = n0
+        con.nrm[s, 1] = n1
+        con.nrm[s, 2] = n2
+        con.gap[s] = bh
+        ax = 0
+        if abs(n1) > abs(n0):
+            ax = 1
+        if abs(n2) > max(abs(n0), abs(n1)):
+            ax = 2
+        area = con.extent[k, (ax + 1) % 3] * con.extent[k, (ax + 2) % 3]
+        con.area[s] = area
+        e = 0.5 * area * (bh - h0)
+        theta_new[k] += e / vol[k]
+        for v in range(3):
+            theta_new[con.facets[best, v]] += con.w[s, v] * e / vol[con.facets[best, v]]
+
+
+@njit(inline="always")
+def _sub_area(u0, u1, u2, v0, v1, v2, n0, n1, n2):
+    """n . (u x v): twice the signed area of a sub-triangle."""
+    return n0 * (u1 * v2 - u2 * v1) + n1 * (u2 * v0 - u0 * v2) + n2 * (u0 * v1 - u1 * v0)
+
+
+@njit(cache=True)
+def forces(x, v, f, theta, mass, kn, lam, dt, con):
+    """Pass 2 of the contact (after the volume strains are updated): normal stress, friction and the forces
+    on each slave and its facet's automata; each slave's friction power and tangential speed."""
+    law = con.law
+    h0 = law.h0
+    for s in range(con.slave.shape[0]):
+        con.power[s] = 0.0
+        con.speed[s] = 0.0
+        con.sigma[s] = 0.0
+        con.fric[s, 0] = 0.0
+        con.fric[s, 1] = 0.0
+        con.fric[s, 2] = 0.0
+        fct = con.facet[s]
+        if fct < 0:
+            continue
+        k = con.slave[s]
+        a = con.facets[fct, 0]
+        b = con.facets[fct, 1]
+        d = con.facets[fct, 2]
+        wa = con.w[s, 0]
+        wb = con.w[s, 1]
+        wd = con.w[s, 2]
+        n0 = con.nrm[s, 0]
+        n1 = con.nrm[s, 1]
+        n2 = con.nrm[s, 2]
+        theta_f = wa * theta[a] + wb * theta[b] + wd * theta[d]
+        sig = min(0.0, kn * (con.gap[s] - h0) / h0 + 0.5 * lam * (theta[k] + theta_f))
+        con.sigma[s] = sig
+        u0 = v[k, 0] - (wa * v[a, 0] + wb * v[b, 0] + wd * v[d, 0])
+        u1 = v[k, 1] - (wa * v[a, 1] + wb * v[b, 1] + wd * v[d, 1])
+        u2 = v[k, 2] - (wa * v[a, 2] + wb * v[b, 2] + wd * v[d, 2])
+        un = u0 * n0 + u1 * n1 + u2 * n2
+        t0 = u0 - un * n0
+        t1 = u1 - un * n1
+        t2 = u2 - un * n2
+        speed = math.sqrt(t0 * t0 + t1 * t1 + t2 * t2)
+        rough = rg.value(con.rough, s) if law.rough.on else 0.0
+        dry = law.mu1 * (1.0 + rough) * min(-sig, law.sigma0)
+        area = con.area[s]
+        coef = area * (law.mu0 + dry / max(speed, law.v_reg))
+        # what one step can stop: a kick of dt coef / m_red (1/m_red = 1/m_k + sum_v w_v / m_v) must not reverse
+        # the relative velocity, else the explicit damper chatters (or grows beyond 2)
+        stop = 1.0 / (dt * (1.0 / mass[k] + wa / mass[a] + wb / mass[b] + wd / mass[d]))
+        coef = min(coef, stop)
+        fr0 = -coef * t0
+        fr1 = -coef * t1
+        fr2 = -coef * t2
+        fn = -sig * area
+        g0 = fn * n0 + fr0
+        g1 = fn * n1 + fr1
+        g2 = fn * n2 + fr2
+        f[k, 0] += g0
+        f[k, 1] += g1
+        f[k, 2] += g2
+        f[a, 0] -= wa * g0
+        f[a, 1] -= wa * g1
+        f[a, 2] -= wa * g2
+        f[b, 0] -= wb * g0
+        f[b, 1] -= wb * g1
+        f[b, 2] -= wb * g2
+        f[d, 0] -= wd * g0
+        f[d, 1] -= wd * g1
+        f[d, 2] -= wd * g2
+        con.fric[s, 0] = fr0
+        con.fric[s, 1] = fr1
+        con.fric[s, 2] = fr2
+        con.speed[s] = speed
+        con.power[s] = coef * speed * speed
+
+
+@njit(cache=True)
+def after_step(con, dt):
+    """Time integration of the contacts over one step: friction heat into the automata (half to the slave,
+    half to the facet's automata by their weights), the roughness advanced by the sliding distance; returns
+    the energy dissipated by friction in the step (J)."""
+    total = 0.0
+    for s in range(con.slave.shape[0]):
+        fct = con.facet[s]
+        if fct < 0:
+            continue
+        q = con.power[s] * dt
+        total += q
+        con.dissipated[s] += q
+        con.heat[con.slave[s]] += 0.5 * q
+        for v in range(3):
+            con.heat[con.facets[fct, v]] += 0.5 * con.w[s, v] * q
+        if con.law.rough.on:
+            rg.advance(con.rough, con.law.rough, s, con.speed[s] * dt)
+    return total
+
+
+@njit(cache=True)
+def energy(con):
+    """Elastic energy of the closed contacts: sum kn S (h - h0)^2 / (2 h0) without kn (the caller's factor)."""
+    u = 0.0
+    for s in range(con.slave.shape[0]):
+        if con.facet[s] >= 0:
+            dh = con.gap[s] - con.law.h0
+            u += 0.5 * con.area[s] * dh * dh / con.law.h0
+    return u
+
+
+@njit(cache=True)
+def resultants(con):
+    """(friction resistance along the sliding direction, normal force along the contact axis, closed
+    contacts) on body 2: sum -F_R . e_dir, sum -sigma_c S n . e_axis."""
+    fr = 0.0
+    fn = 0.0
+    count = 0
+    for s in range(con.slave.shape[0]):
+        if con.facet[s] >= 0:
+            fr -= con.fric[s, con.law.direction]
+            fn -= con.sigma[s] * con.area[s] * con.nrm[s, con.law.axis]
+            count += 1
+    return fr, fn, count

@@ -1,0 +1,388 @@
+"""The MCA solver's contact scenes: two bodies pressed together, pressed and slid, or slid and heated by
+friction (contact.py holds the segment method and the friction law; this module maps a scene's Contact part
+onto the model and summarises the run).
+
+- Pressed (no sliding speed): the scene's supports compress the stack across the interface, ramped in and
+  relaxed dynamically as bar-compression is (damping at Model.relaxation_rate, residual below relax_tol
+  E |strain| a^2).  Each body's far face carries the force-free "3-2-1" set against rigid motion (the
+  friction law has no static part).  Summary: the contact pressure (area-weighted mean and uniformity
+  (max - min) / mean over the closed contacts) against the analytic uniaxial stress E |strain| of the
+  bonded stack, E_eff and nu_eff as for the bar.
+- Sliding: body 2's far face is pressed by normal_stress (a load) and held tangentially; a first run
+  relaxes the preload with damping (to preload_tol normal_stress a^2); then the far face is driven along
+  the direction at `speed`, ramped in smoothly over `slide_ramp`, and kept at speed for the scene's
+  duration, the window every average is taken over.  While sliding, damping (slide_damping, default the
+  relaxation rate; 0 = none) acts on each automaton's velocity relative to its body's drive (body 1 at
+  rest, body 2 at the drive's velocity), so it damps vibrations and not the sliding itself.  Undamped,
+  the slider on its elastic base develops a friction-induced vibration (measured at n = 4, V = 1 m/s,
+  1 MPa: after ~0.4 ms the contacts open and close and mu_dr(t) swings by +-0.2 about 0.3).
+  mu_dr(t) = F_dr / F_N (eq. 17): F_dr the friction resistance of the contacts on body 2 along the
+  direction, F_N = normal_stress x the far face's area.  The expected value: mu1 (1 + K_av) + mu0 V /
+  normal_stress (every contact sliding at V); its uncertainty from the run length: mu1 (sum_k w_k^2
+  var_k)^(1/2), w_k the contacts' shares of the normal force (at the end of the run) and var_k the
+  variance of one contact's mean of K over the distance slid in the window (roughness.variance_of_mean).
+  Energy balance over the window: work of the drive and of the load against kinetic + elastic energy +
+  friction and damping dissipation (the largest imbalance over the window relative to the drive's work).
+  With a platen (Contact.platen) the far face is held at its preloaded height while it slides, and F_N is
+  the normal force the contacts carry.
+- Frictional heating: sliding as above, then MCA heat on the bonded automata (the contact conducts as the
+  interface pairs of the rest geometry) from the initial temperature to t_end, each contact's mean friction
+  power over the window held constant: half into the slave, half into its rest partners (one-way,
+  quasi-steady coupling: the mechanics' time scale is ~1e-7 s, the heat's ~1e-2 s; no thermal expansion).
+  Summary: the mean flux against the scene's declared interface flux (flux_ratio), its uniformity over the
+  interface, and the rise of the automata next to the plane against the semi-infinite solid's at a/2.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+from scipy.special import erfc
+
+from pcverify.scene import Contact, FaceClamp, FaceSupport, Scene, SceneError
+from pcverify.solvers.protocol import heat_summary
+
+from . import contact as ct
+from . import heat as mca_heat
+from . import kernel as mk
+from . import roughness as rg
+from .automata import Automata, body_automata
+from .kernels import timed
+from .model import Elastic, Model, rebuild_pairs, relax, relax_status
+
+FACE_AXES = "xyz"
+
+
+def law_of(aut: Automata, contact: Contact, p: dict[str, Any]) -> ct.ContactLaw:
+    """The contact law of the solver parameters: h0 = the spacing across the interface."""
+    rough = rg.Roughness(on=bool(p["roughness_a1"] > 0 or p["roughness_a2"] > 0), a1=float(p["roughness_a1"]),
+                         a2=float(p["roughness_a2"]), d1=float(p["roughness_d1"]), d2=float(p["roughness_d2"]),
+                         spread=float(p["roughness_spread"]), seed=int(p["seed"]))
+    return ct.ContactLaw(h0=float(aut.spacing[contact.axis_index]), mu0=float(p["mu0"]), mu1=float(p["mu1"]),
+                         sigma0=math.inf if p["sigma0"] is None else float(p["sigma0"]), v_reg=float(p["v_reg"]),
+                         rough=rough, axis=contact.axis_index, direction=contact.direction_index)
+
+
+def far_faces(contact: Contact) -> tuple[str, str]:
+    """(body 1's far face, body 2's far face): the box faces at the two ends of the contact axis."""
+    a = contact.axis
+    return f"{a}0", f"{a}{'WHL'[contact.axis_index]}"
+
+
+def _rigid_set(aut: Automata, face: str, extent: np.ndarray, fixm: np.ndarray) -> None:
+    """Hold the rigid motions a face support leaves free: both tangential translations at the face's corner at
+    the origin of the two other axes, the second one at the corner at the far end of the first (force-free in
+    a homogeneous state)."""
+    ax = FACE_AXES.index(face[0])
+    e1, e2 = (ax + 1) % 3, (ax + 2) % 3
+    idx = aut.on_face(face, extent)
+    pos = aut.positions[idx]
+    tol = 1e-9 * float(extent.max())
+    a = idx[(np.abs(pos[:, e1]) <= tol) & (np.abs(pos[:, e2]) <= tol)]
+    b = idx[(np.abs(pos[:, e1] - extent[e1]) <= tol) & (np.abs(pos[:, e2]) <= tol)]
+    fixm[a, e1] = fixm[a, e2] = fixm[b, e2] = mk.PRESCRIBED
+
+
+def _supports(scene: Scene, aut: Automata, rate_of: dict[str, float]) -> tuple[np.ndarray, np.ndarray]:
+    """(fixm, fixv) of the scene's supports and clamps; rigid sets on supported (unclamped) far faces."""
+    ext = scene.box.extent
+    fixm = np.zeros((aut.size, 6), dtype=np.uint8)
+    fixv = np.zeros((aut.size, 6))
+    clamped = set()
+    for c in scene.constraints:
+        if not isinstance(c, (FaceSupport, FaceClamp)):
+            raise SceneError(f"mca contact: constraint {type(c).__name__} is not supported")
+        idx = aut.on_face(c.face, ext)
+        if isinstance(c, FaceClamp):
+            fixm[idx] = mk.PRESCRIBED
+            clamped.add(c.face)
+        else:
+            ax = FACE_AXES.index(c.face[0])
+            fixm[idx, ax] = mk.PRESCRIBED
+            fixv[idx, ax] = rate_of.get(c.face, 0.0)
+    for c in scene.constraints:
+        if isinstance(c, FaceSupport) and c.face not in clamped:
+            _rigid_set(aut, c.face, ext, fixm)
+    return fixm, fixv
+
+
+def contact_summary(st: mk.State) -> dict[str, Any]:
+    """Contact pressure of the closed contacts: area-weighted mean, uniformity, count."""
+    con = st.contact
+    closed = con.facet >= 0
+    out: dict[str, Any] = {"contacts": int(closed.sum()), "slaves": int(len(con.slave))}
+    if closed.any():
+        pres = -con.sigma[closed]
+        area = con.area[closed]
+        mean = float((pres * area).sum() / area.sum())
+        out.update(contact_pressure_mean=mean,
+                   contact_pressure_uniformity=float((pres.max() - pres.min()) / mean) if mean > 0 else math.nan,
+                   contact_area=float(area.sum()))
+    return out
+
+
+def _pressed(scene: Scene, aut: Automata, bonded: Automata, el: Elastic, law: ct.ContactLaw, p: dict[str, Any]
+             ) -> dict[str, Any]:
+    contact = scene.contact
+    rate = Model(bonded, el).relaxation_rate()
+    t_ramp = p["ramp_periods"] * 2 * math.pi / rate
+    disp = {c.face: c.displacement for c in scene.constraints if isinstance(c, FaceSupport)}
+    fixm, fixv = _supports(scene, aut, {f: d / t_ramp for f, d in disp.items()})
+    gamma = rate if p["damping"] is None else p["damping"]
+    length = float(scene.box.extent[contact.axis_index])
+    strain = max((abs(d) for d in disp.values()), default=0.0) / length
+    e_load = 0.5 * el.youngs * max(strain, 1e-6) ** 2 * scene.box.volume
+    model = Model(aut, el, rotations=p["rotations"], krot=p["krot"], cfl=p["cfl"], gamma=gamma, fixm=fixm, fixv=fixv,
+                  t_stop=t_ramp, ke_limit=p["blowup"] * e_load, contact=law, step_automata=bonded)
+    st = model.new_state()
+    scale = el.youngs * max(strain, 1e-12) * float(aut.spacing.min()) ** 2
+    status, res, _ = relax(model, st, scale, tol=p["relax_tol"], max_steps=p["max_steps"])
+    u = st.x - aut.positions
+    steps = int(st.counters[mk.C_STEPS])
+    low, high = far_faces(contact)
+    ax = contact.axis_index
+    react = float(-st.f[aut.on_face(high, scene.box.extent), ax].sum())
+    summary: dict[str, Any] = {"residual": res, "steps": steps, "dt": model.dt, "damping": gamma, "ramp_s": t_ramp,
+                               "reaction_force": react}
+    summary.update(contact_summary(st))
+    if low in disp and high in disp:
+        axial = (disp[high] - disp[low]) / length
+        area = float(np.prod(np.delete(scene.box.extent, ax)))
+        expected = el.youngs * abs(axial)
+        summary.update(axial_strain=axial, E_eff=react / area / axial, axial_stress_expected=expected)
+        if "contact_pressure_mean" in summary:
+            summary["contact_pressure_error"] = abs(summary["contact_pressure_mean"] / expected - 1)
+        lateral = [_face_strain(scene, aut, u, k) for k in range(3) if k != ax]
+        summary["nu_eff"] = -float(np.mean(lateral)) / axial
+    kstat, reason = relax_status(status, res, p["relax_tol"], steps, p["max_steps"])
+    return {"field": u, "quantity": "u (m)", "summary": summary, "status": kstat, "reason": reason,
+            "model": model, "state": st}
+
+
+def _face_strain(scene: Scene, aut: Automata, u: np.ndarray, ax: int) -> float:
+    """Mean normal strain along axis ax from the volume-weighted displacements of its two faces."""
+    ext = scene.box.extent
+
+    def mean(face: str) -> float:
+        idx = aut.on_face(face, ext)
+        return float((u[idx, ax] * aut.volume[idx]).sum() / aut.volume[idx].sum())
+
+    a = FACE_AXES[ax]
+    return (mean(f"{a}{'WHL'[ax]}") - mean(f"{a}0")) / float(ext[ax])
+
+
+def _sliding(scene: Scene, aut: Automata, bonded: Automata, el: Elastic, law: ct.ContactLaw, p: dict[str, Any]
+             ) -> dict[str, Any]:
+    contact = scene.contact
+    ext = scene.box.extent
+    ax, dr = contact.axis_index, contact.direction_index
+    third = 3 - ax - dr
+    fixm, fixv = _supports(scene, aut, {})
+    _, high = far_faces(contact)
+    top = aut.on_face(high, ext)
+    if np.any(aut.body[top] != 1):
+        raise SceneError(f"mca contact: face {high} is not body 2's far face")
+    fixm[top, dr] = fixm[top, third] = mk.PRESCRIBED
+    face_area = aut.extent[top][:, [k for k in range(3) if k != ax]].prod(axis=1)
+    load = np.zeros((aut.size, 3))
+    load[top, ax] = -contact.normal_stress * face_area
+    f_normal = float(contact.normal_stress * face_area.sum())
+    rate = Model(bonded, el).relaxation_rate()
+    e_load = 0.5 * contact.normal_stress**2 / el.youngs * scene.box.volume + 0.5 * float(aut.mass.sum()) * \
+        contact.speed**2
+    model = Model(aut, el, rotations=p["rotations"], krot=p["krot"], cfl=p["cfl"], gamma=rate, fixm=fixm, fixv=fixv,
+                  t_stop=0.0, ke_limit=p["blowup"] * e_load, load=load, contact=law, step_automata=bonded)
+    st = model.new_state()
+    scale = contact.normal_stress * float(aut.spacing.min()) ** 2
+    status, res, _ = relax(model, st, scale, tol=p["preload_tol"], max_steps=p["max_steps"])
+    pre_steps = int(st.counters[mk.C_STEPS])
+    summary: dict[str, Any] = {"dt": model.dt, "preload_steps": pre_steps, "preload_residual": res,
+                               "normal_force_applied": f_normal}
+    summary.update({f"preload_{k}": v for k, v in contact_summary(st).items() if k.startswith("contact_pressure")})
+    if status != mk.OK or not res <= p["preload_tol"]:
+        kstat, reason = relax_status(status, res, p["preload_tol"], pre_steps, p["max_steps"])
+        return {"field": None, "quantity": "", "summary": summary, "status": kstat, "reason": f"preload: {reason}",
+                "model": model, "state": st}
+    t_ramp = p["slide_ramp"] if p["slide_ramp"] is not None else 2 * 2 * math.pi / rate
+    t0 = float(st.clock[0])
+    fixv[top, dr] = contact.speed
+    if contact.platen:
+        fixm[top, ax] = mk.PRESCRIBED  # held at the preloaded height (fixv 0 there): a rigid platen
+    frame = np.zeros((aut.size, 3))
+    frame[aut.body == 1, dr] = contact.speed
+    st = st._replace(frame=mk.Frame(frame))
+    gamma = rate if p["slide_damping"] is None else p["slide_damping"]
+    model.params = model.params._replace(gamma=float(gamma), t_stop=math.inf, ramp_start=t0, ramp=t_ramp)
+    ramp_steps = math.ceil(t_ramp / model.dt)
+    total = min(ramp_steps + math.ceil(contact.duration / model.dt), p["max_steps"])
+    every = max(1, total // p["records"])
+    st = st._replace(hist=np.zeros((total // every + 2, mk.N_H)))
+    rows: list[np.ndarray] = []
+    st, code, rebuilds = _slide(model, st, pre_steps + min(ramp_steps, total), every, rows)
+    t1 = float(st.clock[0])
+    heat0 = st.contact.heat.copy()
+    dissipated0 = st.contact.dissipated.copy()
+    if code == mk.OK:
+        st, code, more = _slide(model, st, pre_steps + total, every, rows)
+        rebuilds += more
+    done = int(st.counters[mk.C_STEPS]) - pre_steps
+    h = np.concatenate(rows) if rows else np.zeros((0, mk.N_H))
+    summary.update(steps=int(st.counters[mk.C_STEPS]), slide_steps=done, slide_ramp_s=t_ramp,
+                   pair_list_rebuilds=rebuilds)
+    summary.update(contact_summary(st))
+    window = h[h[:, mk.H_T] >= t1]
+    if code in (mk.NAN, mk.GROWTH):
+        status, reason = "unstable", f"{mk.STATUS_TEXT[code]} at step {done} of sliding; history up to there kept"
+    elif len(window) < 10:
+        status, reason = "failed", f"only {len(window)} history rows in the sliding window"
+    else:
+        status, reason = "ok", ""
+        summary.update(_friction_summary(window, st, law, contact, f_normal))
+    window_s = float(st.clock[0]) - t1
+    heat = st.contact.heat - heat0
+    summary["friction_heat_J"] = float(heat.sum())
+    summary["friction_power_W"] = float(heat.sum() / window_s) if window_s > 0 else math.nan
+    diag = {"history": {"columns": list(mk.HISTORY_COLUMNS), "rows": h}}
+    return {"field": heat / aut.volume, "quantity": "friction heat received in the window (J/m^3)",
+            "summary": summary, "status": status, "reason": reason, "diagnostics": diag, "model": model, "state": st,
+            "power": (st.contact.dissipated - dissipated0) / window_s if window_s > 0 else None}
+
+
+def _slide(model: Model, st: mk.State, until: int, every: int, rows: list[np.ndarray]
+           ) -> tuple[mk.State, int, int]:
+    """Advance to step `until` in chunks, keeping the history rows and rebuilding the lists whenever an
+    automaton moved beyond the skin: (state, kernel status, rebuilds)."""
+    code, rebuilds = mk.OK, 0
+    while int(st.counters[mk.C_STEPS]) < until:
+        code = model.advance(st, min(20 * every, until - int(st.counters[mk.C_STEPS])), every)
+        rows.append(st.hist[: st.counters[mk.C_ROWS]].copy())
+        if code == mk.MOVED:
+            st, _ = rebuild_pairs(model, st)
+            rebuilds += 1
+            code = mk.OK
+            continue
+        if code != mk.OK:
+            break
+    return st, code, rebuilds
+
+
+def _heating(scene: Scene, aut: Automata, bonded: Automata, el: Elastic, law: ct.ContactLaw, p: dict[str, Any]
+             ) -> dict[str, Any]:
+    """Sliding, then MCA heat of the bonded automata (the contact conducts as the interface pairs of the rest
+    geometry) from the scene's initial temperature to t_end, fed by the window's mean friction power of each
+    contact: half to the slave, half to its rest partners (the facet found at the rest positions, by weight)."""
+    out = _sliding(scene, aut, bonded, el, law, p)
+    slave_power = out.pop("power")
+    summary = out["summary"]
+    if out["status"] != "ok" or slave_power is None:
+        return out | {"field": None}
+    contact, heat, mat = scene.contact, scene.conduction, scene.material
+    ax = contact.axis_index
+    section = float(np.prod(np.delete(scene.box.extent, ax)))
+    rest = ct.rest_partners(out["state"].contact, aut)
+    power = np.zeros(aut.size)
+    paired = rest.facet >= 0
+    np.add.at(power, rest.slave, 0.5 * slave_power)
+    for v in range(3):
+        np.add.at(power, rest.facets[rest.facet[paired], v], 0.5 * slave_power[paired] * rest.w[paired, v])
+    flux = float(slave_power.sum()) / section
+    per_area = slave_power[paired] / rest.area[paired]
+    held, values = mca_heat.held_temperatures(scene, bonded)
+    hs, hp, steps = mca_heat.transient(bonded, mat.conductivity, mat.density * mat.heat_capacity, values, held,
+                                       heat.t_end, p["heat_cfl"], power)
+    heat_s = timed("heat", hs, hp, steps)
+    rise = hs.temp - heat.initial_temperature
+    near = np.abs(np.abs(aut.positions[:, ax] - contact.position) - 0.5 * law.h0) < 1e-6 * law.h0
+    summary.update(heat_dt=hp.dt, heat_steps=steps, heat_kernel_s=heat_s, flux_friction=flux,
+                   flux_uniformity=float(np.ptp(per_area) / per_area.mean()),
+                   interface_rise=float(rise[near].mean()))
+    declared = heat.interface.flux if heat.interface is not None else math.nan
+    if math.isfinite(declared) and declared > 0:
+        expect = semi_infinite_rise(declared / 2, mat.conductivity, mat.diffusivity, heat.t_end, 0.5 * law.h0)
+        summary.update(flux_declared=declared, flux_ratio=flux / declared, interface_rise_expected=expect,
+                       interface_rise_error=float(rise[near].mean() / expect - 1))
+    temp = hs.temp / heat.t_max
+    summary.update(heat_summary(temp, float((temp * bonded.volume).sum() / bonded.volume.sum())))
+    out["diagnostics"]["notes"] = ["frictional heating: the mean friction power of the sliding window feeds MCA "
+                                   "heat on the rest geometry for t_end (quasi-steady one-way coupling)"]
+    return out | {"field": temp, "quantity": "T/t_max"}
+
+
+def semi_infinite_rise(flux: float, conductivity: float, diffusivity: float, t: float, depth: float) -> float:
+    """Rise at `depth` below the surface of a semi-infinite solid taking `flux` from t = 0 (Carslaw & Jaeger
+    §2.9): (2 q / k) sqrt(alpha t) ierfc(depth / (2 sqrt(alpha t))); the scene's reference at short times, with
+    q the half of the interface flux each body takes."""
+    root = math.sqrt(diffusivity * t)
+    u = depth / (2.0 * root)
+    return 2.0 * flux / conductivity * root * (math.exp(-u * u) / math.sqrt(math.pi) - u * float(erfc(u)))
+
+
+def _friction_summary(window: np.ndarray, st: mk.State, law: ct.ContactLaw, contact: Contact,
+                      f_normal: float) -> dict[str, Any]:
+    """mu_dr statistics over the sliding window, their expected value and uncertainty, the energy balance."""
+    ratio = float(window[:, mk.H_FN].mean() / f_normal)
+    if contact.platen:  # the platen's reaction is the normal force: the contacts' normal force
+        f_normal *= ratio
+    mu = window[:, mk.H_FT] / f_normal
+    out: dict[str, Any] = {"mu_dr_mean": float(mu.mean()), "mu_dr_std": float(mu.std()), "normal_force_ratio": ratio,
+                           "window_s": float(window[-1, mk.H_T] - window[0, mk.H_T])}
+    expected = law.mu1 * (1 + rg.mean(law.rough)) + law.mu0 * contact.speed / contact.normal_stress
+    out["mu_dr_expected"] = expected
+    out["mu_dr_error"] = abs(out["mu_dr_mean"] / expected - 1) if expected > 0 else math.nan
+    con = st.contact
+    closed = con.facet >= 0
+    if law.rough.on and closed.any():
+        load = -con.sigma[closed] * con.area[closed]
+        share = load / load.sum()
+        distance = contact.speed * out["window_s"]
+        unc = law.mu1 * math.sqrt(float((share**2).sum()) * rg.variance_of_mean(law.rough, distance))
+        out["mu_dr_uncertainty"] = unc
+        out["mu_dr_zscore"] = (out["mu_dr_mean"] - expected) / unc if unc > 0 else math.nan
+    if closed.any():
+        out["slip_speed_min"] = float(con.speed[closed].min())
+    first, last = window[0], window[-1]
+
+    def supplied(r: np.ndarray) -> float:
+        return r[mk.H_WORK] + r[mk.H_LOAD]
+
+    def held(r: np.ndarray) -> float:
+        return r[mk.H_KE] + r[mk.H_U] + r[mk.H_FRIC] + r[mk.H_DISS]
+
+    work = supplied(last) - supplied(first)
+    drift = (window[:, mk.H_KE] + window[:, mk.H_U] + window[:, mk.H_FRIC] + window[:, mk.H_DISS] - held(first)) - \
+        (window[:, mk.H_WORK] + window[:, mk.H_LOAD] - supplied(first))
+    out.update(drive_work_J=float(work), friction_dissipation_J=float(last[mk.H_FRIC] - first[mk.H_FRIC]),
+               energy_balance_error=float(np.max(np.abs(drift)) / abs(work)) if work != 0 else math.nan)
+    return out
+
+
+def solve_contact(scene: Scene, n: int, p: dict[str, Any]) -> tuple[dict[str, Any], Automata]:
+    """Run a contact scene at resolution n: the out dict of the solver (field, summary, status, ...) and the
+    automata the field lives on."""
+    contact = scene.contact
+    aut, bonded = body_automata(scene.box, n, scene.material.density, contact)
+    mat = scene.material
+    el = Elastic(mat.youngs_modulus, mat.poisson_ratio, many_body=p["many_body"], coefficient=p["coefficient"])
+    law = law_of(aut, contact, p)
+    run = _heating if contact.heating else _sliding if contact.sliding else _pressed
+    out = run(scene, aut, bonded, el, law, p)
+    out.pop("power", None)
+    model, st = out.pop("model"), out.pop("state")
+    out["summary"]["friction_step_ratio"] = friction_step_ratio(model, law, contact)
+    out["work"] = {"pair_steps": int(st.counters[mk.C_PAIRSTEPS]), "time_steps": int(st.counters[mk.C_STEPS]),
+                   "kernel_s": model.kernel_s, "unknowns": 6 * aut.size}
+    out["unknowns"] = 6 * aut.size
+    return out, aut
+
+
+def friction_step_ratio(model: Model, law: ct.ContactLaw, contact: Contact) -> float:
+    """dt c / m of the stiffest regularised friction damper at the nominal normal stress (c = S (mu0 + mu1 (1 +
+    K_max) sigma_N / v_reg), m the smallest automaton's mass): explicit kicks of a damper between two masses are
+    stable below 2 (reduced mass m/2 at worst: ratio 1)."""
+    a = model.aut
+    area = float(np.max(np.prod(np.delete(a.extent, contact.axis_index, axis=1), axis=1)))
+    k_max = (1 + law.rough.spread) * (law.rough.a1 + law.rough.a2)
+    coef = area * (law.mu0 + law.mu1 * (1 + k_max) * contact.normal_stress / law.v_reg)
+    return float(model.dt * coef / a.mass.min())

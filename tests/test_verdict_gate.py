@@ -1,0 +1,142 @@
+"""Machine-readable verdicts and the CI gate: verdicts.json, `study --json`, `--strict`, `--group`, and the
+command each verdict carries reproducing its number."""
+
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from pcverify.harness.cli import main
+
+STUDY = """
+name = "gate"
+title = "a passing and a failing claim"
+[[group]]
+id = "faces"
+title = "steady faces, scikit-fem"
+analysis = "table"
+scene = "bar-heat-faces"
+solvers = ["skfem"]
+n = [2, 3]
+[[group]]
+id = "paper"
+title = "the paper's corners, scikit-fem"
+analysis = "table"
+scene = "bar-heat-paper"
+scene_params = { placement = "diagonal" }
+solvers = ["skfem"]
+n = [2]
+[[claim]]
+id = "exact-line"
+text = "scikit-fem reproduces the steady linear profile"
+table = "faces-cells"
+per = "n"
+metric = "err.nodes.linf"
+reference = "analytic"
+tolerance = 1e-9
+uncertainty = 1e-12
+[[claim]]
+id = "wrong-mean"
+text = "the volume mean of the faces scene is 0.6 (false: it is 1/2)"
+table = "faces-cells"
+metric = "volume_mean"
+reference = "analytic"
+target = 0.6
+tolerance = 0.01
+"""
+KEYS = ("study", "claim", "case", "reference", "value", "target", "error", "uncertainty", "tolerance", "verdict",
+        "note", "command")
+EXE = shutil.which("pcverify") or str(Path(sys.executable).with_name("pcverify"))
+
+
+@pytest.fixture(scope="module")
+def study(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("gate")
+    path = folder / "gate.toml"
+    path.write_text(STUDY)
+    return path
+
+
+def _run(capsys, *argv):
+    code = main(["study", *map(str, argv)])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_json_and_verdicts_file_list_every_verdict(study, tmp_path, capsys):
+    out = tmp_path / "reports"
+    code, stdout, _ = _run(capsys, study, "--out", out, "--json")
+    assert code == 0  # a failing claim is a finding, not an error, without --strict
+    summary = json.loads(stdout.strip().splitlines()[-1])
+    assert summary[0]["cells"] == 3  # the per-study counts are kept
+    printed = summary[0]["verdicts"]
+    written = json.loads((out / "verdicts.json").read_text())
+    assert printed == written == json.loads((out / "gate" / "verdicts.json").read_text())
+    for record in written:
+        assert set(KEYS) <= set(record)
+    by = {(r["claim"], r["case"]): r for r in written}
+    assert [by[("exact-line", f"n={n}")]["verdict"] for n in (2, 3)] == ["pass", "pass"]
+    wrong = by[("wrong-mean", "")]
+    assert wrong["verdict"] == "fail" and wrong["value"] == pytest.approx(0.5, abs=1e-9)
+    assert wrong["error"] == pytest.approx(0.1, abs=1e-9) and wrong["uncertainty"] is None
+    # a value from several cells is reproduced by its group; one from a single cell by `pcverify run`
+    assert wrong["command"] == f"pcverify study {study} --group faces"
+    assert by[("exact-line", "n=3")]["command"] == "pcverify run bar-heat-faces --solver skfem --n 3"
+    assert by[("exact-line", "n=3")]["nodes"] == 63  # 3 x 3 x 7 lattice nodes
+
+
+def test_strict_exits_1_and_lists_the_failed_claims(study, tmp_path):
+    """The console script as a CI runs it: exit 0 without --strict, 1 with it, failures on stderr."""
+    out = tmp_path / "reports"
+    plain = subprocess.run([EXE, "study", str(study), "--out", str(out)], capture_output=True, text=True,
+                           timeout=600, check=False)
+    assert plain.returncode == 0, plain.stderr
+    strict = subprocess.run([EXE, "study", str(study), "--out", str(out), "--strict"], capture_output=True,
+                            text=True, timeout=600, check=False)
+    assert strict.returncode == 1
+    lines = strict.stderr.strip().splitlines()
+    assert any("claim failed: gate/wrong-mean" in x and "--group faces" in x for x in lines)
+    assert not any("exact-line" in x for x in lines) and "1 failed verdicts of 3" in lines[-1]
+
+
+def test_group_selector_runs_one_group_with_its_claims(study, tmp_path, capsys):
+    out = tmp_path / "reports"
+    code, stdout, _ = _run(capsys, study, "--out", out, "--json", "--group", "paper")
+    assert code == 0
+    summary = json.loads(stdout.strip().splitlines()[-1])
+    assert summary[0]["cells"] == 1 and summary[0]["verdicts"] == []  # no claim reads the paper group
+    manifest = json.loads((out / "gate" / "manifest.json").read_text())
+    assert [s["id"] for s in manifest["sections"]] == ["paper"]
+    code, stdout, _ = _run(capsys, study, "--out", out, "--json", "--group", "faces", "--strict")
+    assert code == 1 and len(json.loads(stdout.strip().splitlines()[-1])[0]["verdicts"]) == 3
+    code, _, err = _run(capsys, study, "--out", out, "--group", "nope")
+    assert code == 2 and "group='nope' is unknown" in err and "faces, paper" in err
+    code, _, err = _run(capsys, "default", "--out", out, "--group", "faces", "--dry-run")
+    assert code == 2 and "--group needs one study" in err
+
+
+def test_a_verdict_command_reproduces_its_value(study, tmp_path, capsys):
+    out = tmp_path / "reports"
+    assert _run(capsys, study, "--out", out)[0] == 0
+    record = next(r for r in json.loads((out / "verdicts.json").read_text()) if r["case"] == "n=2")
+    argv = record["command"].split()[1:]
+    assert main([*argv, "--json"]) == 0
+    solved = json.loads(capsys.readouterr().out)
+    err = max(abs(v - (1 - z / 0.03)) for v, (_, _, z) in zip(solved["samples"]["nodes"]["values"],
+                                                                 solved["samples"]["nodes"]["points"], strict=True))
+    assert err == record["value"]  # the same number, bit for bit
+
+
+def test_run_command_only_for_what_every_pcverify_process_knows():
+    from pcverify.harness.reproduce import run_command
+
+    cell = {"scene": "bar-heat-patch", "solver": "fipy", "n": 3, "refine": 4, "scene_params": {"rho": 0.002},
+            "solver_params": {}}
+    assert run_command(cell) == "pcverify run bar-heat-patch --solver fipy --n 3 --refine 4 --set rho=0.002"
+    assert run_command(cell | {"scene_params": {"t_max": 400.0}, "solver_params": {"scheme": "crank-nicolson"}}) == (
+        "pcverify run bar-heat-patch --solver fipy --n 3 --refine 4 --set t_max=400.0 --set scheme=crank-nicolson")
+    assert run_command(cell | {"solver": "not-installed"}) is None  # e.g. registered by a study's plugin module
+    assert run_command(cell | {"scene": "not-in-the-catalogue"}) is None  # e.g. a study file's [[scene]]
