@@ -337,6 +337,7 @@ def _validation(ev: _Evaluator, cal: Calibration, best: dict[str, Any] | None) -
     if theta is not None:
         batch += [ev.cell(cc, cal.solver, fixed | theta) for _, cc in cells]
     results = ev.run(batch)
+    fitted_runs = {c.key() for c in cal.calibrate}
     rows = []
     for i, (role, cc) in enumerate(cells):
         default = results[i]
@@ -351,7 +352,8 @@ def _validation(ev: _Evaluator, cal: Calibration, best: dict[str, Any] | None) -
                      "calibrated_reason": calibrated.get("reason", ""), "calibrated_wall_s": calibrated.get("wall_s"),
                      "default_value": dv, "default_error": de, "default_status": default.get("status"),
                      "default_reason": default.get("reason", ""),
-                     "within_tolerance": bool(calibrated.get("status") == "ok" and ce <= cal.tolerance)})
+                     "within_tolerance": bool(calibrated.get("status") == "ok" and ce <= cal.tolerance),
+                     "shares_calibration_run": role == VALIDATED and cc.key() in fitted_runs})
     return pd.DataFrame(rows)
 
 

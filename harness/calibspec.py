@@ -3,8 +3,10 @@
 A calibration names a solver, its fixed parameters, the free parameters with bounds (`log = true` to
 search in log space), the calibration cells (scene, n, metric, reference) the objective is measured on,
 and the validation cells held out from it.  A calibration whose calibration and validation cells
-overlap (the same scene, scene parameters and resolution) is refused with the cells named: a number
-measured on a cell the parameters were fitted to is not a validation.  `pcverify.harness.calibration`
+overlap (the same scene, scene parameters, resolution and metric) is refused with the cells named: a
+number the parameters were fitted to is not a validation.  Another metric of a calibration cell's run
+(torsion beside the bending frequency it was fitted to) is allowed, and the validation table says that
+it shares the run.  `pcverify.harness.calibration`
 runs what this module describes; everything here is checked before any cell runs, with one-line
 SceneErrors like the other study-file errors.
 """
@@ -100,8 +102,12 @@ class CalibCell:
     error: str = "relative"
 
     def key(self) -> tuple[str, int, int]:
-        """Identity for the overlap guard: the scene's content (name and parameters) and the resolution."""
+        """The run this cell measures: the scene's content (name and parameters) and the resolution."""
         return (self.scene.content_hash(), self.n, self.refine)
+
+    def measure(self) -> tuple[str, int, int, str]:
+        """Identity for the overlap guard: the run and the metric measured on it."""
+        return (*self.key(), self.metric)
 
     def describe(self) -> str:
         extra = ", ".join(f"{k}={v}" for k, v in self.scene_params)
@@ -277,11 +283,11 @@ def parse_calibrations(items: Any, where: str) -> list[Calibration]:
             if not isinstance(tables, list) or not tables:
                 raise SceneError(f"{at}: no [[calibration.{role}]] tables; allowed: one or more cells")
             cells[role] = [c for i, t in enumerate(tables) for c in _cells(t, f"{at} {role} {i + 1}")]
-        held = {c.key(): c for c in cells["validate"]}
-        overlap = [c.describe() for c in cells["calibrate"] if c.key() in held]
+        held = {c.measure() for c in cells["validate"]}
+        overlap = [f"{c.describe()} {c.metric}" for c in cells["calibrate"] if c.measure() in held]
         if overlap:
             raise SceneError(f"{at}: calibration and validation cells overlap ({'; '.join(overlap)}); allowed: "
-                             "validation cells held out from calibration (another scene or resolution)")
+                             "validation cells held out from calibration (another scene, resolution or metric)")
         opts = _options(item, at)
         replicas = _table(item.get("replicas", {}), "replicas", at)
         reps = tuple((k2, tuple(v if isinstance(v, list) else [v])) for k2, v in sorted(replicas.items()))

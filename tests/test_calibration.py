@@ -135,7 +135,21 @@ def test_overlapping_calibration_and_validation_cells_are_refused(tmp_path):
         load_study(str(path))
     message = str(err.value)
     assert "\n" not in message
-    assert "overlap" in message and "bar-heat-faces n=3" in message and "quad" in message
+    assert "overlap" in message and "bar-heat-faces n=3 q" in message and "quad" in message
+
+
+def test_another_metric_of_a_calibration_run_is_allowed_and_flagged(tmp_path):
+    """The shipped MCA calibration validates torsion on the run whose bending it was fitted to: allowed, and
+    the validation table says the run is shared."""
+    path = _study(tmp_path, validate_n="[3, 4]")
+    text = path.read_text()
+    head, tail = text.split("[[calibration.validate]]")
+    path.write_text(head + "[[calibration.validate]]" + tail.replace('metric = "q"', 'metric = "q_ref"'))
+    study = load_study(str(path))
+    cal = study.calibrations[0]
+    assert [(c.n, c.metric) for c in cal.validate] == [(3, "q_ref"), (4, "q_ref")]
+    val = run_calibration(study, cal, Cache(tmp_path / "cache")).tables["quad-validation"]
+    assert list(val["shares_calibration_run"]) == [False, True, False]
 
 
 @pytest.mark.parametrize("change, words", [
