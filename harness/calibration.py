@@ -284,6 +284,7 @@ def _outcome(ev: _Evaluator, cal: Calibration, best: dict[str, Any] | None, nois
     if not trace.empty:
         ok = trace["status"].eq("ok") & trace["phase"].isin(["design", "local"])
         trace["best_so_far"] = trace["objective"].where(ok).cummin().ffill()
+    validation, default_summary = _validation(ev, cal, best)
     band = math.nan
     params_rows, ranges = [], {}
     if best is not None:
@@ -296,7 +297,7 @@ def _outcome(ev: _Evaluator, cal: Calibration, best: dict[str, Any] | None, nois
         for p in cal.parameters:
             s = sens_by.get(p.name, {})
             params_rows.append({"parameter": p.name, "role": CALIBRATED, "log": p.log, "low": p.low, "high": p.high,
-                                "default": cal.defaults.get(p.name), "calibrated": best[p.name],
+                                "default": _default(cal, p.name, default_summary), "calibrated": best[p.name],
                                 "range_low": ranges[p.name][0], "range_high": ranges[p.name][1],
                                 "sets_in_band": len(inside), "objective_best": best["objective"],
                                 "objective_minus": s.get("objective_minus"), "objective_plus": s.get("objective_plus"),
@@ -306,30 +307,56 @@ def _outcome(ev: _Evaluator, cal: Calibration, best: dict[str, Any] | None, nois
         "evaluation", "phase", "objective", "status", "reason", "wall_s", "work", "work_kind")
         and k not in {p.name for p in cal.parameters}), "objective": r["objective"], "status": r["status"],
         "reason": r["reason"], "role": CALIBRATED} for r in replicas]
-    validation = _validation(ev, cal, best)
-    held = validation[validation["role"] == VALIDATED] if not validation.empty else validation
-    matched = held["calibrated_error"].le(cal.tolerance) & held["calibrated_status"].eq("ok") if not held.empty \
-        else pd.Series(dtype=bool)
-    summary = {"calibration": cal.id, "solver": cal.solver, "objective_best": best["objective"] if best else math.nan,
-               "noise": noise, "band": band, "evaluations": len(ev.ledger), "search_runs": ev.search_runs,
-               "budget": cal.budget, "solver_runs": ev.runs, "cache_hits": ev.hits,
-               "failures": int((trace["status"] != "ok").sum()) if not trace.empty else 0,
-               "tolerance": cal.tolerance, "validation_cells": len(held), "cells_matched": int(matched.sum()),
-               "cells_not_matched": int(len(held) - matched.sum()) if best is not None else len(cal.validate),
-               "max_validation_error": float(held["calibrated_error"].max()) if len(held) else math.nan,
-               "max_default_error": float(held["default_error"].max()) if len(held) else math.nan}
-    for p in cal.parameters:
-        summary[p.name] = best[p.name] if best else math.nan
-        summary[f"{p.name}.range"] = (f"[{ranges[p.name][0]:.4g}, {ranges[p.name][1]:.4g}]" if p.name in ranges
-                                      else "")
+    held = validation[validation["role"] == VALIDATED]
+    matched = held["within_tolerance"].astype(bool)
+    fitted = validation[validation["role"] == CALIBRATED]
+    summary: dict[str, Any] = {"calibration": cal.id, "solver": cal.solver}
+    for p in cal.parameters:  # the calibrated values and their ranges, then the numbers, each marked
+        summary[f"{p.name} [calibrated on]"] = best[p.name] if best else math.nan
+        summary[f"{p.name} range [calibrated on]"] = (f"[{ranges[p.name][0]:.4g}, {ranges[p.name][1]:.4g}]"
+                                                      if p.name in ranges else "")
+    summary |= {"objective [calibrated on]": best["objective"] if best else math.nan,
+                "default objective [calibrated on]": _rms(fitted["default_error"]),
+                "noise [calibrated on]": noise, "band [calibrated on]": band,
+                "tolerance [validated on]": cal.tolerance, "cells [validated on]": len(held),
+                "cells_matched [validated on]": int(matched.sum()),
+                "cells_not_matched [validated on]": int(len(held) - matched.sum()),
+                "max_error_ok_cells [validated on]": _max(held["calibrated_error"]),
+                "max_default_error_ok_cells [validated on]": _max(held["default_error"]),
+                "evaluations": len(ev.ledger), "search_runs": ev.search_runs, "budget": cal.budget,
+                "failed_sets": int((trace["status"] != "ok").sum()) if not trace.empty else 0,
+                "solver_runs": ev.runs, "cache_hits": ev.hits}
     tables = {f"{cal.id}-summary": pd.DataFrame([summary]), f"{cal.id}-parameters": pd.DataFrame(params_rows),
               f"{cal.id}-trace": trace, f"{cal.id}-noise": pd.DataFrame(noise_rows),
               f"{cal.id}-validation": validation}
     return Outcome(cal, tables, ev.runs, ev.hits, {p.name: best[p.name] for p in cal.parameters} if best else {})
 
 
-def _validation(ev: _Evaluator, cal: Calibration, best: dict[str, Any] | None) -> pd.DataFrame:
-    """Every calibration and validation cell at the calibrated values and at the solver's defaults."""
+def _rms(errors: pd.Series) -> float:
+    """RMS of errors (NaN if any is NaN: a failed run has no error), the objective's own combination."""
+    e = pd.to_numeric(errors, errors="coerce").to_numpy(float)
+    return float(np.sqrt(np.mean(e * e))) if e.size else math.nan
+
+
+def _max(errors: pd.Series) -> float:
+    """Largest finite error (cells whose run is not ok have none; they are counted as not matched)."""
+    e = pd.to_numeric(errors, errors="coerce").to_numpy(float)
+    e = e[np.isfinite(e)]
+    return float(e.max()) if e.size else math.nan
+
+
+def _default(cal: Calibration, name: str, summary: dict[str, Any]) -> Any:
+    """The solver's default of a free parameter; an unset optional one as the default run reports it."""
+    value = cal.defaults.get(name)
+    if value is None and summary.get(name) is not None:
+        return f"{summary[name]:g} (unset: the solver's own)"
+    return value
+
+
+def _validation(ev: _Evaluator, cal: Calibration, best: dict[str, Any] | None
+                ) -> tuple[pd.DataFrame, dict[str, Any]]:
+    """Every calibration and validation cell at the calibrated values and at the solver's defaults, and the
+    summary scalars of the first default run (the effective values of unset parameters)."""
     fixed = dict(cal.solver_params)
     cells = [(CALIBRATED, cc) for cc in cal.calibrate] + [(VALIDATED, cc) for cc in cal.validate]
     theta = {p.name: best[p.name] for p in cal.parameters} if best else None
@@ -345,7 +372,8 @@ def _validation(ev: _Evaluator, cal: Calibration, best: dict[str, Any] | None) -
         dv, de = ev.error(cc, default)
         cv, ce = ev.error(cc, calibrated)
         ref = ev.references.get((cc.key(), cc.metric, cc.reference), (math.nan, ""))
-        rows.append({"role": role, "cell": cc.describe(), "scene": cc.scene.name, "n": cc.n, "metric": cc.metric,
+        rows.append({"role": role, "cell": f"{cc.describe()} {cc.metric}", "scene": cc.scene.name, "n": cc.n,
+                     "metric": cc.metric,
                      "error_kind": "field" if cc.reference is None else cc.error, "reference": cc.reference_label(),
                      "reference_value": ref[0], "reference_note": ref[1], "calibrated_value": cv,
                      "calibrated_error": ce, "calibrated_status": calibrated.get("status"),
@@ -354,7 +382,7 @@ def _validation(ev: _Evaluator, cal: Calibration, best: dict[str, Any] | None) -
                      "default_reason": default.get("reason", ""),
                      "within_tolerance": bool(calibrated.get("status") == "ok" and ce <= cal.tolerance),
                      "shares_calibration_run": role == VALIDATED and cc.key() in fitted_runs})
-    return pd.DataFrame(rows)
+    return pd.DataFrame(rows), scalars(results[0])
 
 
 def calibration_section(outcome: Outcome, folder: Path) -> tuple[dict[str, Any], dict[str, pd.DataFrame]]:

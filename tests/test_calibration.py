@@ -86,12 +86,12 @@ def test_known_optimum_recovered_within_the_reported_ranges(outcome):
         assert params.loc[name, "range_low"] <= truth <= params.loc[name, "range_high"], name
     # the objective is |q| with q = dx^2 + 2 dlog10(y)^2 + noise: at the best set, q's deterministic part is at
     # most the band plus the noise of that one run (below 4 sigma: probability 6e-5 for a normal draw)
-    slack = summary["band"] + 4 * SIGMA
+    slack = summary["band [calibrated on]"] + 4 * SIGMA
     assert abs(params.loc["x", "calibrated"] - X0) <= math.sqrt(slack)
     assert abs(math.log10(params.loc["y", "calibrated"]) - math.log10(Y0)) <= math.sqrt(slack / 2)
     # the band is best + 2 x the replica noise, so it is wider than the noise of one run and the ranges are
     # not a single point
-    assert summary["band"] > summary["objective_best"]
+    assert summary["band [calibrated on]"] > summary["objective [calibrated on]"]
     assert params.loc["x", "range_high"] > params.loc["x", "range_low"]
     assert params.loc["y", "range_high"] > params.loc["y", "range_low"]
 
@@ -100,7 +100,7 @@ def test_noise_from_replicas_matches_the_added_noise(outcome):
     """The replicas (5 seeds) and the best run estimate the std of |q| at the optimum; for q ~ N(0, sigma)
     that is 0.60 sigma, and a 6-sample standard deviation lies within a factor 3 of it with probability
     above 0.99.  The estimate is deterministic (seeded), so this is one fixed number, not a flaky draw."""
-    noise = outcome.tables["quad-summary"].iloc[0]["noise"]
+    noise = outcome.tables["quad-summary"].iloc[0]["noise [calibrated on]"]
     assert 0.6 * SIGMA / 3 <= noise <= 0.6 * SIGMA * 3
     reps = outcome.tables["quad-noise"]
     assert len(reps) == 5 and (reps["status"] == "ok").all()
@@ -113,7 +113,7 @@ def test_failed_sets_are_failures_not_data(outcome):
     assert len(failed) > 0 and (failed["status"] == "defect").all()  # x > 0.8 fails (Sobol covers [-1, 1])
     assert failed["objective"].isna().all()  # no objective for them, so in no range, band or noise
     assert (failed["x"] > 0.8).all() and (trace.loc[trace["status"] == "ok", "x"] <= 0.8).all()
-    assert outcome.tables["quad-summary"].iloc[0]["failures"] == len(failed)
+    assert outcome.tables["quad-summary"].iloc[0]["failed_sets"] == len(failed)
 
 
 def test_budget_caps_the_search_and_validation_is_marked(outcome):
@@ -123,10 +123,12 @@ def test_budget_caps_the_search_and_validation_is_marked(outcome):
     assert trace["phase"].isin(["design", "local"]).sum() == summary["search_runs"]  # one cell per set here
     val = outcome.tables["quad-validation"]
     assert list(val["role"]) == [CALIBRATED, VALIDATED, VALIDATED]
+    assert list(val["cell"]) == ["bar-heat-faces n=3 q", "bar-heat-faces n=4 q", "bar-heat-faces n=6 q"]
     # defaults x = 0.5, y = 0.1: q = 0.04 + 2 = 2.04 (+ noise), far outside the tolerance; calibrated: within
     assert (val["default_error"] > 2.0).all()
     assert (val.loc[val["role"] == VALIDATED, "calibrated_error"] < 0.05).all()
-    assert summary["cells_not_matched"] == 0 and summary["cells_matched"] == 2
+    assert summary["cells_not_matched [validated on]"] == 0 and summary["cells_matched [validated on]"] == 2
+    assert summary["x [calibrated on]"] == outcome.best["x"]
 
 
 def test_overlapping_calibration_and_validation_cells_are_refused(tmp_path):
