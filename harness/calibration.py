@@ -63,8 +63,10 @@ class Outcome:
 class _Evaluator:
     """Runs cells of one calibration through `execute` and keeps the ledger of parameter-set evaluations."""
 
-    def __init__(self, study: Study, cal: Calibration, cache: Cache, jobs: int, compute: bool) -> None:
+    def __init__(self, study: Study, cal: Calibration, cache: Cache, jobs: int, compute: bool,
+                 rerun: frozenset[str] | None = None, allow_large: bool = False) -> None:
         self.study, self.cal, self.cache, self.jobs, self.compute = study, cal, cache, jobs, compute
+        self.rerun, self.allow_large = rerun, allow_large
         self.runs = self.hits = 0
         self.search_runs = 0
         self.ledger: list[dict[str, Any]] = []
@@ -87,7 +89,8 @@ class _Evaluator:
                     raise NotCached(f"calibration {self.cal.id}: {c.describe()} is not cached")
         mini = Study(f"{self.study.name}.{self.cal.id}", self.cal.title,
                      [Group(self.cal.id, self.cal.title, "table", cells)], plugins=self.study.plugins)
-        results, counts = execute(mini, self.cache, jobs=self.jobs, progress=False)
+        results, counts = execute(mini, self.cache, jobs=self.jobs, progress=False, rerun=self.rerun,
+                                  allow_large=self.allow_large)
         self.hits += counts["cached"]
         self.runs += counts["done"] + counts["failed"]
         return results
@@ -227,10 +230,12 @@ def _local(ev: _Evaluator, cal: Calibration, u0: np.ndarray, share: int) -> None
         pass
 
 
-def run_calibration(study: Study, cal: Calibration, cache: Cache, jobs: int = 1, compute: bool = True) -> Outcome:
+def run_calibration(study: Study, cal: Calibration, cache: Cache, jobs: int = 1, compute: bool = True,
+                    rerun: frozenset[str] | None = None, allow_large: bool = False) -> Outcome:
     """Search, noise, ranges, sensitivity and validation of one calibration; every run a cached cell.
-    `compute` False: read everything from the cache (NotCached if a cell is missing)."""
-    ev = _Evaluator(study, cal, cache, jobs, compute)
+    `compute` False: read everything from the cache (NotCached if a cell is missing); `rerun` and
+    `allow_large` as for `execute` (cells are recomputed once per request)."""
+    ev = _Evaluator(study, cal, cache, jobs, compute, rerun, allow_large)
     ev.prepare_references()
     design = [_theta(cal, u) for u in _design(cal)]
     rows = ev.evaluate(design, "design", search=True) if design else []

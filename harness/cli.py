@@ -264,7 +264,7 @@ def cmd_study(args: argparse.Namespace) -> int:
                                       rerun=rerun, allow_large=args.allow_large)
             extra = []
             for cal in study.calibrations:
-                outcome = run_calibration(study, cal, cache, jobs=args.jobs)
+                outcome = run_calibration(study, cal, cache, jobs=args.jobs, rerun=rerun, allow_large=args.allow_large)
                 extra.append(calibration_section(outcome, out / study.name))
                 counts["calibration_runs"] = counts.get("calibration_runs", 0) + outcome.runs
                 counts["calibration_cached"] = counts.get("calibration_cached", 0) + outcome.hits
