@@ -303,6 +303,7 @@ def _outcome(ev: _Evaluator, cal: Calibration, best: dict[str, Any] | None, nois
             s = sens_by.get(p.name, {})
             params_rows.append({"parameter": p.name, "role": CALIBRATED, "log": p.log, "low": p.low, "high": p.high,
                                 "default": _default(cal, p.name, default_summary), "calibrated": best[p.name],
+                                "at_bound": p.to_unit(best[p.name]) <= 1e-9 or p.to_unit(best[p.name]) >= 1 - 1e-9,
                                 "range_low": ranges[p.name][0], "range_high": ranges[p.name][1],
                                 "sets_in_band": len(inside), "objective_best": best["objective"],
                                 "objective_minus": s.get("objective_minus"), "objective_plus": s.get("objective_plus"),
@@ -377,7 +378,8 @@ def _validation(ev: _Evaluator, cal: Calibration, best: dict[str, Any] | None
         dv, de = ev.error(cc, default)
         cv, ce = ev.error(cc, calibrated)
         ref = ev.references.get((cc.key(), cc.metric, cc.reference), (math.nan, ""))
-        rows.append({"role": role, "cell": f"{cc.describe()} {cc.metric}", "scene": cc.scene.name, "n": cc.n,
+        rows.append({"role": role, "cell": f"{cc.describe()} {cc.metric}", "solver": cal.solver,
+                     "scene": cc.scene.name, "n": cc.n,
                      "metric": cc.metric,
                      "error_kind": "field" if cc.reference is None else cc.error, "reference": cc.reference_label(),
                      "reference_value": ref[0], "reference_note": ref[1], "calibrated_value": cv,

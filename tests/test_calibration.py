@@ -17,7 +17,7 @@ import pandas as pd
 import pytest
 
 from pcverify.harness.cache import Cache
-from pcverify.harness.calibration import CALIBRATED, VALIDATED, run_calibration
+from pcverify.harness.calibration import CALIBRATED, VALIDATED, NotCached, run_calibration
 from pcverify.harness.study import load_study
 from pcverify.scene import SceneError
 
@@ -94,6 +94,7 @@ def test_known_optimum_recovered_within_the_reported_ranges(outcome):
     assert summary["band [calibrated on]"] > summary["objective [calibrated on]"]
     assert params.loc["x", "range_high"] > params.loc["x", "range_low"]
     assert params.loc["y", "range_high"] > params.loc["y", "range_low"]
+    assert not params["at_bound"].any()  # the optimum is inside the bounds, not pressed against one
 
 
 def test_noise_from_replicas_matches_the_added_noise(outcome):
@@ -224,3 +225,33 @@ def test_killed_calibration_resumes_and_a_rerun_computes_nothing(tmp_path):
     solved = set(first) | set(resumed)  # every cell solved once (the killed one, if any, twice: one line each run)
     assert len(list((tmp_path / "out" / "cache").glob("*.json"))) == len(solved)
     assert summary["cache_hits"] >= len(solved)  # the third run read every one of them back
+
+
+def test_report_replays_the_calibration_from_the_cache_alone(tmp_path):
+    """`pcverify report` reruns the search with compute=False: the same tables from the cached cells, and
+    NotCached (nothing computed) when a cell is missing."""
+    study = load_study(str(_study(tmp_path)))
+    cal = study.calibrations[0]
+    with pytest.raises(NotCached):
+        run_calibration(study, cal, Cache(tmp_path / "empty"), compute=False)
+    assert not (tmp_path / "empty").exists() or not list((tmp_path / "empty").glob("*.json"))
+    first = run_calibration(study, cal, Cache(tmp_path / "cache"))
+    again = run_calibration(study, cal, Cache(tmp_path / "cache"), compute=False)
+    assert again.runs == 0 and again.hits > 0
+    for name, table in first.tables.items():
+        pd.testing.assert_frame_equal(table.drop(columns=["solver_runs", "cache_hits"], errors="ignore"),
+                                      again.tables[name].drop(columns=["solver_runs", "cache_hits"],
+                                                              errors="ignore"))
+
+
+def test_shipped_calibration_study_is_well_formed():
+    """The shipped study: five macromolecule parameters on one calibration cell with ten held-out cells, and
+    MCA's krot with eleven (torsion and axial at n = 4 share the fitted run, flagged, not refused)."""
+    study = load_study("calibration")
+    mm, mca = study.calibrations
+    assert [p.name for p in mm.parameters] == ["damping_ratio", "drive_amplitude", "drive_frequency", "f_top", "p"]
+    assert [(c.scene.name, c.n) for c in mm.calibrate] == [("bar-heat-faces", 4)]
+    assert len(mm.validate) == 10 and mm.tolerance == 0.10
+    assert [p.name for p in mca.parameters] == ["krot"] and len(mca.validate) == 11 and mca.tolerance == 0.05
+    assert {c.key() for c in mca.calibrate} <= {c.key() for c in mca.validate}
+    assert not {c.measure() for c in mca.calibrate} & {c.measure() for c in mca.validate}
