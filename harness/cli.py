@@ -64,7 +64,24 @@ class OneLineParser(argparse.ArgumentParser):
     """argparse with usage errors as one line `pcverify: error: ...` (exit 2), like every other error."""
 
     def error(self, message: str) -> None:  # type: ignore[override]
-        self.exit(2, f"pcverify: error: {' '.join(message.split())}\n")
+        self.exit(2, error_line(message) + "\n")
+
+
+WORD_LIMIT = 80  # characters of one word of an error line (a hostile name may be 100 kB)
+
+
+def error_line(message: str) -> str:
+    """`pcverify: error: ...` on one line, every word longer than WORD_LIMIT shortened to its start and length."""
+    words = [w if len(w) <= WORD_LIMIT else f"{w[:WORD_LIMIT - 20]}...({len(w)} characters){w[-1] * (w[-1] in ';,:')}"
+             for w in message.split()]
+    return "pcverify: error: " + " ".join(words)
+
+
+def report_error(message: str) -> None:
+    """Print an error line on stderr on a line of its own: open progress bars are closed first."""
+    for bar in list(getattr(tqdm, "_instances", ())):
+        bar.close()
+    print(error_line(message), file=sys.stderr)
 
 
 def int_in(name: str, low: int, high: int):
@@ -443,14 +460,14 @@ def main(argv: list[str] | None = None) -> int:
     except (SceneError, CliError, SolverUnavailable, FileNotFoundError) as exc:
         if args.debug:
             raise
-        print(f"pcverify: error: {exc}", file=sys.stderr)
+        report_error(str(exc))
         return 2
     except OSError as exc:  # a read-only or full output folder, a path that is a file, ...
         if args.debug:
             raise
         where = f"{exc.strerror}: {exc.filename}" if exc.filename and exc.strerror else str(exc)
         hint = "; finished cells are kept in the cache, rerun to resume" if args.command == "study" else ""
-        print(f"pcverify: error: {' '.join(where.split())}{hint if 'rerun' not in where else ''}", file=sys.stderr)
+        report_error(f"{where}{hint if 'rerun' not in where else ''}")
         return 2
     except KeyboardInterrupt:
         if received() == signal.SIGTERM:

@@ -10,6 +10,10 @@ import time
 import pytest
 from red_team import TALLY, cli, one_line_error, tally
 
+from pcverify.harness.catalogue import make_scene
+from pcverify.scene import Resolution
+from pcverify.solvers.registry import get_solver
+
 
 def test_a_million_cell_study_is_refused_before_it_is_built(tmp_path) -> None:
     """1000 n values x 1000 sweep values: refused from the lengths of the lists alone (the old code spent
@@ -33,6 +37,8 @@ def test_a_million_cell_study_is_refused_before_it_is_built(tmp_path) -> None:
      "1e+07 steps is out of range; allowed: at most max_steps=1000000"),
     (["run", "bar-heat-faces", "--solver", "fipy", "--set", "mode=transient", "--set", "t_end=1e4", "--set",
       "dt=1e-7"], "1e+11 time steps = 1.6e+13 unknown-steps; allowed: at most 1e+11 without --allow-large"),
+    (["run", "bar-compression", "--solver", "mca", "--n", "200"], "needs about 91.2 GiB (1.44e+08 unknowns)"),
+    (["run", "bar-compression", "--solver", "mca", "--n", "40"], "1.13e+06 unknowns x 1.17e+05 time steps"),
     (["run", "bar-heat-faces", "--solver", "skfem", "--n", "21", "--refine", "2", "--set", "mode=transient",
       "--set", "t_end=100", "--set", "dt=0.0001"], "2.03e+05 unknowns x 1e+06 time steps = 2.03e+11 unknown-steps"),
 ])
@@ -79,6 +85,16 @@ def test_a_group_id_that_is_not_a_file_name_is_refused(tmp_path, gid) -> None:
                                      'solvers = ["skfem"]\nn = [2]\n')
     assert "id=" in one_line_error(cli("study", "s.toml", "--out", "out", cwd=tmp_path))
     tally("paths", "rejected")
+
+
+def test_the_mca_estimate_is_near_the_steps_a_fracture_run_takes() -> None:
+    """The limits act on the estimate, so it must be the run's size: the fracture run at n = 2 takes 3072
+    steps, the estimate (loading time over cfl h / (4 c)) says 3439; within 25 % at both cfl values."""
+    mca, scene = get_solver("mca"), make_scene("bar-tension-fracture")
+    for cfl in (0.25, 0.5):
+        steps = mca.solve(scene, Resolution(2), cfl=cfl).work["time_steps"]
+        assert abs(mca.estimate(scene, Resolution(2), cfl=cfl).steps / steps - 1.0) < 0.25
+    tally("limits", "accepted")
 
 
 def test_zz_limits_tally() -> None:

@@ -15,6 +15,7 @@ from .constraints import (
     PointTemperature,
     Support,
     TemperatureConstraint,
+    point_patch_note,
 )
 from .contact import Contact
 from .geometry import Box, Resolution
@@ -28,5 +29,5 @@ __all__ = [
     "ALUMINIUM", "DURALUMIN", "FACES", "MATERIALS", "MODES", "PHYSICS", "RESPONSES", "Box", "Conduction", "Constraint",
     "Contact", "Elasticity", "FaceClamp", "FaceSupport", "FaceTemperature", "InterfaceFlux", "Material", "Param",
     "PatchTemperature", "PointTemperature", "Resolution", "Response", "Scene", "SceneError", "SceneSpec", "Support",
-    "TemperatureConstraint", "resolve_params", "shown",
+    "TemperatureConstraint", "point_patch_note", "resolve_params", "shown",
 ]

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 from .params import SceneError, shown
 
@@ -76,3 +77,13 @@ class FaceClamp:
 TemperatureConstraint = PointTemperature | PatchTemperature | FaceTemperature
 Support = FaceSupport | FaceClamp
 Constraint = TemperatureConstraint | Support
+
+
+def point_patch_note(constraints: tuple[Any, ...] | list[Any], spacing: float) -> str:
+    """The status note of a discretisation whose nodes are `spacing` apart when a temperature patch is smaller
+    than that: it then holds only the node at its centre, a point constraint, not the patch."""
+    small = sorted({c.radius for c in constraints if isinstance(c, PatchTemperature) and c.radius < spacing})
+    if not small:
+        return ""
+    return (f"patch radius rho={small[0]:.3g} m is below the node spacing {spacing:.3g} m: each such patch holds "
+            "only the node at its centre (a point constraint)")

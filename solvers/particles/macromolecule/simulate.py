@@ -121,6 +121,9 @@ def simulate(lat: Lattice, model: SevenRoot, fx: Fixes, delta: float, dt: float,
                      int(counters[K_STEPS]), cpu)
 
 
+ENERGY_TOL = 1e-2  # relative energy-balance error above which a run is not integrated (shipped runs: <= 3e-4)
+
+
 def energy_balance_error(r: RunResult) -> float:
     """|E_end - E_start + dissipated - work in| relative to the largest energy flow."""
     e = r.energy
@@ -146,12 +149,19 @@ def run_status(run: RunResult, H: np.ndarray, free: np.ndarray, p: dict[str, Any
     }
     if code in (NAN, GROWTH, LEFT_BAR):
         return "unstable", f"{STATUS_TEXT[code]}; stopped at step {run.steps}, sums kept", flags
+    balance = energy_balance_error(run)
+    if not balance <= ENERGY_TOL:  # also a balance that cannot be formed (NaN): never ok unchecked
+        return "unstable", (f"energy balance off by {balance:.3g} of the largest energy flow (tolerance "
+                            f"{ENERGY_TOL:g}): the time step does not integrate this run; sums kept"), flags
     if code in (ISOLATED, CONTACT):
         return "defect", (f"{STATUS_TEXT[code]}: the fixed pair list is wrong; run stopped at step "
                           f"{run.steps} (not rebuilt), sums kept"), flags
     if hops:
         return "defect", (f"{flags['hopped_pairs']} pairs left their root interval ({hops} hop events, first at "
                           f"step {flags['first_hop_step']}): lattice defects, chaotic regime"), flags
+    if not hmax > 0.0:
+        return "failed", (f"no free particle has kinetic energy over the window (hottest free hotness {hmax:.3g}, "
+                          f"{int(free.sum())} free particles): relative hotness is undefined"), flags
     if not stat <= p["stationarity_tol"]:
         return "non-stationary", (f"hotness changed by {stat:.3g} (of the hottest free) between the halves of the "
                                   f"window; tolerance {p['stationarity_tol']:g}"), flags

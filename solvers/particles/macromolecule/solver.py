@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from pcverify.scene import FaceTemperature, Param, Resolution, Scene, SceneError
+from pcverify.scene import FaceTemperature, Param, Resolution, Scene, SceneError, point_patch_note
 from pcverify.solvers.protocol import Solution, WorkEstimate, effective_params, heat_summary
 
 from . import codes
@@ -49,8 +49,8 @@ PARAMETERS: tuple[Param, ...] = (
           high=1e6, optional=True),
     Param("damping_ratio", None, "", f"damping ratio of the top mode (damped modal problem); default "
           f"{DEFAULT_DAMPING_RATIO} when delta is not given", low=0.0, high=0.5, optional=True),
-    Param("drive_amplitude", 0.05, "a", "D: stroke of the red pair (or face drive amplitude)", low=0.0, high=0.1,
-          low_open=True),
+    Param("drive_amplitude", 0.05, "a", "D: stroke of the red pair (or face drive amplitude); below 1e-9 a the "
+          "stroke per step is lost in the rounding of the positions", low=1e-9, high=0.1),
     Param("drive_frequency", 50.0, "Hz", "f of the drive", low=0.0, high=1e5, low_open=True),
     Param("drive_sharing", "free-centre", "", "how the red pair's stroke is shared", choices=("free-centre",
           "symmetric"), kind=str),
@@ -192,6 +192,7 @@ class Macromolecule:
         h_drv = H[fx.hot].mean() if len(fx.hot) else np.nan
         rel_drv = H / h_drv if h_drv > 0 else np.full_like(H, np.nan)
         status, reason, flags = run_status(run, H, free, p)
+        reason = "; ".join(r for r in (reason, point_patch_note(scene.constraints, lat.a)) if r)
         rel_raw = rel
         rel = self._constrained_values(rel, fx)
         summary: dict[str, Any] = heat_summary(rel, float(rel.mean()))

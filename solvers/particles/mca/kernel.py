@@ -129,6 +129,7 @@ class State(NamedTuple):
     load: Load | None
     contact: ct.ContactState | None
     frame: Frame | None = None
+    peak: np.ndarray | None = None  # (3,) largest driven-face reaction so far, its face displacement, its step
 
 
 class Params(NamedTuple):
@@ -472,11 +473,11 @@ def advance(st, par, nsteps):
     f_load . v; friction dissipation of the contacts: their power times dt.  A history row every
     par.record_every steps.  Returns when done or when the state is non-finite, blows up,
     or moved beyond the skin."""
-    _advance(st, par, st.rot, st.inel, st.load, st.contact, st.frame, nsteps)
+    _advance(st, par, st.rot, st.inel, st.load, st.contact, st.frame, st.peak, nsteps)
 
 
 @njit(cache=True)
-def _advance(st, par, rot, inel, load, con, frame, nsteps):
+def _advance(st, par, rot, inel, load, con, frame, peak, nsteps):
     x, v, f, dx, fixm, fixv, mass = st.x, st.v, st.f, st.dx, st.fixm, st.fixv, st.mass
     counters = st.counters
     n_aut = x.shape[0]
@@ -559,6 +560,8 @@ def _advance(st, par, rot, inel, load, con, frame, nsteps):
             st.energy[E_FRIC] += ct.after_step(con, dt)
         counters[C_STEPS] += 1
         counters[C_PAIRSTEPS] += n_pair
+        if peak is not None:
+            _track_peak(peak, f, x, st.x0, st.group, counters[C_STEPS])
         hist = st.hist
         rec = par.record_every > 0 and counters[C_STEPS] % par.record_every == 0 and counters[C_ROWS] < hist.shape[0]
         if not (math.isfinite(ke) and math.isfinite(kerot)):
@@ -574,6 +577,35 @@ def _advance(st, par, rot, inel, load, con, frame, nsteps):
         if moved:
             counters[C_STATUS] = MOVED
             return
+
+
+@njit(cache=True)
+def _track_peak(peak, f, x, x0, group, step):
+    """Every step, not every history row: the largest reaction of the driven face (group 1), its mean
+    displacement and the step, so a thinned history does not move the peak it reports."""
+    r1, _, u1 = _face_reactions(f, x, x0, group)
+    if r1 > peak[0]:
+        peak[0] = r1
+        peak[1] = u1
+        peak[2] = step
+
+
+@njit(cache=True)
+def _face_reactions(f, x, x0, group):
+    """(reaction of the driven face (group 1), reaction of the opposite face (group 2), the driven face's mean
+    displacement), all along z."""
+    r1 = 0.0
+    r2 = 0.0
+    u1 = 0.0
+    n1 = 0
+    for i in range(f.shape[0]):
+        if group[i] == 1:
+            r1 -= f[i, 2]
+            u1 += x[i, 2] - x0[i, 2]
+            n1 += 1
+        elif group[i] == 2:
+            r2 -= f[i, 2]
+    return r1, r2, u1 / max(n1, 1)
 
 
 @njit(cache=True)
@@ -622,17 +654,7 @@ def _load_power(v, load):
 def _record(st, par, con, ke, kerot, rr):
     hist, counters, f, x, x0, group = st.hist, st.counters, st.f, st.x, st.x0, st.group
     row = counters[C_ROWS]
-    r1 = 0.0
-    r2 = 0.0
-    u1 = 0.0
-    n1 = 0
-    for i in range(f.shape[0]):
-        if group[i] == 1:
-            r1 -= f[i, 2]
-            u1 += x[i, 2] - x0[i, 2]
-            n1 += 1
-        elif group[i] == 2:
-            r2 -= f[i, 2]
+    r1, r2, u1 = _face_reactions(f, x, x0, group)
     nl = 0
     for p in range(st.linked.shape[0]):
         nl += st.linked[p]
@@ -643,7 +665,7 @@ def _record(st, par, con, ke, kerot, rr):
     hist[row, H_DISS] = st.energy[E_DISS]
     hist[row, H_R1] = r1
     hist[row, H_R2] = r2
-    hist[row, H_U1] = u1 / max(n1, 1)
+    hist[row, H_U1] = u1
     hist[row, H_LINKED] = nl
     hist[row, H_KEROT] = kerot
     hist[row, H_LOAD] = st.energy[E_LOAD]

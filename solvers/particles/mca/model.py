@@ -144,9 +144,9 @@ class Model:
         """Whether the automata carry the inelastic state (a response function or fracture)."""
         return self.params.kind != 0 or self.params.fracture
 
-    def new_state(self, hist_rows: int = 0) -> mk.State:
+    def new_state(self, hist_rows: int = 0, peak: bool = False) -> mk.State:
         """The rest state: undeformed, linked, at rest except the prescribed velocities; room for `hist_rows`
-        history rows."""
+        history rows; with `peak`, the driven face's largest reaction tracked every step (kernel.State.peak)."""
         a = self.aut
         n, p = a.size, len(a.pairs)
         v = self.fixv[:, :3] * self.fixm[:, :3]
@@ -165,7 +165,8 @@ class Model:
                         energy=np.zeros(mk.N_E), hist=np.zeros((hist_rows, mk.N_H)), rot=rot, inel=inel, load=load,
                         contact=None if self.contact is None else ct.new_state(a, a.positions, self.contact,
                                                                                self.params.skin),
-                        frame=None if self.frame is None else mk.Frame(np.asarray(self.frame, dtype=float)))
+                        frame=None if self.frame is None else mk.Frame(np.asarray(self.frame, dtype=float)),
+                        peak=np.array([-np.inf, 0.0, 0.0]) if peak else None)
 
     def advance(self, st: mk.State, nsteps: int, record_every: int = 0) -> int:
         """Run up to `nsteps` steps, a history row every `record_every` steps (rows from 0 in st.hist); returns
@@ -200,8 +201,9 @@ def relax(model: Model, st: mk.State, force_scale: float, tol: float = 1e-8, chu
     res = math.inf
     status = mk.OK
     while steps < max_steps:
-        status = model.advance(st, chunk)
-        steps += chunk
+        take = min(chunk, max_steps - steps)  # max_steps is a hard cap, not rounded up to a chunk
+        status = model.advance(st, take)
+        steps += take
         res = model.residual(st) / force_scale
         if status != mk.OK or (res <= tol and st.clock[0] >= model.params.t_stop):
             break

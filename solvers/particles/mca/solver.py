@@ -42,8 +42,9 @@ from pcverify.scene import (
     Resolution,
     Scene,
     SceneError,
+    point_patch_note,
 )
-from pcverify.solvers.protocol import Solution, effective_params, heat_summary
+from pcverify.solvers.protocol import Solution, WorkEstimate, effective_params, heat_summary
 
 from . import heat as mca_heat
 from . import kernel as mk
@@ -55,7 +56,12 @@ from .model import COEFFICIENTS, Elastic, Model, rebuild_pairs, relax, relax_sta
 from .probe import McaProbe
 from .stiffness import mass_diagonal, stiffness
 
+BYTES_PER_AUTOMATON = 4096  # state, rotations, inelastic state and about 13 pairs of 10 arrays each
+RELAX_STEPS_PER_CELL = 1000  # relaxation steps per spacing of the longest extent (measured 390-630, bar-compression)
 ENERGY_ALARM = 1e-2  # relative energy-balance error of an undamped elastic phase that flags a run as unstable
+MIN_PEAK_STEPS = 50  # time steps up to the peak stress below which fracture is not resolved in time
+MIN_CHECK_ROWS = 10  # history rows of the elastic phase the energy check needs
+MIN_RISE_ROWS = 4  # history rows on the rise (10-60 % of the peak) the E_eff fit needs
 
 PARAMETERS: tuple[Param, ...] = (
     Param("many_body", True, "", "many-body (volume) term on; off = pair-only (sig = E eps)", kind=bool),
@@ -118,6 +124,36 @@ class Mca:
     def stability_probe(self) -> McaProbe:
         """The probe of this solver's explicit heat and mechanics steps."""
         return McaProbe(self)
+
+    def estimate(self, scene: Scene, resolution: Resolution, **params: Any) -> WorkEstimate:
+        """Unknowns (6 per automaton; two bodies of the bar lattice in contact scenes), time steps and memory
+        of the solve, from the scene and the parameters alone: steady heat and modes 1 step (modes: a dense
+        eigenproblem up to 1500 free dofs); transient heat t_end / (heat_cfl h^2 / (6 alpha)); fracture the
+        loading time over about cfl h / (4 c); a relaxation RELAX_STEPS_PER_CELL steps per spacing of the
+        longest extent; every run of steps capped by max_steps."""
+        p = effective_params(self, params)
+        shape = scene.box.lattice_shape(resolution.n)
+        count = math.prod(shape) * (2 if "contact" in scene.physics else 1)
+        h = min(e / max(k - 1, 1) for e, k in zip(scene.box.extent, shape, strict=True))
+        mem = BYTES_PER_AUTOMATON * count
+        if "modes" in scene.physics:
+            dense = 6 * count <= 1500
+            return WorkEstimate(unknowns=6 * count, bytes=mem + (16 * (6 * count) ** 2 if dense else 0))
+        mat = scene.material
+        if "conduction" in scene.physics and "contact" not in scene.physics:
+            if scene.conduction.mode == "steady":
+                return WorkEstimate(unknowns=count, bytes=mem)
+            alpha = mat.conductivity / (mat.density * mat.heat_capacity)
+            steps = scene.conduction.t_end / (p["heat_cfl"] * h * h / (6.0 * alpha))
+            return WorkEstimate(unknowns=count, steps=max(1, math.ceil(steps)), bytes=mem)
+        youngs = mat.youngs_modulus
+        wave = math.sqrt(youngs / mat.density) if math.isfinite(youngs) else 5000.0
+        if "fracture" in scene.physics:
+            eps = 1.5 * failure_strain(scene.elasticity.response, youngs)
+            steps = eps / scene.elasticity.strain_rate / (0.25 * p["cfl"] * h / wave)
+        else:
+            steps = RELAX_STEPS_PER_CELL * max(scene.box.extent) / h
+        return WorkEstimate(unknowns=6 * count, steps=max(1, min(p["max_steps"], math.ceil(steps))), bytes=mem)
 
     def supports(self, scene: Scene) -> tuple[bool, str]:
         phys = set(scene.physics)
@@ -200,6 +236,7 @@ class Mca:
             work.update(time_steps=steps, pair_steps=steps * len(aut.pairs))
         rel = temp / scene.conduction.t_max
         status, reason = ("ok", "") if np.all(np.isfinite(rel)) else ("unstable", "non-finite temperature")
+        reason = "; ".join(r for r in (reason, point_patch_note(scene.constraints, float(aut.spacing.min()))) if r)
         summary.update(heat_summary(rel, float((rel * aut.volume).sum() / aut.volume.sum())))
         return {"field": rel, "unknowns": aut.size, "quantity": "T/t_max", "work": work, "summary": summary,
                 "status": status, "reason": reason}
@@ -316,7 +353,7 @@ class Mca:
         t_end = 1.5 * eps_fail / scene.elasticity.strain_rate
         steps_total = min(p["max_steps"], math.ceil(t_end / model.dt))
         every = max(1, steps_total // p["records"])
-        st = model.new_state(hist_rows=steps_total // every + 2)
+        st = model.new_state(hist_rows=steps_total // every + 2, peak=True)
         area = scene.box.width * scene.box.height
         ke0 = 0.5 * float((aut.mass[:, None] * st.v**2).sum())
         rows = []
@@ -343,20 +380,23 @@ class Mca:
         h = np.concatenate(rows) if rows else np.zeros((0, mk.H_LOAD))
         n_pairs = len(aut.pairs)
         summary: dict[str, Any] = {"dt": model.dt, "steps": done, "damping": gamma}
+        peak_r, peak_u, peak_step = (float(v) for v in st.peak)
+        if math.isfinite(peak_r):  # tracked every step: the history's thinning (records) does not move it
+            summary.update(failure_stress=peak_r / area, failure_strain=peak_u / length, reaction_force=peak_r,
+                           peak_step=int(peak_step), strength_expected=rf.tensile_strength(resp) if resp else math.inf)
+        elastic = h[h[:, mk.H_LINKED] == n_pairs]
+        energy_check = resp is not None and resp.kind == "elastic" and gamma == 0.0
         if len(h):
-            stress = h[:, mk.H_R1] / area
-            k = int(np.argmax(stress))
-            summary.update(failure_stress=float(stress[k]), failure_strain=float(h[k, mk.H_U1] / length),
-                           strength_expected=rf.tensile_strength(resp) if resp else math.inf,
-                           linked_fraction=float(h[-1, mk.H_LINKED] / n_pairs),
-                           reaction_force=float(h[k, mk.H_R1]))
-            elastic = h[h[:, mk.H_LINKED] == n_pairs]
-            if len(elastic) and resp is not None and resp.kind == "elastic" and gamma == 0.0:
+            summary["linked_fraction"] = float(h[-1, mk.H_LINKED] / n_pairs)
+            if energy_check and len(elastic):
                 bal = elastic[:, mk.H_KE] + elastic[:, mk.H_U] - ke0 - elastic[:, mk.H_WORK]
-                summary["energy_error"] = float(np.max(np.abs(bal)) / np.max(elastic[:, mk.H_U]))
-            rise = h[(stress > 0.1 * stress[k]) & (stress < 0.6 * stress[k]) & (np.arange(len(h)) < k)]
-            if len(rise) > 3:
-                summary["E_eff"] = float(np.polyfit(rise[:, mk.H_U1] / length, rise[:, mk.H_R1] / area, 1)[0])
+                summary["energy_error"] = float(np.max(np.abs(bal)) / max(np.max(elastic[:, mk.H_U]), 1e-300))
+            if math.isfinite(peak_r):
+                stress = h[:, mk.H_R1] / area
+                before = h[:, mk.H_T] < (peak_step + 0.5) * model.dt
+                rise = h[(stress > 0.1 * peak_r / area) & (stress < 0.6 * peak_r / area) & before]
+                if len(rise) >= MIN_RISE_ROWS:
+                    summary["E_eff"] = float(np.polyfit(rise[:, mk.H_U1] / length, rise[:, mk.H_R1] / area, 1)[0])
         summary["unlink_events"] = int(st.counters[mk.C_UNLINK])
         summary["relink_events"] = int(st.counters[mk.C_RELINK])
         summary["pair_list_rebuilds"] = rebuilds
@@ -364,11 +404,28 @@ class Mca:
         status, reason = "ok", ""
         if code in (mk.NAN, mk.GROWTH):
             status, reason = "unstable", f"{mk.STATUS_TEXT[code]} at step {done}; history up to there kept"
+        elif done >= p["max_steps"] and p["max_steps"] < math.ceil(t_end / model.dt):
+            strain = done * model.dt * scene.elasticity.strain_rate
+            status, reason = "failed", (f"max_steps={p['max_steps']} reached at strain {strain:.3g}, before the "
+                                        f"planned end {1.5 * eps_fail:.3g} (1.5 times the failure strain); raise "
+                                        "max_steps")
         elif summary.get("energy_error", 0.0) > ENERGY_ALARM:
             status, reason = "unstable", (f"energy balance of the elastic phase off by {summary['energy_error']:.3g} "
                                           f"(> {ENERGY_ALARM:g}): the time step is too large; results kept")
         elif st.counters[mk.C_UNLINK] == 0:
-            status, reason = "failed", f"no pair unlinked up to strain {h[-1, mk.H_U1] / length:.3g}"
+            strain = done * model.dt * scene.elasticity.strain_rate
+            status, reason = "failed", f"no pair unlinked up to strain {strain:.3g}"
+        elif summary.get("peak_step", 0) < MIN_PEAK_STEPS:
+            status, reason = "failed", (f"the peak stress came after {summary.get('peak_step', 0)} steps (fewer than "
+                                        f"{MIN_PEAK_STEPS}): the loading is not resolved in time; lower strain_rate "
+                                        "or cfl")
+        elif energy_check and len(elastic) < MIN_CHECK_ROWS:
+            status, reason = "failed", (f"the energy check of the elastic phase cannot run: {len(elastic)} history "
+                                        f"rows before the first unlink (it needs {MIN_CHECK_ROWS}); raise records or "
+                                        "lower strain_rate")
+        elif "E_eff" not in summary:
+            status, reason = "failed", (f"E_eff cannot be fitted: fewer than {MIN_RISE_ROWS} history rows between 10 % "
+                                        "and 60 % of the peak stress; raise records or lower strain_rate")
         aut = model.aut
         diag = {"notes": notes, "history": {"columns": list(mk.HISTORY_COLUMNS[:mk.H_LOAD]), "rows": h}}
         return {"field": st.x - aut.positions, "unknowns": 6 * aut.size, "quantity": "u (m)", "summary": summary,
