@@ -40,14 +40,27 @@ def _version(package: str) -> str:
         return "absent"
 
 
+def source_commit() -> str:
+    """The git commit of the checkout this pcverify runs from (not of the working folder), with "+modified"
+    when tracked files differ from it; "unknown" for an installed wheel or without git."""
+    source = Path(__file__).resolve().parents[1]
+
+    def git(*args: str) -> str:
+        return subprocess.run(["git", "-C", str(source), *args], capture_output=True, text=True, timeout=5,
+                              check=False).stdout.strip()
+
+    try:
+        commit = git("rev-parse", "--short", "HEAD")
+        dirty = bool(commit) and bool(git("status", "--porcelain", "--untracked-files=no"))
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
+    return f"{commit}+modified" if dirty else (commit or "unknown")
+
+
 def provenance(manifests: list[dict[str, Any]] = ()) -> dict[str, str]:
     """Versions, git commit, machine and time for the report's footer, and each study's command and
     plugin modules (from the study manifests)."""
-    try:
-        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
-                                timeout=5, check=False).stdout.strip() or "unknown"
-    except (OSError, subprocess.SubprocessError):
-        commit = "unknown"
+    commit = source_commit()
     info = {"generated": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"), "pcverify": _version("pcverify"),
             "git commit": commit, "machine": f"{platform.node()} {platform.machine()} {platform.processor()}".strip(),
             "python": platform.python_version(), "command": command()}

@@ -97,6 +97,14 @@ def test_an_overdamped_lattice_runs_at_its_damped_limit(tmp_path) -> None:
     tally("tracebacks", "accepted")
 
 
+def test_light_damping_keeps_the_default_step() -> None:
+    """Only a damped limit below the default step lowers it: at the default damping ratio 0.01 the step stays
+    safety * 2 / omega_max (the shipped studies' runs unchanged)."""
+    s = get_solver("macromolecule").solve(make_scene("bar-heat-paper"), Resolution(2), t_end=1.0).summary
+    assert s["dt"] == pytest.approx(0.05 * 2.0 / (2.0 * math.pi * s["f_top_hz"]), rel=1e-12)
+    assert s["dt"] < s["dt_limit"]
+
+
 # -- family 11: reasons that say what happened -------------------------------------------------------------
 
 def test_max_steps_is_a_hard_cap_and_the_reason_names_it(tmp_path) -> None:

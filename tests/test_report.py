@@ -2,7 +2,9 @@
 
 import json
 import math
+import subprocess
 import xml.etree.ElementTree as ET
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -10,9 +12,12 @@ import pytest
 from figure_checks import report_problems
 
 from pcverify.harness.cli import main
+from pcverify.harness.provenance import source_commit
 from pcverify.harness.verdict import parse_claims, verdicts
 from pcverify.harness.vtu import write_vtu
 from pcverify.scene import SceneError
+
+REPO = Path(__file__).resolve().parents[1]
 
 TABLES = {
     "g-cells": pd.DataFrame({"solver": ["a", "a", "b", "b"], "n": [2, 3, 2, 3], "err": [1e-3, 2e-4, 5e-2, 1e-2],
@@ -303,3 +308,12 @@ def test_verdict_one_sided_claims():
     assert upper["verdict"].tolist() == ["pass", "fail"]
     with pytest.raises(SceneError, match="sense="):
         _claims(sense="sideways")
+
+
+def test_the_provenance_names_the_commit_of_the_running_checkout(tmp_path, monkeypatch):
+    """The commit is the checkout's this pcverify runs from, whatever the working folder (a report written
+    from outside the repository said 'unknown')."""
+    monkeypatch.chdir(tmp_path)
+    head = subprocess.run(["git", "-C", str(REPO), "rev-parse", "--short", "HEAD"], capture_output=True,
+                          text=True, check=True).stdout.strip()
+    assert source_commit().split("+")[0] == head

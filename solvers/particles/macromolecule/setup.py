@@ -79,7 +79,7 @@ def prepare(scene: Scene, n: int, p: dict[str, Any]) -> Setup:
     single = 2.0 * (math.sqrt(1 + zeta**2) - zeta) / w_top
     limit = 2.0 * discrete_stability_limit(basis, C1 * delta, dofs) / w_top if delta > 0 else 2.0 / w_top
     dt = p["dt"] if p["dt"] is not None else p["safety"] * 2.0 / w_top
-    if p["dt"] is None and dt > p["safety"] * limit:  # heavy damping: the damped limit is far below 2 / omega_max
+    if p["dt"] is None and dt > limit:  # heavy damping: the damped limit is below safety * 2 / omega_max
         dt = p["safety"] * limit
     if dt > limit:
         raise SceneError(f"dt={dt:.6g} s is above the stability limit {limit:.6g} s of the linearised scheme "
