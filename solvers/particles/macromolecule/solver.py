@@ -69,7 +69,8 @@ PARAMETERS: tuple[Param, ...] = (
           "fastmath (the same compiled with FMA and approximate reciprocals) or the plain reference "
           "(kernel_reference.py); the same scheme, equal to rounding; or ensemble: the large-N ensemble kernel "
           "(large_n/heat.py: K parameter sets per call in solve_batch; driven or symmetric drives and 0 K "
-          "faces only, defects and instability seen at checks every n_steps / 400)",
+          "faces only, defects and instability seen at checks every n_steps / 400; no energy accounts, so its runs "
+          "cannot pass the energy-balance check and are never ok)",
           choices=(*KERNELS, ENSEMBLE), kind=str),
     Param("hot_face", "langevin", "", "bar-heat-faces: z=0 face thermostatted or kinematically driven",
           choices=("langevin", "driven"), kind=str),
