@@ -18,6 +18,7 @@ import pytest
 
 from pcverify.harness.cache import Cache
 from pcverify.harness.calibration import CALIBRATED, VALIDATED, NotCached, run_calibration
+from pcverify.harness.reproduce import select_groups
 from pcverify.harness.study import load_study
 from pcverify.scene import SceneError
 
@@ -255,3 +256,12 @@ def test_shipped_calibration_study_is_well_formed():
     assert [p.name for p in mca.parameters] == ["krot"] and len(mca.validate) == 11 and mca.tolerance == 0.05
     assert {c.key() for c in mca.calibrate} <= {c.key() for c in mca.validate}
     assert not {c.measure() for c in mca.calibrate} & {c.measure() for c in mca.validate}
+
+
+def test_group_option_selects_a_calibration(tmp_path):
+    """`--group ID` takes a calibration id (it reruns that calibration from the cache), unknown ids are named."""
+    study = load_study(str(_study(tmp_path)))
+    assert select_groups(study, ["quad"]).calibrations == study.calibrations
+    with pytest.raises(SceneError) as err:
+        select_groups(study, ["nope"])
+    assert "allowed: one of quad" in str(err.value)
