@@ -316,7 +316,9 @@ def _outcome(ev: _Evaluator, cal: Calibration, best: dict[str, Any] | None, nois
     held = validation[validation["role"] == VALIDATED]
     matched = held["within_tolerance"].astype(bool)
     fitted = validation[validation["role"] == CALIBRATED]
-    summary: dict[str, Any] = {"calibration": cal.id, "solver": cal.solver}
+    summary: dict[str, Any] = {"calibration": cal.id, "solver": cal.solver, "calibrated": "; ".join(
+        f"{p.name} = {best[p.name]:.4g} in [{ranges[p.name][0]:.4g}, {ranges[p.name][1]:.4g}]"
+        for p in cal.parameters) if best else "no parameter set ran ok"}
     for p in cal.parameters:  # the calibrated values and their ranges, then the numbers, each marked
         summary[f"{p.name} [calibrated on]"] = best[p.name] if best else math.nan
         summary[f"{p.name} range [calibrated on]"] = (f"[{ranges[p.name][0]:.4g}, {ranges[p.name][1]:.4g}]"
