@@ -419,7 +419,7 @@ def render_3d(results: list[dict[str, Any]], path: Path, title: str) -> bool:
 
 
 STATUS_STYLE = {"ok": ("o", "tab:green"), "unstable": ("x", "tab:red"), "defect": ("s", "tab:orange"),
-                "non-stationary": ("^", "tab:blue")}
+                "non-stationary": ("^", "tab:blue"), "failed": ("D", "tab:purple")}
 
 
 def _case_label(keys: list[str], values: tuple[Any, ...]) -> str:

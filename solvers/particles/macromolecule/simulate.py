@@ -133,7 +133,9 @@ def energy_balance_error(r: RunResult) -> float:
 
 
 def run_status(run: RunResult, H: np.ndarray, free: np.ndarray, p: dict[str, Any]) -> tuple[str, str, dict]:
-    """Status ok / non-stationary / defect / unstable, its reason, and the diagnostic numbers."""
+    """Status and its reason, first that applies: unstable (blow-up, left the bar), defect (pair list wrong,
+    hops), failed (energy balance beyond ENERGY_TOL, or no free kinetic energy), non-stationary, ok; and the
+    diagnostic numbers."""
     code = run.status_code
     hmax = H[free].max() if free.any() else 0.0
     h1, h2 = run.hot[1], run.hot[2]
@@ -149,16 +151,17 @@ def run_status(run: RunResult, H: np.ndarray, free: np.ndarray, p: dict[str, Any
     }
     if code in (NAN, GROWTH, LEFT_BAR):
         return "unstable", f"{STATUS_TEXT[code]}; stopped at step {run.steps}, sums kept", flags
-    balance = energy_balance_error(run)
-    if not balance <= ENERGY_TOL:  # also a balance that cannot be formed (NaN): never ok unchecked
-        return "unstable", (f"energy balance off by {balance:.3g} of the largest energy flow (tolerance "
-                            f"{ENERGY_TOL:g}): the time step does not integrate this run; sums kept"), flags
     if code in (ISOLATED, CONTACT):
         return "defect", (f"{STATUS_TEXT[code]}: the fixed pair list is wrong; run stopped at step "
                           f"{run.steps} (not rebuilt), sums kept"), flags
     if hops:
         return "defect", (f"{flags['hopped_pairs']} pairs left their root interval ({hops} hop events, first at "
                           f"step {flags['first_hop_step']}): lattice defects, chaotic regime"), flags
+    balance = energy_balance_error(run)
+    if not balance <= ENERGY_TOL:  # also a balance that cannot be formed (NaN): never ok unchecked
+        return "failed", (f"energy balance off by {balance:.3g} of the largest energy flow (tolerance "
+                          f"{ENERGY_TOL:g}): the time step does not integrate this run accurately (not a "
+                          "blow-up); sums kept"), flags
     if not hmax > 0.0:
         return "failed", (f"no free particle has kinetic energy over the window (hottest free hotness {hmax:.3g}, "
                           f"{int(free.sum())} free particles): relative hotness is undefined"), flags
