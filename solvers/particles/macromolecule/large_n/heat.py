@@ -18,7 +18,7 @@ its sums kept; one that goes non-finite is retired at the step it does.  Differe
 kernels: velocity Verlet with a Verlet list (pairs may change partners in a defect; the fixed list
 would break), hotness from v_n after the closing half kick, hops seen at the checks only (a pair out of
 its interval for less than check_every steps can be missed), no energy accounting (energy balance
-NaN, so `simulate.run_status`, which lets no run be ok unchecked, calls every ensemble run unstable), and
+NaN, so `simulate.run_status`, which lets no run be ok unchecked, calls every ensemble run failed), and
 the bath applied at the full step.  In a run without defects the two integrate the same
 scheme to round-off (tests/test_calibration_ensemble.py compares them).
 """
