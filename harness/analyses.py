@@ -115,7 +115,7 @@ def _stability_figures(g: Any, res: list[dict[str, Any]], t: Tables, folder: Pat
     limits = t.get(f"{g.id}-limits")
     if limits is not None:
         meta = {(r["solver"], r["scene"]): {k: r["summary"][k] for k in ("quantity", "theory_label", "x_axis")}
-                for r in res if r.get("status") not in ("skipped", "failed") and "quantity" in (r.get("summary") or {})
+                for r in res if "quantity" in (r.get("summary") or {})
                 and r["summary"].get("probe") == "limit"}
         if figures.stability_limits(limits, meta, folder / f"{g.id}-limits", g.title):
             drawn.append(f"{g.id}-limits.png")

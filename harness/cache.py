@@ -13,18 +13,16 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-import socket
-import tempfile
 import time
 from pathlib import Path
 from typing import Any
 
+from pcverify.harness.files import HOST, atomic_write, discard, process_alive, remove_stray_files
 from pcverify.solvers.protocol import STATUSES
 
 # the fields every cell result has (identity and status), with their types: an entry without them is corrupt
 RESULT_FIELDS: dict[str, type | tuple[type, ...]] = {"status": str, "group": str, "scene": str, "solver": str,
                                                     "n": int, "refine": int}
-HOST = socket.gethostname()
 
 
 def cell_key(payload: dict[str, Any]) -> str:
@@ -44,19 +42,6 @@ def schema_problem(result: Any) -> str:
     if result["status"] not in STATUSES:
         return f"result status {result['status']!r} is not one of {', '.join(STATUSES)}"
     return ""
-
-
-def process_alive(pid: int, host: str) -> bool:
-    """Whether process `pid` on `host` may still run (a process on another host is assumed alive)."""
-    if host != HOST:
-        return True
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:  # exists, owned by someone else
-        return True
-    return True
 
 
 class CacheWriteError(OSError):
@@ -96,23 +81,13 @@ class Cache:
         """Atomically write one entry; CacheWriteError (one line) if the folder refuses it."""
         body = json.dumps(result, sort_keys=True)
         doc = {"key": key, "sha256": hashlib.sha256(body.encode()).hexdigest(), "result": result}
-        tmp = None
         try:
             self.root.mkdir(parents=True, exist_ok=True)
-            fd, tmp = tempfile.mkstemp(dir=self.root, prefix=f".{key}.{os.getpid()}.", suffix=".tmp")
-            with os.fdopen(fd, "w") as fh:
-                json.dump(doc, fh)
-                fh.flush()
-                os.fsync(fh.fileno())
-            os.replace(tmp, self.path(key))
+            atomic_write(self.path(key), json.dumps(doc))
         except OSError as exc:
-            _discard(tmp)
             raise CacheWriteError(f"cannot write cache entry {self.path(key)} ({exc.strerror or exc}); the entries "
                                   "written before are intact: free space or fix permissions, then rerun to resume"
                                   ) from exc
-        except BaseException:
-            _discard(tmp)
-            raise
 
     # -- locks: one process computes a cell, the others wait for its entry
 
@@ -149,7 +124,7 @@ class Cache:
             except FileExistsError:
                 if self.holder(key) is not None:
                     return False
-                _discard(str(path))  # its holder died: take it over
+                discard(str(path))  # its holder died: take it over
                 continue
             except OSError:
                 return True
@@ -162,7 +137,7 @@ class Cache:
     def unlock(self, key: str) -> None:
         if key in self.locks:
             self.locks.discard(key)
-            _discard(str(self._lock_path(key)))
+            discard(str(self._lock_path(key)))
 
     def unlock_all(self) -> None:
         for key in list(self.locks):
@@ -170,20 +145,4 @@ class Cache:
 
     def remove_stray_files(self) -> int:
         """Remove temporary files whose writer has died (a write interrupted by a kill); returns how many."""
-        removed = 0
-        for tmp in self.root.glob(".*.tmp"):
-            parts = tmp.name.split(".")
-            pid = int(parts[2]) if len(parts) > 3 and parts[2].isdigit() else None
-            if pid is None or not process_alive(pid, HOST):
-                _discard(str(tmp))
-                removed += 1
-        return removed
-
-
-def _discard(path: str | None) -> None:
-    """Remove a file (best effort: the folder may be the problem)."""
-    if path is not None:
-        try:
-            os.unlink(path)
-        except OSError:
-            pass
+        return remove_stray_files(self.root)

@@ -29,7 +29,7 @@ from pcverify.harness.catalogue import get_spec
 from pcverify.harness.execution import CELL_ERRORS, cached_results, execute, plan
 from pcverify.harness.interrupt import received, remember_sigint
 from pcverify.harness.limits import check_work
-from pcverify.harness.report import study_verdicts, write_index, write_study_report
+from pcverify.harness.report import manifests, study_verdicts, warn, write_index, write_study_report
 from pcverify.harness.reproduce import select_groups
 from pcverify.harness.study import MAX_CELLS, load_study, study_files
 from pcverify.scene import Param, Resolution, SceneError, shown
@@ -331,13 +331,19 @@ def cmd_report(args: argparse.Namespace) -> int:
     out = Path(args.out)
     cache = Cache(out / "cache")
     sources: dict[str, str | None] = dict.fromkeys(str(p) for p in sorted(study_files().values()))
-    for path in sorted(out.glob("*/manifest.json")):  # user study files, with the command that ran them
-        manifest = json.loads(path.read_text())
+    shipped = set(sources)
+    for _, manifest in manifests(out, quiet=True):  # user study files, with the command that ran them
         if manifest.get("study_file") and Path(manifest["study_file"]).is_file():
             sources[manifest["study_file"]] = manifest.get("command")
     rebuilt = []
     for source, run_command in sources.items():
-        study = load_study(source)
+        try:
+            study = load_study(source)
+        except (SceneError, OSError) as exc:
+            if source in shipped:
+                raise
+            warn(f"study file {source} (named by a manifest in {out}) does not load: {exc}; skipped")
+            continue
         results = cached_results(study, cache)
         extra = []
         for cal in study.calibrations:  # the same search through the cached cells; a missing one: left out

@@ -229,8 +229,15 @@ def execute(study: Study, cache: Cache, jobs: int = 1, progress: bool = True, sc
         check_interrupted()  # a Ctrl-C that a library swallowed stops the study here, this cell stored
 
     try:
-        mine = [i for i in todo if cache.try_lock(keys[i])]  # the others are being computed by another process
-        theirs = [i for i in todo if keys[i] not in cache.locks]
+        mine, theirs = [], []  # cells to compute here, cells another process is computing (waited for)
+        for i in todo:
+            if not cache.try_lock(keys[i]):
+                theirs.append(i)
+            elif not _rerun(cells[i], rerun) and (entry := cache.load(keys[i])[0]) is not None:
+                cache.unlock(keys[i])  # another process stored it since it was looked up: not computed twice
+                share(i, entry, done=False)
+            else:
+                mine.append(i)
         _run(study, cells, identities, mine, finish, bar, jobs, client)
         for i in theirs:
             bar.set_description(f"{study.name}: waiting for another process: {cells[i].describe()}"[:70])
@@ -279,7 +286,10 @@ def _wait_for(cache: Cache, key: str, poll: float = 0.5) -> dict[str, Any] | Non
         if cache.holder(key) is None:
             entry, _ = cache.load(key)  # stored just before the lock went
             if entry is None and cache.try_lock(key):
-                return None
+                entry, _ = cache.load(key)  # stored by a process that took the lock and let it go meanwhile
+                if entry is None:
+                    return None
+                cache.unlock(key)
             if entry is not None:
                 return entry
         check_interrupted()

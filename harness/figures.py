@@ -29,6 +29,8 @@ from matplotlib.lines import Line2D  # noqa: E402
 from mpl_toolkits.mplot3d import Axes3D  # noqa: E402
 from PIL import Image  # noqa: E402
 
+from pcverify.harness.files import atomic_write  # noqa: E402
+
 EDGES = ("front_top_edge", "bottom_back_edge")
 CONTINUUM_STYLES = tuple(dict(lw=2.0, color=c, ls=ls, alpha=0.75)
                          for c, ls in (("k", "-"), ("0.45", "--"), ("0.25", ":"), ("0.6", "-.")))
@@ -149,14 +151,16 @@ def _save(fig: Any, path: Path, layout: str = "constrained") -> bool:
         fig.tight_layout(rect=(0.0, 0.0, 1.0, 1.0 - room))
     else:
         fig.set_layout_engine(layout)
-    path.with_suffix(".json").write_text(json.dumps(describe(fig)))
-    fig.savefig(path.with_suffix(".svg"))
-    buffer = io.BytesIO()
-    fig.savefig(buffer, format="png", dpi=100)
-    plt.close(fig)
+    try:
+        atomic_write(path.with_suffix(".json"), json.dumps(describe(fig)))
+        atomic_write(path.with_suffix(".svg"), lambda fh: fig.savefig(fh, format="svg"))
+        buffer = io.BytesIO()
+        fig.savefig(buffer, format="png", dpi=100)
+    finally:
+        plt.close(fig)
     with Image.open(buffer) as im:
-        im.convert("RGB").quantize(colors=256, method=Image.Quantize.MEDIANCUT, dither=Image.Dither.NONE).save(
-            path.with_suffix(".png"), optimize=True)
+        small = im.convert("RGB").quantize(colors=256, method=Image.Quantize.MEDIANCUT, dither=Image.Dither.NONE)
+    atomic_write(path.with_suffix(".png"), lambda fh: small.save(fh, format="PNG", optimize=True))
     return True
 
 

@@ -3,12 +3,17 @@ self-contained index.html that opens with the summary and the findings.
 
 The report reads study results (or the cache through them); it never runs a solver.  Every verdict
 carries the command that reproduces its number; `verdicts.json` beside index.html lists them all.
+
+Several studies may write into one output folder at once: every file is written atomically (files.atomic_write),
+index.html and verdicts.json are rebuilt under a lock, and what the index reads back from the folder is
+checked: a manifest that cannot be read is skipped with a warning, and only files inside the folder are embedded.
 """
 
 from __future__ import annotations
 
 import html
 import json
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -17,7 +22,8 @@ import pandas as pd
 
 from pcverify.harness import figures, page, verdict
 from pcverify.harness.analyses import group_report
-from pcverify.harness.findings import findings, summary_lines
+from pcverify.harness.files import atomic_write, exclusive, read_json, remove_stray_files
+from pcverify.harness.findings import STATES, findings, summary_lines
 from pcverify.harness.provenance import command, provenance
 from pcverify.harness.reproduce import study_command, table_group, verdict_commands
 from pcverify.harness.tables import cells_table
@@ -124,16 +130,15 @@ def write_study_report(study: Any, results: list[dict[str, Any]], out: Path, run
             section["tables"].append(f"{name}.csv")
         all_tables.update(tables)
         manifest["sections"].append(section)
-    cells = pd.concat(group_cells, ignore_index=True) if group_cells else pd.DataFrame()
-    cells.to_csv(folder / "cells.csv", index=False)
+    _write_csv(pd.concat(group_cells, ignore_index=True) if group_cells else pd.DataFrame(), folder / "cells.csv")
     manifest["orders"] = _orders(study, all_tables)
     if study.claims:
         table = verdict.verdicts(study.name, study.claims, all_tables, verdict_commands(study, results))
         table["nodes"] = _lattice_nodes(study, study.claims, table)
         _write_table(table, folder / "verdicts")
-        (folder / "verdicts.json").write_text(json.dumps(verdict.records(table), indent=1))
+        atomic_write(folder / "verdicts.json", json.dumps(verdict.records(table), indent=1))
         manifest["verdicts"] = "verdicts.csv"
-    (folder / "manifest.json").write_text(json.dumps(manifest, indent=1))
+    atomic_write(folder / "manifest.json", json.dumps(manifest, indent=1))  # last: it names the files above
     return folder
 
 
@@ -142,22 +147,51 @@ def study_verdicts(out: Path, study: str) -> list[dict[str, Any]]:
     existed; empty when the study has no claims)."""
     path = out / study / "verdicts.json"
     if path.exists():
-        return json.loads(path.read_text())
+        doc, why = read_json(path)
+        problem = why or _records_problem(doc, study)
+        if problem:
+            warn(f"{path} {problem}; its verdicts are left out")
+            return []
+        return doc
     table = _read_csv(path.with_suffix(".csv")) if path.with_suffix(".csv").exists() else pd.DataFrame()
     return verdict.records(table.astype(object).where(table.notna(), None)) if not table.empty else []
 
 
+def _records_problem(doc: Any, study: str) -> str:
+    """Why `doc` is not a list of the study's verdict records ("" if it is)."""
+    if not isinstance(doc, list) or not all(isinstance(r, dict) for r in doc):
+        return "is not a list of verdict records"
+    for r in doc:
+        missing = [c for c in verdict.VERDICT_COLUMNS if c not in r]
+        if missing:
+            return f"has a verdict record without {missing[0]}"
+        if r["study"] != study or r["verdict"] not in STATES:
+            return f"has a verdict record of study {r['study']!r} with verdict {r['verdict']!r}"
+    return ""
+
+
+def warn(message: str) -> None:
+    """One line on stderr: something in the output folder was skipped."""
+    print(f"pcverify: warning: {' '.join(message.split())[:500]}", file=sys.stderr)
+
+
+def _write_csv(df: pd.DataFrame, path: Path) -> None:
+    atomic_write(path, df.to_csv(index=False))
+
+
 def _write_table(df: pd.DataFrame, stem: Path) -> None:
-    df.to_csv(stem.with_suffix(".csv"), index=False)
-    stem.with_suffix(".md").write_text(_markdown(df))
-
-
+    _write_csv(df, stem.with_suffix(".csv"))
+    atomic_write(stem.with_suffix(".md"), _markdown(df))
 
 
 def _read_csv(path: Path) -> pd.DataFrame:
+    """A table, empty if the file has no rows; a file that cannot be read as CSV is empty with a warning."""
     try:
         return pd.read_csv(path)
     except pd.errors.EmptyDataError:
+        return pd.DataFrame()
+    except (OSError, UnicodeDecodeError, pd.errors.ParserError) as exc:
+        warn(f"{path} cannot be read as a table ({getattr(exc, 'strerror', None) or type(exc).__name__}); shown empty")
         return pd.DataFrame()
 
 
@@ -175,37 +209,101 @@ def _benchmarks(out: Path) -> list[str]:
         if draw(runs, folder / name):
             parts.append(page.figure(folder, "benchmark-figures", f"{name}.png"))
     last = runs[runs["run"] == runs["run"].max()].dropna(axis=1, how="all")
-    last.to_csv(folder / "latest.csv", index=False)
+    _write_csv(last, folder / "latest.csv")
     parts.append(page.table_details(last, "benchmark-figures/latest.csv", "benchmarks-latest") + "</section>")
     return parts
 
 
-def _manifests(out: Path) -> list[tuple[Path, dict[str, Any]]]:
-    return [(p.parent, json.loads(p.read_text())) for p in sorted(out.glob("*/manifest.json"))]
+def manifests(out: Path, quiet: bool = False) -> list[tuple[Path, dict[str, Any]]]:
+    """The study manifests under `out` with their folders.  A manifest that cannot be read, is empty, is not
+    valid JSON or not of the form write_study_report writes is skipped with a warning; a file it names that
+    is not a file inside `out` (an absolute path, `..`, a symlink leading out, a missing file) is left out
+    with a warning (none if `quiet`): the report embeds only files inside `out`."""
+    root = out.resolve()
+    found = []
+    for path in sorted(out.glob("*/manifest.json")):
+        doc, why = read_json(path)
+        problem = why or _manifest_problem(doc, path.parent.name)
+        if problem:
+            if not quiet:
+                warn(f"{path} {problem}; skipped")
+            continue
+        found.append((path.parent, _files_inside(doc, path, root, quiet)))
+    return found
+
+
+def _listed(value: Any, kind: type = str) -> bool:
+    return isinstance(value, list) and all(isinstance(v, kind) for v in value)
+
+
+def _manifest_problem(doc: Any, folder: str) -> str:
+    """Why `doc` is not the manifest of study `folder` ("" if it is)."""
+    if not isinstance(doc, dict):
+        return "is not a JSON object"
+    if doc.get("name") != folder:
+        return f"names study {str(doc.get('name'))[:80]!r}, not its folder {folder!r}"
+    wrong = [k for k, kind in (("title", str), ("sections", list), ("verdicts", (str, type(None))),
+                               ("rerun", (str, type(None))), ("study_file", (str, type(None))),
+                               ("command", (str, type(None))))
+             if k in doc and not isinstance(doc[k], kind)] + [k for k in ("title", "sections") if k not in doc]
+    wrong += [k for k in ("solvers", "plugins") if k in doc and not _listed(doc[k])]
+    if not _listed(doc.get("orders", []), dict) or any(
+            not isinstance(o.get(k), str) for o in doc.get("orders", []) for k in ("group", "solver", "quantity")) \
+            or any(not isinstance(o.get("order"), (int, float)) for o in doc.get("orders", [])):
+        wrong.append("orders")
+    for sec in doc.get("sections", []) if isinstance(doc.get("sections"), list) else []:
+        if not isinstance(sec, dict) or not isinstance(sec.get("id"), str) or not isinstance(sec.get("title"), str) \
+                or not all(_listed(sec.get(k, [])) for k in ("figures", "tables", "vtu")):
+            wrong.append("sections")
+            break
+    return f"is not a study manifest (field {wrong[0]})" if wrong else ""
+
+
+def _files_inside(doc: dict[str, Any], path: Path, root: Path, quiet: bool) -> dict[str, Any]:
+    """The manifest without the files it names that are not files inside `root` (each left out with a warning)."""
+    def inside(name: str) -> bool:
+        target = path.parent / name
+        try:
+            ok = target.resolve().is_relative_to(root) and target.resolve().is_file()
+        except (OSError, RuntimeError, ValueError):  # a symlink loop, a NUL in the name
+            ok = False
+        if not ok and not quiet:
+            warn(f"{path} names {name[:200]!r}, which is not a file inside {root}; not embedded")
+        return ok
+
+    doc = {**doc, "sections": [{**sec, "figures": [f for f in sec.get("figures", []) if inside(f)],
+                                "tables": [t for t in sec.get("tables", []) if inside(t)]} for sec in doc["sections"]]}
+    if doc.get("verdicts") and not inside(doc["verdicts"]):
+        doc["verdicts"] = None
+    return doc
 
 
 def write_index(out: Path) -> Path:
     """One self-contained index.html (images embedded) and verdicts.json: the summary and findings first,
-    then the verdicts by claim, every study, benchmarks, provenance."""
-    manifests = _manifests(out)
-    records = [r for _, man in manifests for r in study_verdicts(out, man["name"])]
-    _atomic_write(out / "verdicts.json", json.dumps(records, indent=1))
-    prov = provenance([man for _, man in manifests])
+    then the verdicts by claim, every study, benchmarks, provenance.  One process at a time (a lock file in
+    `out`, released by the kernel if its holder dies); the temporary files of dead writers are removed."""
+    with exclusive(out / ".index.lock"):
+        for pattern in (".*.tmp", "*/.*.tmp", "*/vtu/.*.tmp"):
+            for folder in {p.parent for p in out.glob(pattern)}:
+                remove_stray_files(folder)
+        return _write_index(out)
+
+
+def _write_index(out: Path) -> Path:
+    found = manifests(out)
+    records = [r for _, man in found for r in study_verdicts(out, man["name"])]
+    atomic_write(out / "verdicts.json", json.dumps(records, indent=1))
+    prov = provenance([man for _, man in found])
     studies = [{"name": m["name"], "title": m["title"], "solvers": m.get("solvers", []), "orders": m.get("orders", [])}
-               for _, m in manifests]
-    meta = f"generated {prov['generated']} · commit {prov['git commit']} · {len(manifests)} studies"
+               for _, m in found]
+    meta = f"generated {prov['generated']} · commit {prov['git commit']} · {len(found)} studies"
     body = [page.summary_section(summary_lines(studies, records), records, meta),
             page.findings_section(findings(records)), page.verdicts_section(records)]
-    body += [page.study_section(folder, man, records, _read_csv) for folder, man in manifests]
+    body += [page.study_section(folder, man, records, _read_csv) for folder, man in found]
     bench = _benchmarks(out)
     body += bench
     body.append(page.provenance_section(prov))
     index = out / "index.html"
-    _atomic_write(index, page.page(page.navigation(manifests, bool(bench)), body))
+    atomic_write(index, page.page(page.navigation(found, bool(bench)), body))
     return index
 
-
-def _atomic_write(path: Path, text: str) -> None:
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text(text)
-    tmp.replace(path)

@@ -10,6 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
+from pcverify.harness.files import atomic_write
+
 VTK_VERTEX = 1
 
 
@@ -40,7 +42,5 @@ def write_vtu(path: Path, points: np.ndarray, fields: dict[str, np.ndarray]) -> 
         "</Piece></UnstructuredGrid></VTKFile>\n"
     )
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(".vtu.tmp")
-    tmp.write_text(body)
-    tmp.replace(path)
+    atomic_write(path, body)
     return path

@@ -42,7 +42,7 @@ def one_line_error(out: subprocess.CompletedProcess) -> str:
     return lines[0]
 
 
-def tally(family: str, outcome: str) -> None:
-    """Count one case: outcome is "rejected" (refused in one line) or "accepted" (ran, correct)."""
-    TALLY[f"{family} tried"] += 1
-    TALLY[f"{family} {outcome}"] += 1
+def tally(family: str, outcome: str, cases: int = 1) -> None:
+    """Count cases: outcome is "rejected" (refused in one line) or "accepted" (ran, correct)."""
+    TALLY[f"{family} tried"] += cases
+    TALLY[f"{family} {outcome}"] += cases
