@@ -17,7 +17,7 @@ import pandas as pd
 import pytest
 
 from pcverify.harness.cache import Cache
-from pcverify.harness.calibration import CALIBRATED, VALIDATED, NotCached, run_calibration
+from pcverify.harness.calibration import CALIBRATED, VALIDATED, NotCached, calibration_section, run_calibration
 from pcverify.harness.reproduce import select_groups
 from pcverify.harness.study import load_study
 from pcverify.scene import SceneError
@@ -265,3 +265,18 @@ def test_group_option_selects_a_calibration(tmp_path):
     with pytest.raises(SceneError) as err:
         select_groups(study, ["nope"])
     assert "allowed: one of quad" in str(err.value)
+
+
+def test_a_calibration_where_every_set_fails_reports_no_values(tmp_path):
+    """Every set a defect (fail_above = -1 < every x of the design): no calibrated values, no ranges, every
+    held-out cell not matched; the tables and figures are still written."""
+    path = _study(tmp_path)
+    path.write_text(path.read_text().replace("fail_above = 0.8", "fail_above = -1.0"))
+    study = load_study(str(path))
+    outcome = run_calibration(study, study.calibrations[0], Cache(tmp_path / "cache"))
+    summary = outcome.tables["quad-summary"].iloc[0]
+    assert summary["calibrated"] == "no parameter set ran ok" and math.isnan(summary["objective [calibrated on]"])
+    assert summary["cells_not_matched [validated on]"] == 2 and summary["failed_sets"] == summary["evaluations"]
+    assert outcome.tables["quad-parameters"].empty and outcome.best == {}
+    meta, tables = calibration_section(outcome, tmp_path / "report")
+    assert "quad-validation.png" in meta["figures"] and (tmp_path / "report" / "quad-trace.png").exists()
