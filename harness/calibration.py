@@ -325,6 +325,8 @@ def _outcome(ev: _Evaluator, cal: Calibration, best: dict[str, Any] | None, nois
                                                       if p.name in ranges else "")
     summary |= {"objective [calibrated on]": best["objective"] if best else math.nan,
                 "default objective [calibrated on]": _rms(fitted["default_error"]),
+                "replica_mean [calibrated on]": _mean([r["objective"] for r in replicas if r["status"] == "ok"]
+                                                      + ([best["objective"]] if best else [])),
                 "noise [calibrated on]": noise, "band [calibrated on]": band,
                 "tolerance [validated on]": cal.tolerance, "cells [validated on]": len(held),
                 "cells_matched [validated on]": int(matched.sum()),
@@ -344,6 +346,12 @@ def _rms(errors: pd.Series) -> float:
     """RMS of errors (NaN if any is NaN: a failed run has no error), the objective's own combination."""
     e = pd.to_numeric(errors, errors="coerce").to_numpy(float)
     return float(np.sqrt(np.mean(e * e))) if e.size else math.nan
+
+
+def _mean(values: list[float]) -> float:
+    """Mean objective of the best set and its ok replicas: the best alone is the lowest of many noisy draws
+    (optimistic); this is the level a rerun at the calibrated values should expect."""
+    return float(np.mean(values)) if values else math.nan
 
 
 def _max(errors: pd.Series) -> float:

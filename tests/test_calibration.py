@@ -102,7 +102,10 @@ def test_noise_from_replicas_matches_the_added_noise(outcome):
     """The replicas (5 seeds) and the best run estimate the std of |q| at the optimum; for q ~ N(0, sigma)
     that is 0.60 sigma, and a 6-sample standard deviation lies within a factor 3 of it with probability
     above 0.99.  The estimate is deterministic (seeded), so this is one fixed number, not a flaky draw."""
-    noise = outcome.tables["quad-summary"].iloc[0]["noise [calibrated on]"]
+    summary = outcome.tables["quad-summary"].iloc[0]
+    noise = summary["noise [calibrated on]"]
+    draws = [summary["objective [calibrated on]"], *outcome.tables["quad-noise"]["objective"]]
+    assert summary["replica_mean [calibrated on]"] == pytest.approx(sum(draws) / len(draws), rel=1e-12)
     assert 0.6 * SIGMA / 3 <= noise <= 0.6 * SIGMA * 3
     reps = outcome.tables["quad-noise"]
     assert len(reps) == 5 and (reps["status"] == "ok").all()
