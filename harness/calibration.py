@@ -20,6 +20,7 @@ number was "calibrated on" or "validated on".
 from __future__ import annotations
 
 import math
+import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -231,14 +232,23 @@ def _local(ev: _Evaluator, cal: Calibration, u0: np.ndarray, share: int) -> None
 
 
 def run_calibration(study: Study, cal: Calibration, cache: Cache, jobs: int = 1, compute: bool = True,
-                    rerun: frozenset[str] | None = None, allow_large: bool = False) -> Outcome:
+                    rerun: frozenset[str] | None = None, allow_large: bool = False, progress: bool = False) -> Outcome:
     """Search, noise, ranges, sensitivity and validation of one calibration; every run a cached cell.
     `compute` False: read everything from the cache (NotCached if a cell is missing); `rerun` and
-    `allow_large` as for `execute` (cells are recomputed once per request)."""
+    `allow_large` as for `execute` (cells are recomputed once per request); `progress`: one line per phase
+    on stderr."""
     ev = _Evaluator(study, cal, cache, jobs, compute, rerun, allow_large)
+
+    def say(phase: str) -> None:
+        if progress:
+            print(f"calibration {cal.id}: {phase} ({ev.runs} solver runs, {ev.hits} cached so far)", file=sys.stderr)
+
+    say("references")
     ev.prepare_references()
     design = [_theta(cal, u) for u in _design(cal)]
+    say(f"{cal.design} design of {len(design)} sets")
     rows = ev.evaluate(design, "design", search=True) if design else []
+    say("local search")
     order = sorted((r for r in rows if r["status"] == "ok"), key=lambda r: r["objective"])
     for k, start in enumerate(order[:cal.starts]):
         left = cal.budget - ev.search_runs
@@ -250,6 +260,7 @@ def run_calibration(study: Study, cal: Calibration, cache: Cache, jobs: int = 1,
         return _outcome(ev, cal, None, math.nan, [], [])
     best = min(searched, key=lambda r: (r["objective"], r["evaluation"]))
     theta = {p.name: best[p.name] for p in cal.parameters}
+    say("replicas, sensitivity and validation")
     replicas = [ev.evaluate([theta], "replica", fixed={k: v})[0] for k, values in cal.replicas for v in values]
     finite = [best["objective"]] + [r["objective"] for r in replicas if r["status"] == "ok"]
     noise = float(np.std(finite, ddof=1)) if len(finite) >= 2 else 0.0

@@ -277,11 +277,13 @@ def cmd_study(args: argparse.Namespace) -> int:
                           "depend on the values found; cached ones are read back)")
                 continue
             t0 = time.perf_counter()
-            results, counts = execute(study, cache, jobs=args.jobs, progress=not args.json, scheduler=args.scheduler,
+            shown_bar = not args.json and any(g.cells for g in study.groups)  # a calibration-only study: no bar
+            results, counts = execute(study, cache, jobs=args.jobs, progress=shown_bar, scheduler=args.scheduler,
                                       rerun=rerun, allow_large=args.allow_large)
             extra = []
             for cal in study.calibrations:
-                outcome = run_calibration(study, cal, cache, jobs=args.jobs, rerun=rerun, allow_large=args.allow_large)
+                outcome = run_calibration(study, cal, cache, jobs=args.jobs, rerun=rerun, allow_large=args.allow_large,
+                                          progress=not args.json)
                 extra.append(calibration_section(outcome, out / study.name))
                 counts["calibration_runs"] = counts.get("calibration_runs", 0) + outcome.runs
                 counts["calibration_cached"] = counts.get("calibration_cached", 0) + outcome.hits
