@@ -23,6 +23,7 @@ from tqdm import tqdm
 
 from pcverify import __version__
 from pcverify.harness.cache import Cache
+from pcverify.harness.calibration import NotCached, calibration_section, run_calibration
 from pcverify.harness.catalogue import entries as scene_entries
 from pcverify.harness.catalogue import get_spec
 from pcverify.harness.execution import CELL_ERRORS, cached_results, execute, plan
@@ -270,16 +271,30 @@ def cmd_study(args: argparse.Namespace) -> int:
                 summary.append({"study": study.name, "cells": rows})
                 for r in [] if args.json else rows:
                     print(f"{r['state']:<8} {r['key']}  {r['cell']}" + (f"  ({r['reason']})" if r["reason"] else ""))
+                for cal in [] if args.json else study.calibrations:  # adaptive: its cells follow from the values
+                    print(f"calibration {cal.id}: {cal.solver}, search of at most {cal.budget} solver runs, then "
+                          f"replicas, sensitivity and {len(cal.calibrate) + len(cal.validate)} cells x 2 (cells "
+                          "depend on the values found; cached ones are read back)")
                 continue
             t0 = time.perf_counter()
-            results, counts = execute(study, cache, jobs=args.jobs, progress=not args.json, scheduler=args.scheduler,
+            shown_bar = not args.json and any(g.cells for g in study.groups)  # a calibration-only study: no bar
+            results, counts = execute(study, cache, jobs=args.jobs, progress=shown_bar, scheduler=args.scheduler,
                                       rerun=rerun, allow_large=args.allow_large)
-            write_study_report(study, results, out)
+            extra = []
+            for cal in study.calibrations:
+                outcome = run_calibration(study, cal, cache, jobs=args.jobs, rerun=rerun, allow_large=args.allow_large,
+                                          progress=not args.json)
+                extra.append(calibration_section(outcome, out / study.name))
+                counts["calibration_runs"] = counts.get("calibration_runs", 0) + outcome.runs
+                counts["calibration_cached"] = counts.get("calibration_cached", 0) + outcome.hits
+            write_study_report(study, results, out, extra=extra)
             summary.append({"study": study.name, **counts, "wall_s": round(time.perf_counter() - t0, 3),
                             "verdicts": study_verdicts(out, study.name)})
             if not args.json:
+                calib = (f", calibrations: {counts['calibration_runs']} solver runs, {counts['calibration_cached']} "
+                         "cached" if study.calibrations else "")
                 print(f"{study.name}: {counts['cells']} cells, {counts['cached']} cached, {counts['done']} run, "
-                      f"{counts['failed']} failed, {counts['corrupt']} corrupt entries recomputed "
+                      f"{counts['failed']} failed, {counts['corrupt']} corrupt entries recomputed{calib} "
                       f"-> {out / study.name}/")
         if not args.dry_run:
             index = write_index(out)
@@ -332,8 +347,14 @@ def cmd_report(args: argparse.Namespace) -> int:
             warn(f"study file {source} (named by a manifest in {out}) does not load: {exc}; skipped")
             continue
         results = cached_results(study, cache)
-        if results:
-            write_study_report(study, results, out, run_command)
+        extra = []
+        for cal in study.calibrations:  # the same search through the cached cells; a missing one: left out
+            try:
+                extra.append(calibration_section(run_calibration(study, cal, cache, compute=False), out / study.name))
+            except NotCached:
+                continue
+        if results or extra:
+            write_study_report(study, results, out, run_command, extra=extra)
             rebuilt.append({"study": study.name, "study_file": source, "cells_cached": len(results)})
     index = write_index(out)
     if args.json:

@@ -275,6 +275,77 @@ def work_precision(df: pd.DataFrame, error: str, path: Path, title: str) -> bool
     return _save(fig, path)
 
 
+PHASE_MARKERS = {"design": "o", "local": "s", "replica": "^", "sensitivity": "D"}
+
+
+def calibration_trace(trace: pd.DataFrame, path: Path, title: str) -> bool:
+    """Objective against evaluation (log scale), by phase, the best so far as a line; failed sets as x at the
+    top (they have no objective)."""
+    if trace.empty:
+        return False
+    fig, ax = plt.subplots(figsize=(9, 4))
+    ok = trace[trace["status"] == "ok"]
+    for phase, part in ok.groupby("phase", sort=False):
+        ax.semilogy(part["evaluation"], part["objective"], PHASE_MARKERS.get(phase, "o"), ms=5, label=phase,
+                    alpha=0.8)
+    if "best_so_far" in trace and trace["best_so_far"].notna().any():
+        ax.semilogy(trace["evaluation"], trace["best_so_far"], "k-", lw=1, label="best so far (search)")
+    bad = trace[trace["status"] != "ok"]
+    if not bad.empty:
+        top = ok["objective"].max() if not ok.empty else 1.0
+        ax.semilogy(bad["evaluation"], np.full(len(bad), top * 1.5), "rx", label="failed set (" + ", ".join(
+            sorted(bad["status"].unique())) + ")")
+    ax.set_xlabel("evaluation")
+    ax.set_ylabel("objective (calibrated on)")
+    ax.grid(True, which="both", alpha=0.3)
+    legend_outside(ax)
+    fig.suptitle(_wrap(title, fig), fontsize=9)
+    return _save(fig, path)
+
+
+def calibration_work_precision(trace: pd.DataFrame, path: Path, title: str) -> bool:
+    """Objective against the wall time and the work counter of each evaluated parameter set (ok ones)."""
+    ok = trace[trace["status"] == "ok"] if not trace.empty else trace
+    if ok.empty:
+        return False
+    fig, (left, right) = plt.subplots(1, 2, figsize=(11, 4))
+    for phase, part in ok.groupby("phase", sort=False):
+        marker = PHASE_MARKERS.get(phase, "o")
+        left.loglog(part["wall_s"], part["objective"], marker, label=phase, alpha=0.8)
+        right.loglog(part["work"], part["objective"], marker, label=phase, alpha=0.8)
+    left.set_xlabel("wall time of the set's cells [s]")
+    right.set_xlabel(f"work ({ok['work_kind'].iloc[0]})")
+    for ax in (left, right):
+        ax.set_ylabel("objective (calibrated on)")
+        ax.grid(True, which="both", alpha=0.3)
+        legend_outside(ax)
+    fig.suptitle(_wrap(title, fig), fontsize=9)
+    return _save(fig, path)
+
+
+def calibration_validation(table: pd.DataFrame, tolerance: float, path: Path, title: str) -> bool:
+    """Error per cell at the calibrated and at the default parameters (failed runs marked), the tolerance."""
+    if table.empty:
+        return False
+    fig, ax = plt.subplots(figsize=(9, 4))
+    x = np.arange(len(table))
+    for offset, col, label in ((-0.2, "default", "default parameters"), (0.2, "calibrated", "calibrated")):
+        err = pd.to_numeric(table[f"{col}_error"], errors="coerce").to_numpy(float)
+        ax.bar(x + offset, np.where(np.isfinite(err), err, 0.0), 0.4, label=label)
+        for xi, e, st in zip(x, err, table[f"{col}_status"], strict=True):
+            if not np.isfinite(e):
+                ax.annotate(str(st), (xi + offset, 0), rotation=90, fontsize=6, ha="center", va="bottom")
+    if np.isfinite(tolerance):
+        ax.axhline(tolerance, color="k", ls="--", lw=1, label=f"tolerance {tolerance:g}")
+    ax.set_xticks(x, [f"{r}: {c}" for r, c in zip(table["role"], table["cell"], strict=True)], rotation=30,
+                  ha="right", fontsize=6)
+    ax.set_ylabel("error")
+    ax.set_yscale("symlog", linthresh=1e-3)
+    legend_outside(ax)
+    fig.suptitle(_wrap(title, fig), fontsize=9)
+    return _save(fig, path)
+
+
 def edge_profiles(results: list[dict[str, Any]], path: Path, title: str) -> bool:
     """The paper's Fig. 9: relative value along the two edges, particle polylines against continuum curves.
 

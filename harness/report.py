@@ -87,17 +87,21 @@ def _lattice_nodes(study: Any, claims: list[verdict.Claim], table: pd.DataFrame)
     return nodes
 
 
-def write_study_report(study: Any, results: list[dict[str, Any]], out: Path, run_command: str | None = None) -> Path:
+def write_study_report(study: Any, results: list[dict[str, Any]], out: Path, run_command: str | None = None,
+                       extra: list[tuple[dict[str, Any], dict[str, pd.DataFrame]]] = ()) -> Path:
     """Write tables, plots, VTU files and verdicts of one study into out/<study>/ and its manifest (with the
     study file, its plugin modules and the command that ran it: this process's, unless `run_command`; and
-    `rerun`, the command that reruns it from the cache)."""
+    `rerun`, the command that reruns it from the cache).  `extra`: sections made elsewhere (a calibration's:
+    id, title, figures already drawn) with their tables; their tables are written and available to the
+    claims like the groups' tables."""
     folder = out / study.name
     folder.mkdir(parents=True, exist_ok=True)
     manifest: dict[str, Any] = {"name": study.name, "title": study.title, "sections": [], "verdicts": None,
                                 "study_file": str(study.path) if study.path else None,
                                 "plugins": list(study.plugins), "command": run_command or command(),
                                 "rerun": study_command(study, []),
-                                "solvers": sorted({c.solver for g in study.groups for c in g.cells})}
+                                "solvers": sorted({c.solver for g in study.groups for c in g.cells}
+                                                   | {c.solver for c in getattr(study, "calibrations", [])})}
     all_tables: dict[str, pd.DataFrame] = {}
     group_cells = []
     for g in study.groups:
@@ -118,7 +122,15 @@ def write_study_report(study: Any, results: list[dict[str, Any]], out: Path, run
             section["vtu"] = _write_vtus(res, folder)
         all_tables.update(tables)
         manifest["sections"].append(section)
-    _write_csv(pd.concat(group_cells, ignore_index=True), folder / "cells.csv")
+    for meta, tables in extra:
+        section = {"id": meta["id"], "title": meta["title"], "tables": [], "figures": list(meta.get("figures", [])),
+                   "vtu": []}
+        for name, df in tables.items():
+            _write_table(df, folder / name)
+            section["tables"].append(f"{name}.csv")
+        all_tables.update(tables)
+        manifest["sections"].append(section)
+    _write_csv(pd.concat(group_cells, ignore_index=True) if group_cells else pd.DataFrame(), folder / "cells.csv")
     manifest["orders"] = _orders(study, all_tables)
     if study.claims:
         table = verdict.verdicts(study.name, study.claims, all_tables, verdict_commands(study, results))

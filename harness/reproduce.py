@@ -38,13 +38,16 @@ def _needs(study: Study, group: Group) -> set[str]:
 
 
 def select_groups(study: Study, ids: list[str]) -> Study:
-    """The study restricted to the groups `ids`, the groups they read tables from, and the claims that
-    only read the kept groups' tables; an unknown id raises SceneError naming the allowed ones."""
-    known = [g.id for g in study.groups]
+    """The study restricted to the groups (or calibrations) `ids`, the groups they read tables from, and the
+    claims that only read the kept groups' or calibrations' tables; an unknown id raises SceneError naming
+    the allowed ones."""
+    calibrations = [c.id for c in study.calibrations]
+    known = [g.id for g in study.groups] + calibrations
     for gid in ids:
         if gid not in known:
             raise SceneError(f"group={gid!r} is unknown in study {study.name}; allowed: one of {', '.join(known)}")
-    keep = set(ids)
+    keep = set(ids) - set(calibrations)
+    kept_calibrations = [c for c in study.calibrations if c.id in ids]
     by_id = {g.id: g for g in study.groups}
     while True:
         more = set().union(*(_needs(study, by_id[g]) for g in keep)) - keep
@@ -55,10 +58,11 @@ def select_groups(study: Study, ids: list[str]) -> Study:
         keep |= more
 
     def kept(claim: Claim) -> bool:
-        return all(table_group(study, t) in keep for t in (claim.table, claim.against_table or claim.table))
+        return all(table_group(study, t) in keep or any(t.startswith(f"{c.id}-") for c in kept_calibrations)
+                   for t in (claim.table, claim.against_table or claim.table))
 
     return dataclasses.replace(study, groups=[g for g in study.groups if g.id in keep],
-                               claims=[c for c in study.claims if kept(c)])
+                               claims=[c for c in study.claims if kept(c)], calibrations=kept_calibrations)
 
 
 def study_command(study: Study, groups: list[str]) -> str:
@@ -129,8 +133,8 @@ def verdict_commands(study: Study, results: list[dict[str, Any]]) -> Command:
 
     def rows_command(table: str, rows: pd.DataFrame | None) -> str:
         gid = table_group(study, table)
-        if gid is None:
-            return study_command(study, [])
+        if gid is None:  # a calibration's table is rerun (from the cache) by its calibration alone
+            return study_command(study, [c.id for c in study.calibrations if table.startswith(f"{c.id}-")][:1])
         if gid in solve_groups and rows is not None:
             result = _one_cell(rows, [r for r in results if r.get("group") == gid])
             command = run_command(result) if result is not None else None

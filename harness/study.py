@@ -1,10 +1,11 @@
 """Studies: a grid of scenes x solvers x resolutions x parameters, as data (TOML).
 
 A study file has a `name`, a `title`, optional `plugins` (modules imported in every process that runs
-its cells) and `[[scene]]` tables (scenes built from the shipped building blocks), `[[group]]` tables
-and `[[claim]]` tables.  Each group names a scene (with `scene_params`), `solvers`, lists `n` and
-`refine`, `solver_params`, a `sweep`, and the `analysis` applied to its cells (the registry in
-`pcverify.harness.analyses`).  The whole file is checked before any cell is built (`studyfile`).
+its cells) and `[[scene]]` tables (scenes built from the shipped building blocks), `[[group]]` tables,
+`[[claim]]` tables and `[[calibration]]` tables (`calibspec`).  Each group names a scene (with
+`scene_params`), `solvers`, lists `n` and `refine`, `solver_params`, a `sweep`, and the `analysis`
+applied to its cells (the registry in `pcverify.harness.analyses`).  The whole file is checked before any
+cell is built (`studyfile`).
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from pcverify.harness.analyses import ANALYSES
+from pcverify.harness.calibspec import Calibration, parse_calibrations
 from pcverify.harness.catalogue import make_scene, register_scene, spec_from_table
 from pcverify.harness.plugins import load_plugins
 from pcverify.harness.studyfile import check_study_document, read_study_document, solver_params_of, values_of
@@ -67,6 +69,7 @@ class Study:
     claims: list[Claim] = field(default_factory=list)
     plugins: tuple[str, ...] = ()
     path: Path | None = None
+    calibrations: list[Calibration] = field(default_factory=list)
 
 
 def study_files() -> dict[str, Path]:
@@ -100,9 +103,11 @@ def load_study(name_or_path: str, allow_large: bool = False) -> Study:
     for k, table in enumerate(doc.get("scene", [])):
         register_scene(spec_from_table(table, f"{path.name} scene {k + 1}"), f"study file {path}")
     check_study_document(doc, path)  # one-line errors for bad fields, before any cell is built
-    groups = [_group(g, f"{path.name} group {gi + 1}", gi, plugins) for gi, g in enumerate(doc["group"])]
+    groups = [_group(g, f"{path.name} group {gi + 1}", gi, plugins) for gi, g in enumerate(doc.get("group", []))]
     claims = parse_claims(doc.get("claim", []), path.name)
-    return Study(doc.get("name", path.stem), doc.get("title", path.stem), groups, claims, plugins, path.resolve())
+    calibrations = parse_calibrations(doc["calibration"], f"study file {path.name}") if "calibration" in doc else []
+    return Study(doc.get("name", path.stem), doc.get("title", path.stem), groups, claims, plugins, path.resolve(),
+                 calibrations)
 
 
 def cell_count(doc: dict[str, Any], path: Path) -> int:

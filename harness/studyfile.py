@@ -23,7 +23,8 @@ from pcverify.solvers.registry import SolverUnavailable, get_solver
 
 TOP_KEYS = {"name": "study name (letters, digits, . _ -)", "title": "title (text)",
             "plugins": "list of module names imported in every worker", "scene": "[[scene]] tables",
-            "group": "[[group]] tables", "claim": "[[claim]] tables"}
+            "group": "[[group]] tables", "claim": "[[claim]] tables",
+            "calibration": "[[calibration]] tables (pcverify.harness.calibspec)"}
 GROUP_TABLES = ("scene_params", "solver_params", "sweep")
 RESOLUTION_RANGES = {"n": (2, 1000), "refine": (1, 1000)}
 SAFE_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,79}$")
@@ -66,8 +67,9 @@ def check_study_document(doc: dict[str, Any], path: Path) -> None:
     for key in ("scene", "claim"):
         if key in doc and not (isinstance(doc[key], list) and all(isinstance(t, dict) for t in doc[key])):
             raise SceneError(f"{where}: {key}={shown(doc[key])} is not valid; allowed: [[{key}]] tables")
-    groups = doc.get("group")
-    if not isinstance(groups, list) or not groups or not all(isinstance(g, dict) for g in groups):
+    groups = doc.get("group", [] if "calibration" in doc else None)  # a calibration study may have no groups
+    if not isinstance(groups, list) or not (groups or "calibration" in doc) or not all(isinstance(g, dict)
+                                                                                     for g in groups):
         raise SceneError(f"{where}: no [[group]] tables (group={shown(groups)}); allowed: one or more [[group]] "
                          "tables")
     ids: dict[str, int] = {}

@@ -5,7 +5,9 @@ Pieces (LAMMPS split): `lattice` (nodes, masses, fixed pair list), `force` (the 
 (computes: hotness, energy balance, hops, neighbourhood; the run's status), `modal` (Hessian,
 frequencies, damping ratio), `setup` (A from f_top, delta from a damping ratio, dt) and `probe` (the
 stability probe).  This module is the glue: parameters, what it supports, and sums turned into a
-Solution.
+Solution.  kernel = "ensemble" runs the large-N ensemble kernel instead (`large_n.heat`), and
+`solve_batch` integrates K parameter sets of one scene in one call of it, each Solution the one its
+own solve gives.
 
 Conventions: hotness H_j = (1/(t_end - t_start)) int KE_j dt; samples are H_j / max over FREE
 particles; the second normalisation (by the driven particle) is in the summary as *_by_driven.
@@ -28,10 +30,11 @@ from .elastic_modes import macromolecule_modes
 from .fixes import Fixes
 from .force import SevenRoot
 from .kernels import KERNELS
+from .large_n.heat import ENSEMBLE, ensemble_problem, run_heat, shared_key
 from .lattice import Lattice
 from .probe import MacromoleculeProbe
-from .setup import DEFAULT_DAMPING_RATIO, prepare
-from .simulate import energy_balance_error, run_status, simulate
+from .setup import DEFAULT_DAMPING_RATIO, Setup, prepare
+from .simulate import RunResult, energy_balance_error, run_status, simulate
 
 BYTES_PER_PARTICLE = 3_000
 
@@ -64,7 +67,11 @@ PARAMETERS: tuple[Param, ...] = (
           "normal to the face, longitudinal)", choices=("x", "y", "z"), kind=str),
     Param("kernel", "fast", "", "time-stepping kernel from the table kernels.KERNELS: fast (kernel_fast.py), "
           "fastmath (the same compiled with FMA and approximate reciprocals) or the plain reference "
-          "(kernel_reference.py); the same scheme, equal to rounding", choices=tuple(KERNELS), kind=str),
+          "(kernel_reference.py); the same scheme, equal to rounding; or ensemble: the large-N ensemble kernel "
+          "(large_n/heat.py: K parameter sets per call in solve_batch; driven or symmetric drives and 0 K "
+          "faces only, defects and instability seen at checks every n_steps / 400; no energy accounts, so its runs "
+          "cannot pass the energy-balance check and are never ok)",
+          choices=(*KERNELS, ENSEMBLE), kind=str),
     Param("hot_face", "langevin", "", "bar-heat-faces: z=0 face thermostatted or kinematically driven",
           choices=("langevin", "driven"), kind=str),
     Param("far_face", "absorbing", "", "bar-heat-faces: z=L face viscous (0 K bath) or frozen",
@@ -137,10 +144,49 @@ class Macromolecule:
         if "modes" in scene.physics:
             return self._modes(scene, n, p, t_wall)
         s = prepare(scene, n, p)
+        if p["kernel"] == ENSEMBLE:
+            run = run_heat(scene, [s], [p])[0]
+        else:
+            run = simulate(s.lattice, s.model, s.fixes, s.delta, s.dt, p["t_end"], p["t_start"],
+                           2 * np.pi * p["drive_frequency"], seed=p["seed"], blowup_factor=p["blowup_factor"],
+                           contact_fraction=p["contact_fraction"], kernel=p["kernel"])
+        return self._heat(scene, n, p, s, run, t_wall, samples)
+
+    def solve_batch(self, scene: Scene, resolution: Resolution, param_sets: list[dict[str, Any]],
+                    samples: dict[str, np.ndarray] | None = None) -> list[Solution | Exception]:
+        """One entry per parameter set: the Solution its own `solve` gives (bit for bit, but for the timings),
+        or the SceneError it would raise.  Sets with kernel = "ensemble" that share everything but the
+        per-replica parameters (`large_n.heat.PER_REPLICA`; dt given explicitly when f_top differs) are
+        integrated as replicas of one ensemble kernel call; any other set is solved alone."""
+        out: list[Solution | Exception | None] = [None] * len(param_sets)
+        groups: dict[tuple, list[tuple[int, dict[str, Any], Setup, float]]] = {}
+        for i, params in enumerate(param_sets):
+            t0 = time.perf_counter()
+            try:
+                p = effective_params(self, params)
+                s = None
+                if (p["kernel"] == ENSEMBLE and self.supports(scene)[0] and "modes" not in scene.physics
+                        and resolution.refine == 1):
+                    s = prepare(scene, resolution.n, p)
+                if s is None or ensemble_problem(s, p):
+                    out[i] = self.solve(scene, resolution, samples=samples, **params)
+                else:
+                    groups.setdefault((shared_key(p), s.dt), []).append((i, p, s, time.perf_counter() - t0))
+            except (SceneError, ValueError, ArithmeticError) as exc:
+                out[i] = exc
+        for members in groups.values():
+            t0 = time.perf_counter()
+            runs = run_heat(scene, [m[2] for m in members], [m[1] for m in members])
+            share = (time.perf_counter() - t0) / len(members)
+            for (i, p, s, setup_s), run in zip(members, runs, strict=True):
+                out[i] = self._heat(scene, resolution.n, p, s, run, time.perf_counter() - setup_s - share, samples)
+        return [o for o in out if o is not None]
+
+    def _heat(self, scene: Scene, n: int, p: dict[str, Any], s: Setup, run: RunResult, t_wall: float,
+              samples: dict[str, np.ndarray] | None) -> Solution:
+        """The Solution of a heat run: relative hotness at the samples, status, summary and diagnostics."""
         lat, fx = s.lattice, s.fixes
         w_drive = 2 * np.pi * p["drive_frequency"]
-        run = simulate(lat, s.model, fx, s.delta, s.dt, p["t_end"], p["t_start"], w_drive, seed=p["seed"],
-                       blowup_factor=p["blowup_factor"], contact_fraction=p["contact_fraction"], kernel=p["kernel"])
         H = run.hot[0]
         free = (fx.kind == codes.FREE) & (fx.gamma == 0.0)  # bath particles are held, not free
         rel = H / H[free].max() if H[free].max() > 0 else np.full_like(H, np.nan)

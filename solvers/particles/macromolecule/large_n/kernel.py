@@ -47,7 +47,7 @@ gather evaluates each twice, the slab pass once; group slots beyond r_cut are wo
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import llvmlite.binding as llvm
@@ -104,22 +104,28 @@ class SlotState(NamedTuple):
 
 class DriveArrays(NamedTuple):
     """Fixes shared by the replicas: rest positions (N, 3), kinds (N, int8: FREE, FROZEN, PRESCRIBED), the
-    held particles' indices, drive amplitudes (N, 3) and phases (N)."""
+    held particles' indices, drive amplitudes (N, 3) and phases (N), and the indices of the FREE particles
+    in a 0 K viscous bath (an absorbing face; its rate per replica is ReplicaParams.gamma)."""
 
     x_rest: np.ndarray
     kind: np.ndarray
     held: np.ndarray
     amp: np.ndarray
     phase: np.ndarray
+    bath: np.ndarray
 
 
 class ReplicaParams(NamedTuple):
-    """One parameter set per replica (K each): drive amplitude scale, drive angular frequency (rad/s) and
-    radial damping delta (N s/m)."""
+    """One parameter set per replica (K each): drive amplitude scale, drive angular frequency (rad/s),
+    radial damping delta (N s/m), force scale A (N), envelope exponent p and the absorbing bath's rate
+    gamma (1/s).  A and p replace PairParams' amp_a and p in the force passes."""
 
     scale: np.ndarray
     omega: np.ndarray
     delta: np.ndarray
+    amp_a: np.ndarray
+    p: np.ndarray
+    gamma: np.ndarray
 
 
 class ListArrays(NamedTuple):
@@ -157,12 +163,15 @@ def pair_params(coeffs: np.ndarray, a: float, r_cut: float) -> tuple[PairParams,
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def pair_term(dx, dy, dz, dvx, dvy, dvz, prm, delta, square):
-    """Force on i from j (seven-root F + delta * rdot; 0 from r_cut on), d = x_j - x_i, dv = v_j - v_i.
+def pair_term(dx, dy, dz, dvx, dvy, dvz, prm, delta, amp_a, p, square):
+    """Force on i from j (seven-root F with force scale amp_a and envelope exponent p, + delta * rdot; 0
+    from r_cut on), d = x_j - x_i, dv = v_j - v_i.
 
     Branch-free, as kernel_fast.py's `_group`: root factors multiplied as a depth-3 tree (A folded in),
-    clamped STEP (0 from 2a on), envelope (a/r)^2 as (a * (1/r))^2 if square, else (r/a)^-p."""
-    r0, r1, r2, r3, r4, r5, r6, amp_a, step_lo, inv_w, inv_a, a, p, rc2 = prm
+    clamped STEP (0 from 2a on), envelope (a/r)^2 as (a * (1/r))^2 if square (a constant: every replica
+    has p = 2), else chosen per pair: (a * (1/r))^2 where p == 2, (r/a)^-p elsewhere, so that a replica
+    with p = 2 among others computes exactly what its single run (square) does."""
+    r0, r1, r2, r3, r4, r5, r6, _, step_lo, inv_w, inv_a, a, _, rc2 = prm
     rr = dx * dx + dy * dy + dz * dz
     r = math.sqrt(rr)
     ir = 1.0 / r
@@ -170,27 +179,32 @@ def pair_term(dx, dy, dz, dvx, dvy, dvz, prm, delta, square):
     ey = dy * ir
     ez = dz * ir
     x = r * inv_a
-    g = (force_tree(x, a * ir, r0, r1, r2, r3, r4, r5, r6, amp_a, p, step_lo, inv_w, square)
-         + delta * (dvx * ex + dvy * ey + dvz * ez))
+    if square:
+        f = force_tree(x, a * ir, r0, r1, r2, r3, r4, r5, r6, amp_a, p, step_lo, inv_w, True)
+    else:
+        f = force_tree(x, a * ir, r0, r1, r2, r3, r4, r5, r6, amp_a, p, step_lo, inv_w, p == 2.0)
+    g = f + delta * (dvx * ex + dvy * ey + dvz * ez)
     g = g if rr < rc2 else 0.0
     return g * ex, g * ey, g * ez
 
 
 @njit(inline="always")
-def _slots(xs, vs, fs, s0, s1, o, buf, dl, prm, square):
+def _slots(xs, vs, fs, s0, s1, o, buf, sl, prm, square):
     """f[:, s] += pair term of slot s (pair (s, s + o) of the flat index) for s in [s0, s1), kept in
-    buf[:, s - s0]: one contiguous loop, no call and no branch in its body, so LLVM vectorises it.
+    buf[:, s - s0]; sl (3, TILE * K): damping, force scale and exponent of each slot of a tile.  One
+    contiguous loop, no call and no branch in its body (with square), so LLVM vectorises it.
     Indices are unsigned (no numba wrap-around code); o < 0 (gather) is fine while s + o >= 0."""
     x, y, z = xs[0], xs[1], xs[2]
     vx, vy, vz = vs[0], vs[1], vs[2]
     fx, fy, fz = fs[0], fs[1], fs[2]
     bx, by, bz = buf[0], buf[1], buf[2]
+    dl, al, pl = sl[0], sl[1], sl[2]
     for s in range(s0, s1):
         i = np.uint64(s)
         j = np.uint64(s + o)
         q = np.uint64(s - s0)
         tx, ty, tz = pair_term(x[j] - x[i], y[j] - y[i], z[j] - z[i], vx[j] - vx[i], vy[j] - vy[i], vz[j] - vz[i],
-                               prm, dl[q], square)
+                               prm, dl[q], al[q], pl[q], square)
         fx[i] += tx
         fy[i] += ty
         fz[i] += tz
@@ -210,7 +224,7 @@ def _subtract(fs, buf, s0, s1, o):
 
 
 @njit(inline="always")
-def _tile(xs, vs, fs, t0, t1, n, nk, offsets, buf, dl, prm, newton, square):
+def _tile(xs, vs, fs, t0, t1, n, nk, offsets, buf, sl, prm, newton, square):
     """The group pairs of particles [t0, t1) (all K = nk replicas): with newton, pairs (i, i + o), each
     once, added to i and subtracted from i + o; without, (i, i + o) and (i, i - o), each pair twice,
     i writes only its own slot.  Loops inlined (numba IR): no call per group."""
@@ -218,38 +232,39 @@ def _tile(xs, vs, fs, t0, t1, n, nk, offsets, buf, dl, prm, newton, square):
         o = offsets[g]
         e = min(t1, n - o)
         if e > t0:
-            _slots(xs, vs, fs, t0 * nk, e * nk, o * nk, buf, dl, prm, square)
+            _slots(xs, vs, fs, t0 * nk, e * nk, o * nk, buf, sl, prm, square)
             if newton:
                 _subtract(fs, buf, t0 * nk, e * nk, o * nk)
         b = max(t0, o)
         if not newton and t1 > b:
-            _slots(xs, vs, fs, b * nk, t1 * nk, -o * nk, buf, dl, prm, square)
+            _slots(xs, vs, fs, b * nk, t1 * nk, -o * nk, buf, sl, prm, square)
 
 
 @njit(cache=True, boundscheck=False, error_model="numpy")
-def _tile_p2(xs, vs, fs, t0, t1, n, nk, offsets, buf, dl, prm, newton):
+def _tile_p2(xs, vs, fs, t0, t1, n, nk, offsets, buf, sl, prm, newton):
     """`_tile` with the envelope (a/r)^2 (the vectorised loops)."""
-    _tile(xs, vs, fs, t0, t1, n, nk, offsets, buf, dl, prm, newton, True)
+    _tile(xs, vs, fs, t0, t1, n, nk, offsets, buf, sl, prm, newton, True)
 
 
 @njit(cache=True, boundscheck=False, error_model="numpy")
-def _tile_any(xs, vs, fs, t0, t1, n, nk, offsets, buf, dl, prm, newton):
-    """`_tile` with the envelope (r/a)^-p through pow (any p; correct, slower)."""
-    _tile(xs, vs, fs, t0, t1, n, nk, offsets, buf, dl, prm, newton, False)
+def _tile_any(xs, vs, fs, t0, t1, n, nk, offsets, buf, sl, prm, newton):
+    """`_tile` with the envelope chosen per slot, (r/a)^-p through pow unless p == 2 (any p; correct,
+    slower)."""
+    _tile(xs, vs, fs, t0, t1, n, nk, offsets, buf, sl, prm, newton, False)
 
 
 @njit(inline="always")
-def _tile_pass(xs, vs, fs, t0, t1, n, nk, offsets, buf, dl, prm, square, newton):
+def _tile_pass(xs, vs, fs, t0, t1, n, nk, offsets, buf, sl, prm, square, newton):
     """The tile function of the envelope `square` (a constant: numba prunes the other branch, so only the
     envelope in use is compiled)."""
     if square:
-        _tile_p2(xs, vs, fs, t0, t1, n, nk, offsets, buf, dl, prm, newton)
+        _tile_p2(xs, vs, fs, t0, t1, n, nk, offsets, buf, sl, prm, newton)
     else:
-        _tile_any(xs, vs, fs, t0, t1, n, nk, offsets, buf, dl, prm, newton)
+        _tile_any(xs, vs, fs, t0, t1, n, nk, offsets, buf, sl, prm, newton)
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def _residual_rows(xs, vs, fs, start, index, nk, delta, prm, square):
+def _residual_rows(xs, vs, fs, start, index, nk, delta, amp_a, p_env, prm, square):
     """f[:, i, k] += sum of row i of the residual list (full rows, ascending j), replica k; pairs at or
     beyond r_cut skipped (not added as zeros: extra pairs of a merged list change no bit)."""
     rc2 = prm[13]
@@ -266,7 +281,7 @@ def _residual_rows(xs, vs, fs, start, index, nk, delta, prm, square):
                 dz = xs[2, sj] - xs[2, si]
                 if dx * dx + dy * dy + dz * dz < rc2:
                     tx, ty, tz = pair_term(dx, dy, dz, vs[0, sj] - vs[0, si], vs[1, sj] - vs[1, si],
-                                           vs[2, sj] - vs[2, si], prm, delta[k], square)
+                                           vs[2, sj] - vs[2, si], prm, delta[k], amp_a[k], p_env[k], square)
                     fx += tx
                     fy += ty
                     fz += tz
@@ -286,16 +301,18 @@ def _forces(state, nl, replicas, prm, square):
     count, and the same for each replica as for its single run (K = 1)."""
     xs, vs, fs = state.xs, state.vs, state.fs
     offsets, block, start, index = nl.offsets, nl.block, nl.start, nl.index
-    delta = replicas.delta
+    delta, amp_a, p_env = replicas.delta, replicas.amp_a, replicas.p
     nk = delta.shape[0]
     n = xs.shape[1] // nk
     for s in prange(xs.shape[1]):
         fs[0, s] = 0.0
         fs[1, s] = 0.0
         fs[2, s] = 0.0
-    dl = np.empty(TILE * nk)  # damping of slot q of a tile (tiles start at multiples of K)
+    sl = np.empty((3, TILE * nk))  # damping, A and p of slot q of a tile (tiles start at multiples of K)
     for q in range(TILE * nk):
-        dl[q] = delta[q % nk]
+        sl[0, q] = delta[q % nk]
+        sl[1, q] = amp_a[q % nk]
+        sl[2, q] = p_env[q % nk]
     if block > 0:
         nb = (n + block - 1) // block
         for colour in range(2):
@@ -303,14 +320,14 @@ def _forces(state, nl, replicas, prm, square):
                 b = 2 * q + colour
                 buf = np.empty((3, TILE * nk))
                 for t0 in range(b * block, min((b + 1) * block, n), TILE):
-                    _tile_pass(xs, vs, fs, t0, min(t0 + TILE, (b + 1) * block, n), n, nk, offsets, buf, dl, prm,
+                    _tile_pass(xs, vs, fs, t0, min(t0 + TILE, (b + 1) * block, n), n, nk, offsets, buf, sl, prm,
                                square, True)
     else:
         for t in prange((n + TILE - 1) // TILE):
             buf = np.empty((3, TILE * nk))
-            _tile_pass(xs, vs, fs, t * TILE, min((t + 1) * TILE, n), n, nk, offsets, buf, dl, prm, square, False)
+            _tile_pass(xs, vs, fs, t * TILE, min((t + 1) * TILE, n), n, nk, offsets, buf, sl, prm, square, False)
     if index.shape[0] > 0:
-        _residual_rows(xs, vs, fs, start, index, nk, delta, prm, square)
+        _residual_rows(xs, vs, fs, start, index, nk, delta, amp_a, p_env, prm, square)
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
@@ -443,14 +460,17 @@ def _advance(state, fixes, replicas, nl, prm, steps, square):
     The closing kick of a step and the drift of the next run in one pass over every slot as if it
     were free (`_kick_drift`); the held particles (indices `held`, few) are then corrected: their hot
     sum, kick velocity, drive or rest and displacement count are redone exactly as a separate pass
-    would have done them (bit for bit).  Returns (steps completed, status).  On EXPIRED the step in
+    would have done them (bit for bit).  So are the bath particles (indices `bath`, an absorbing face):
+    from their saved x_n and v_{n-1/2}, v_n = exp(-gamma dt) (v_{n-1/2} + dt/2 F_n / m) (the bath acts
+    at the full step, velocity Verlet's halves around it unchanged), then the next half kick and drift.
+    Returns (steps completed, status).  On EXPIRED the step in
     progress has been drifted (x at t_{n+1}, v = v_{n+1/2}) but has no forces yet: rebuild the list
     and call again with resume=True, which starts at the force pass.  hot (N * K) accumulates KE dt
     (if not empty).
     """
     xs, vs, fs, hot = state
-    x_rest, kind, held, amp, phase = fixes
-    scale, omega = replicas.scale, replicas.omega
+    x_rest, kind, held, amp, phase, bath = fixes
+    scale, omega, gamma = replicas.scale, replicas.omega, replicas.gamma
     x_ref, half_skin = nl.x_ref, nl.half_skin
     mass, dt, step0, n_steps, resume = steps
     nk = scale.shape[0]
@@ -460,6 +480,13 @@ def _advance(state, fixes, replicas, nl, prm, steps, square):
     hmk = 0.5 * mass
     with_hot = hot.shape[0] == xs.shape[1]
     saved = np.zeros(held.shape[0] * nk)
+    nb = bath.shape[0]
+    bath_x = np.zeros((nb * nk, 3))  # x_n and v_{n-1/2} of the bath slots before a pass, and their hot sums
+    bath_v = np.zeros((nb * nk, 3))
+    bath_hot = np.zeros(nb * nk)
+    damp = np.empty(nk)
+    for k in range(nk):
+        damp[k] = math.exp(-gamma[k] * dt)
     if n_steps <= 0:
         return 0, DONE
     if not resume:  # drift of the first step
@@ -488,6 +515,14 @@ def _advance(state, fixes, replicas, nl, prm, steps, square):
             for p in range(held.shape[0]):
                 for k in range(nk):
                     saved[p * nk + k] = hot[held[p] * nk + k]
+        for p in range(nb):
+            for k in range(nk):
+                q = bath[p] * nk + k
+                for d in range(3):
+                    bath_x[p * nk + k, d] = xs[d, q]
+                    bath_v[p * nk + k, d] = vs[d, q]
+                if with_hot:
+                    bath_hot[p * nk + k] = hot[q]
         over = 0
         if last:
             _kick(vs, fs, hot, h, dt, hmk)
@@ -505,6 +540,22 @@ def _advance(state, fixes, replicas, nl, prm, steps, square):
                                                         + vs[2, q] * vs[2, q]) * dt
                 if not last:
                     _hold(xs, vs, x_rest, amp, q, i, kind[i], scale[k], omega[k], phase[i], t1, t2, inv_dt)
+                    over += _over(xs[0, q], xs[1, q], xs[2, q], x_ref, q, lim2)
+        for p in range(nb):
+            for k in range(nk):
+                q = bath[p] * nk + k
+                b = p * nk + k
+                if not last:
+                    over -= _over(xs[0, q], xs[1, q], xs[2, q], x_ref, q, lim2)
+                for d in range(3):
+                    vs[d, q] = (bath_v[b, d] + h * fs[d, q]) * damp[k]
+                if with_hot:
+                    hot[q] = bath_hot[b] + hmk * (vs[0, q] * vs[0, q] + vs[1, q] * vs[1, q] + vs[2, q] * vs[2, q]) * dt
+                if not last:
+                    for d in range(3):
+                        u = vs[d, q] + h * fs[d, q]
+                        vs[d, q] = u
+                        xs[d, q] = bath_x[b, d] + dt * u
                     over += _over(xs[0, q], xs[1, q], xs[2, q], x_ref, q, lim2)
         if last:
             return s, DONE
@@ -563,7 +614,8 @@ def pair_forces(x: np.ndarray, v: np.ndarray, nl: NeighbourList, model: SevenRoo
     state = SlotState(xs=xs, vs=vs, fs=fs, hot=np.zeros(0))
     lists = ListArrays(offsets=nl.offsets, block=slab_block(nl) if force_pass == "slabs" else 0, start=nl.start,
                        index=nl.index, x_ref=nl.x_ref, half_skin=0.5 * nl.skin)
-    replicas = ReplicaParams(scale=np.ones(1), omega=np.zeros(1), delta=np.array([float(delta)]))
+    replicas = ReplicaParams(scale=np.ones(1), omega=np.zeros(1), delta=np.array([float(delta)]),
+                             amp_a=np.array([prm.amp_a]), p=np.array([prm.p]), gamma=np.zeros(1))
     (forces_p2 if square else forces_any)(state, lists, replicas, prm)
     return fs.T.copy()
 
@@ -637,6 +689,7 @@ class LatticeRun:
     step: int = 0
     status: str = "ok"
     reason: str = ""
+    bath: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))  # absorbing-bath particles
 
     @property
     def x(self) -> np.ndarray:
@@ -676,8 +729,8 @@ class LatticeRun:
         """Slab block width (0: gather pass); fixed by the list's groups."""
         return 0 if self.force_pass == "gather" else slab_block(self.nl)
 
-    def _vectors(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """(scale, omega, delta) per replica and the list's reference positions (N * K, 3)."""
+    def _vectors(self) -> tuple[ReplicaParams, np.ndarray]:
+        """The parameter set of every replica and the list's reference positions (N * K, 3)."""
         raise NotImplementedError
 
     def _instability(self, lo: np.ndarray, hi: np.ndarray) -> str:
@@ -688,14 +741,16 @@ class LatticeRun:
         raise NotImplementedError
 
     def _kernel_args(self) -> tuple[SlotState, ListArrays, ReplicaParams, PairParams, bool]:
-        """The kernels' structures for the current state and list, and whether the envelope is (a/r)^2."""
-        scale, omega, delta, x_ref = self._vectors()
-        prm, square = pair_params(self.coeffs, self.a, self.r_cut)
+        """The kernels' structures for the current state and list, and whether the envelope is (a/r)^2 for
+        every replica (then the vectorised square envelope is compiled, else the one chosen per pair)."""
+        replicas, x_ref = self._vectors()
+        prm, _ = pair_params(self.coeffs, self.a, self.r_cut)
+        square = bool(np.all(replicas.p == 2.0))
         state = SlotState(xs=self.xs.reshape(3, -1), vs=self.vs.reshape(3, -1), fs=self.fs.reshape(3, -1),
                           hot=self.hot.reshape(-1))
         lists = ListArrays(offsets=self.nl.offsets, block=self.block, start=self.nl.start, index=self.nl.index,
                            x_ref=x_ref, half_skin=0.5 * self.nl.skin)
-        return state, lists, ReplicaParams(scale=scale, omega=omega, delta=delta), prm, square
+        return state, lists, replicas, prm, square
 
     def _forces(self) -> None:
         state, lists, replicas, prm, square = self._kernel_args()
@@ -704,7 +759,8 @@ class LatticeRun:
     def _steps(self, n_steps: int, resume: bool) -> tuple[int, int]:
         """Run the numba kernel from self.step: (steps completed, DONE or EXPIRED)."""
         state, lists, replicas, prm, square = self._kernel_args()
-        fixes = DriveArrays(x_rest=self.x_rest, kind=self.kind, held=self.held, amp=self.amp, phase=self.phase)
+        fixes = DriveArrays(x_rest=self.x_rest, kind=self.kind, held=self.held, amp=self.amp, phase=self.phase,
+                            bath=self.bath)
         steps = StepParams(mass=self.mass, dt=self.dt, step0=self.step, n_steps=int(n_steps), resume=bool(resume))
         return (advance_p2 if square else advance_any)(state, fixes, replicas, lists, prm, steps)
 
@@ -785,8 +841,10 @@ class KernelRun(LatticeRun):
     def f(self) -> np.ndarray:
         return self.fs[:, :, 0].T
 
-    def _vectors(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        return np.ones(1), np.array([self.omega]), np.array([self.delta]), self.nl.x_ref
+    def _vectors(self) -> tuple[ReplicaParams, np.ndarray]:
+        return ReplicaParams(scale=np.ones(1), omega=np.array([self.omega]), delta=np.array([self.delta]),
+                             amp_a=np.array([self.coeffs[C_A]]), p=np.array([self.coeffs[C_P]]),
+                             gamma=np.zeros(1)), self.nl.x_ref
 
     def _instability(self, lo: np.ndarray, hi: np.ndarray) -> str:
         if not np.isfinite(self.xs).all() or not np.isfinite(self.vs).all():
