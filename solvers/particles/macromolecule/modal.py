@@ -62,6 +62,24 @@ def free_dofs(free: np.ndarray) -> np.ndarray:
     return (3 * idx[:, None] + np.arange(3)[None]).ravel()
 
 
+def linear_step_limit(K: np.ndarray, C: np.ndarray, omega_max: float, lo: float, hi: float,
+                      tol: float) -> float:
+    """dt omega_max / 2 at which the spectral radius of the one-step amplification matrix of the
+    leapfrog scheme with lagged damping crosses 1; K and C are the free-DOF stiffness and damping
+    over the mass (dense).  Bisection on [lo, hi] to `tol`."""
+    eye = np.eye(K.shape[0])
+
+    def radius(h: float) -> float:
+        dt = 2 * h / omega_max
+        amp = np.block([[2 * eye - dt * C - dt * dt * K, -eye + dt * C], [eye, 0 * eye]])
+        return float(np.abs(sla.eigvals(amp)).max())
+
+    while hi - lo > tol:
+        mid = 0.5 * (lo + hi)
+        lo, hi = (lo, mid) if radius(mid) > 1 + 1e-9 else (mid, hi)
+    return 0.5 * (lo + hi)
+
+
 def top_modes(K: sp.csr_matrix, mass: float, dofs: np.ndarray, k: int | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Highest angular frequencies (rad/s, ascending) and mass-normalised shapes of the held lattice.
 

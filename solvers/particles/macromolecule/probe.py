@@ -13,13 +13,12 @@ import math
 from typing import Any
 
 import numpy as np
-import scipy.linalg as sla
 
 from pcverify.scene import Resolution, Scene
 from pcverify.solvers.protocol import ProbeRun, ProbeSetup, Solver, effective_params
 
 from . import codes
-from .modal import damping_matrix, free_dofs, hessian
+from .modal import damping_matrix, free_dofs, hessian, linear_step_limit
 from .setup import prepare
 from .simulate import run_status, simulate
 
@@ -98,16 +97,5 @@ class MacromoleculeProbe:
             dofs = free_dofs(~fx.held)
             K = hessian(lat.positions, lat.pairs, s.model, lat.a)[dofs][:, dofs].toarray() / lat.mass
             C = damping_matrix(lat.positions, lat.pairs, s.delta)[dofs][:, dofs].toarray() / lat.mass
-            eye = np.eye(len(dofs))
-
-            def rho(h: float) -> float:
-                dt = 2 * h / w
-                amp = np.block([[2 * eye - dt * C - dt * dt * K, -eye + dt * C], [eye, 0 * eye]])
-                return float(np.abs(sla.eigvals(amp)).max())
-
-            lo, hi = 0.05, 1.5
-            while hi - lo > tol:
-                mid = 0.5 * (lo + hi)
-                lo, hi = (lo, mid) if rho(mid) > 1 + 1e-9 else (mid, hi)
-            _LINEAR_LIMITS[key] = 0.5 * (lo + hi)
+            _LINEAR_LIMITS[key] = linear_step_limit(K, C, w, 0.05, 1.5, tol)
         return _LINEAR_LIMITS[key]
