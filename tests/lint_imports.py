@@ -38,7 +38,7 @@ def lint_imports(root: Path = REPO, inject: tuple[str, str] | None = None) -> su
             path = where / "pcverify" / inject[0]
             path.write_text(path.read_text() + "\n" + inject[1] + "\n")
         lint = Path(sys.executable).with_name("lint-imports")
-        return subprocess.run([str(lint), "--config", str(root / "pyproject.toml"), "--no-cache"], cwd=where,
+        return subprocess.run([str(lint), str(root / "pyproject.toml"), "--no-cache"], cwd=where,
                               capture_output=True, text=True, check=False)
 
 
