@@ -104,8 +104,11 @@ def number(value: Any, unit: str = "", digits: int = DEFAULT_DIGITS) -> str:
 
 
 def measured(value: Any, unit: str = "", uncertainty: Any = math.nan, tolerance: Any = math.nan) -> str:
-    """A measured value with its unit, digits matched to its uncertainty (shown as ± u) or tolerance."""
+    """A measured value with its unit, digits matched to its uncertainty (shown as ± u) or tolerance.
+    A whole number judged with zero tolerance and no uncertainty is a count and is written exactly."""
     v, u, tol = (_float(x) for x in (value, uncertainty, tolerance))
+    if tol == 0 and not (math.isfinite(u) and u > 0) and math.isfinite(v) and v.is_integer() and abs(v) < 1e15:
+        return _grouped(str(int(v))) + (f" {unit}" if unit else "")
     text = number(v, unit, digits_for(v, u, tol))
     if math.isfinite(u) and u > 0 and math.isfinite(v):
         text += f" ± {number(u, unit, 2)}"

@@ -33,6 +33,9 @@ def test_digits_follow_the_uncertainty_then_the_tolerance():
     assert digits_for(0.1, uncertainty=1.8) == 1
     assert measured(0.31234, "", 0.0012) == "0.3123 ± 0.0012"
     assert measured(6.99999e10, "Pa", tolerance=1.4e9) == "70.0 GPa"
+    assert measured(10.0, "", tolerance=0) == "10"  # a count judged exactly (cells not matched)
+    assert measured(12345.0, "", tolerance=0) == f"12{GROUP}345"
+    assert measured(0.5, "", tolerance=0) == "0.5000"  # not a whole number: default digits
 
 
 def test_units_of_result_columns():
