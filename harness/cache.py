@@ -5,7 +5,9 @@ leaves a half-written entry, and temporary files whose writer has died are remov
 to parse, whose stored key or checksum does not match, or whose result lacks the fields every result
 has, is reported as corrupt and recomputed.  A cell being computed holds a lock file (`<key>.lock`, its
 holder's pid and host): another process running the same cell waits for the entry instead of computing
-it twice, and a lock whose holder has died on this host is taken over.
+it twice, and a lock whose holder has died on this host is taken over.  Takeovers are decided one at a time
+under the folder's `.takeover.guard`, so two processes that both found a dead holder cannot both remove a lock
+(the second would remove the first's new one) and both compute the cell.
 """
 
 from __future__ import annotations
@@ -17,7 +19,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from pcverify.harness.files import HOST, atomic_write, discard, process_alive, remove_stray_files
+from pcverify.harness.files import HOST, atomic_write, discard, exclusive, process_alive, remove_stray_files
 from pcverify.solvers.protocol import STATUSES
 
 # the fields every cell result has (identity and status), with their types: an entry without them is corrupt
@@ -124,7 +126,7 @@ class Cache:
             except FileExistsError:
                 if self.holder(key) is not None:
                     return False
-                discard(str(path))  # its holder died: take it over
+                self._remove_if_dead(key)
                 continue
             except OSError:
                 return True
@@ -133,6 +135,13 @@ class Cache:
             self.locks.add(key)
             return True
         return False
+
+    def _remove_if_dead(self, key: str) -> None:
+        """Remove `key`'s lock if its holder has died, deciding again under the takeover guard: the dead
+        holder seen before may have been replaced by a live one since."""
+        with exclusive(self.root / ".takeover.guard", timeout=60.0):
+            if self._lock_path(key).exists() and self.holder(key) is None:
+                discard(str(self._lock_path(key)))
 
     def unlock(self, key: str) -> None:
         if key in self.locks:

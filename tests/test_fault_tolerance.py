@@ -296,3 +296,47 @@ def test_swallowed_ctrl_c_still_stops_the_study(fast_study, tmp_path, monkeypatc
         signal.signal(signal.SIGINT, previous)
     assert calls["n"] == 2 and len(list(cache.root.glob("*.json"))) == 2
     assert all(cache.load(p.stem)[1] == "hit" for p in cache.root.glob("*.json"))
+
+
+def _dead_pid() -> int:
+    """The pid of a process that has exited (reaped)."""
+    child = subprocess.Popen([sys.executable, "-c", "pass"])
+    child.wait()
+    return child.pid
+
+
+def test_a_stale_takeover_decision_does_not_remove_a_live_lock(tmp_path) -> None:
+    """Process B found the holder of a cell's lock dead; before B removed it, process A took it over.  B's
+    removal decides again under the takeover guard and leaves A's lock: only A computes the cell."""
+    key = "k" * 16
+    (tmp_path / f"{key}.lock").write_text(json.dumps({"pid": _dead_pid(), "host": cache_module.HOST}))
+    a, b = Cache(tmp_path), Cache(tmp_path)
+    assert a.holder(key) is None
+    assert a.try_lock(key)  # takes over the dead holder's lock
+    b._remove_if_dead(key)  # B acting on its earlier, now stale, observation
+    assert a.holder(key) == (os.getpid(), cache_module.HOST)
+    assert not b.try_lock(key)
+
+
+def test_processes_racing_for_a_dead_holders_lock_take_it_once(tmp_path) -> None:
+    """Eight forked processes start together on a cell whose lock's holder has died, 10 rounds: in every
+    round exactly one of them gets the lock (without the guard two could, each removing the other's)."""
+    key = "k" * 16
+    for _ in range(10):
+        (tmp_path / f"{key}.lock").write_text(json.dumps({"pid": _dead_pid(), "host": cache_module.HOST}))
+        start = time.time() + 0.3
+        children = []
+        for _ in range(8):
+            pid = os.fork()
+            if pid == 0:  # child: wait for the common start, try once, stay alive while the others try
+                code = 3
+                try:
+                    time.sleep(max(0.0, start - time.time()))
+                    code = 0 if Cache(tmp_path).try_lock(key) else 1
+                    time.sleep(max(0.0, start + 1.0 - time.time()))
+                finally:
+                    os._exit(code)
+            children.append(pid)
+        codes = [os.waitstatus_to_exitcode(os.waitpid(pid, 0)[1]) for pid in children]
+        assert sorted(codes) == [0] + [1] * 7, codes
+        (tmp_path / f"{key}.lock").unlink()
