@@ -525,23 +525,6 @@ def stability_map(part: pd.DataFrame, path: Path, title: str) -> bool:
 GROUP_FIGURES = {"edge-profiles": edge_profiles, "render-3d": render_3d}
 
 
-def benchmark_runs(storage: Path) -> pd.DataFrame:
-    """One row per (saved pytest-benchmark run, benchmark): mean/min seconds and extra_info."""
-    rows = []
-    for k, file in enumerate(sorted(storage.glob("*/*.json"))):
-        try:
-            doc = json.loads(file.read_text())
-        except (OSError, json.JSONDecodeError):
-            continue
-        commit = (doc.get("commit_info") or {}).get("id", "")[:10]
-        for b in doc.get("benchmarks", []):
-            extra = {k2: v for k2, v in (b.get("extra_info") or {}).items() if isinstance(v, (int, float, str))}
-            rows.append({"run": k, "saved": file.stem, "datetime": doc.get("datetime", ""), "commit": commit,
-                         "benchmark": b.get("name", ""), "mean_s": b["stats"]["mean"], "min_s": b["stats"]["min"],
-                         **extra})
-    return pd.DataFrame(rows)
-
-
 def benchmark_history(runs: pd.DataFrame, path: Path) -> bool:
     """Mean time of every benchmark across the saved runs (the regression history)."""
     if runs.empty:

@@ -195,10 +195,50 @@ def _read_csv(path: Path) -> pd.DataFrame:
         return pd.DataFrame()
 
 
+def _is_number(x: Any) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool) and np.isfinite(x)
+
+
+def _benchmark_problem(doc: Any) -> str:
+    """Why `doc` is not a pytest-benchmark save ("" if it is)."""
+    if not isinstance(doc, dict):
+        return "is not a JSON object"
+    marks = doc.get("benchmarks")
+    if not isinstance(marks, list):
+        return "has no list of benchmarks"
+    for b in marks:
+        stats = b.get("stats") if isinstance(b, dict) else None
+        if not (isinstance(stats, dict) and _is_number(stats.get("mean")) and _is_number(stats.get("min"))
+                and isinstance(b.get("name"), str)):
+            return "has a benchmark without a name and finite mean and min times"
+    return ""
+
+
+def benchmark_runs(storage: Path) -> pd.DataFrame:
+    """One row per (saved pytest-benchmark run, benchmark): mean/min seconds and extra_info.  A file that
+    cannot be read or is not a pytest-benchmark save is skipped with a warning."""
+    rows = []
+    for k, file in enumerate(sorted(storage.glob("*/*.json"))):
+        doc, why = read_json(file)
+        problem = why or _benchmark_problem(doc)
+        if problem:
+            warn(f"{file} {problem}; skipped")
+            continue
+        commit = doc.get("commit_info")
+        commit = str(commit.get("id") or "")[:10] if isinstance(commit, dict) else ""
+        for b in doc["benchmarks"]:
+            extra = b.get("extra_info") if isinstance(b.get("extra_info"), dict) else {}
+            extra = {k2: v for k2, v in extra.items() if isinstance(v, (int, float, str)) and not isinstance(v, bool)}
+            rows.append({**extra, "run": k, "saved": file.stem, "datetime": str(doc.get("datetime", "")),
+                         "commit": commit, "benchmark": b["name"], "mean_s": b["stats"]["mean"],
+                         "min_s": b["stats"]["min"]})
+    return pd.DataFrame(rows)
+
+
 def _benchmarks(out: Path) -> list[str]:
     """The benchmark section: history of saved runs and the kernels' cost per pair-step against N."""
     storage = out / "benchmarks"
-    runs = figures.benchmark_runs(storage)
+    runs = benchmark_runs(storage)
     if runs.empty:
         return ["<section id='benchmarks'><h2>Benchmarks</h2><p>No saved benchmark runs under "
                 f"{html.escape(str(storage))} (run <code>tox -e bench</code>).</p></section>"]

@@ -1,7 +1,7 @@
 """Red team, report files (family 7) and the files a report embeds (family 4, second half).
 
-- an empty, truncated, garbage or ill-formed manifest.json (or verdicts.json) is skipped with a one-line
-  warning naming it; later `study` and `report` runs on that --out succeed;
+- an empty, truncated, garbage or ill-formed manifest.json (or verdicts.json, or a saved benchmark run under
+  --out/benchmarks) is skipped with a one-line warning naming it; later `study` and `report` runs on that --out succeed;
 - `pcverify report` embeds only files inside --out: a manifest naming an absolute path, `../`, or a symlink
   leading out has that file left out with a warning;
 - a write that fails (a full disk) leaves no partial file and no temporary file, and the rerun succeeds;
@@ -199,6 +199,42 @@ def test_any_field_of_a_manifest_replaced_by_any_json_never_breaks_the_index(tem
     assert index.endswith("</html>") and token not in index
     assert "id='alpha'" in index or f"{path} " in err.getvalue()
     tally("report files", "accepted")
+
+
+BENCHMARK_GARBAGE = {
+    **GARBAGE,
+    "no benchmarks": b'{"datetime": "x"}',
+    "benchmarks not a list": b'{"benchmarks": {"a": 1}}',
+    "a benchmark without stats": b'{"benchmarks": [{"name": "t"}]}',
+    "a mean that is text": b'{"benchmarks": [{"name": "t", "stats": {"mean": "fast", "min": 1}}]}',
+    "a mean that is not finite": b'{"benchmarks": [{"name": "t", "stats": {"mean": NaN, "min": 1}}]}',
+    "a name that is a number": b'{"benchmarks": [{"name": 3, "stats": {"mean": 1, "min": 1}}]}',
+}
+
+
+def test_garbage_benchmark_saves_are_skipped_with_a_warning(work, capsys) -> None:
+    """Beside one valid pytest-benchmark save, a file of each kind of garbage under --out/benchmarks: the index
+    is written with the valid run's benchmark table, and each garbage file gets one warning naming it.
+    A valid save whose extra_info has a key "run" (a column the report makes) does not replace it."""
+    storage = Path("out/benchmarks/Linux-CPython-3.11-64bit")
+    storage.mkdir(parents=True)
+    valid = {"datetime": "2026-11-24T00:00:00", "commit_info": {"id": "0123456789abcdef"},
+             "benchmarks": [{"name": "test_bench_kernel", "stats": {"mean": 2.5e-3, "min": 2.4e-3},
+                             "extra_info": {"particles": 160, "ns_per_pair_step": 5.74, "run": "hostile"}}]}
+    (storage / "0001_valid.json").write_text(json.dumps(valid))
+    for k, (name, body) in enumerate(BENCHMARK_GARBAGE.items()):
+        (storage / f"{k + 2:04d}_{name.replace(' ', '-')}.json").write_bytes(body)
+    capsys.readouterr()
+    index = write_index(Path("out")).read_text()
+    err = capsys.readouterr().err
+    warned = _warnings(err)
+    for k, name in enumerate(BENCHMARK_GARBAGE):
+        path = storage / f"{k + 2:04d}_{name.replace(' ', '-')}.json"
+        assert sum(str(path) in w for w in warned) == 1, (name, err[-1500:])
+        tally("report files", "rejected")
+    latest = pd.read_csv("out/benchmark-figures/latest.csv")
+    assert list(latest["benchmark"]) == ["test_bench_kernel"] and list(latest["run"]) == [0]
+    assert "id='benchmarks'" in index and "test_bench_kernel" in index
 
 
 @pytest.mark.parametrize("body", ["", "{", "[{\"study\": \"other\"}]", "{\"a\": 1}"])
