@@ -10,7 +10,7 @@ import math
 from collections.abc import Iterable
 from typing import Any
 
-from pcverify.harness.formatting import measured, number, unit_of
+from pcverify.harness.formatting import measured, number, to_float, unit_of
 
 STATES = ("fail", "not-applicable", "pass")
 REFERENCE_WORDS = {"analytic": "analytic solution", "extrapolated": "extrapolated continuum",
@@ -18,16 +18,9 @@ REFERENCE_WORDS = {"analytic": "analytic solution", "extrapolated": "extrapolate
                    "theory": "theory", "paper": "the paper"}
 
 
-def _f(x: Any) -> float:
-    try:
-        return math.nan if x is None else float(x)
-    except (TypeError, ValueError):
-        return math.nan
-
-
 def severity(record: dict[str, Any]) -> float:
     """How far a verdict is from its bound, in tolerances (larger is worse); for ordering only."""
-    value, target, tol = _f(record.get("value")), _f(record.get("target")), _f(record.get("tolerance"))
+    value, target, tol = (to_float(record.get(k)) for k in ("value", "target", "tolerance"))
     if not (math.isfinite(value) and math.isfinite(target)):
         return -math.inf
     sense = record.get("sense") or "within"
@@ -47,7 +40,7 @@ def value_text(record: dict[str, Any]) -> str:
 def target_text(record: dict[str, Any]) -> str:
     sign = {"within": "±", "at-most": "+", "at-least": "−"}[record.get("sense") or "within"]
     u = unit(record)
-    tol = _f(record.get("tolerance"))
+    tol = to_float(record.get("tolerance"))
     target = number(record.get("target"), u, 4)
     return target if tol == 0 and sign != "±" else f"{target} {sign} {number(tol, u, 2)}"
 

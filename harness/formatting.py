@@ -106,7 +106,7 @@ def number(value: Any, unit: str = "", digits: int = DEFAULT_DIGITS) -> str:
 def measured(value: Any, unit: str = "", uncertainty: Any = math.nan, tolerance: Any = math.nan) -> str:
     """A measured value with its unit, digits matched to its uncertainty (shown as ± u) or tolerance.
     A whole number judged with zero tolerance and no uncertainty is a count and is written exactly."""
-    v, u, tol = (_float(x) for x in (value, uncertainty, tolerance))
+    v, u, tol = (to_float(x) for x in (value, uncertainty, tolerance))
     if tol == 0 and not (math.isfinite(u) and u > 0) and math.isfinite(v) and v.is_integer() and abs(v) < 1e15:
         return _grouped(str(int(v))) + (f" {unit}" if unit else "")
     text = number(v, unit, digits_for(v, u, tol))
@@ -115,7 +115,8 @@ def measured(value: Any, unit: str = "", uncertainty: Any = math.nan, tolerance:
     return text
 
 
-def _float(x: Any) -> float:
+def to_float(x: Any) -> float:
+    """`x` as a float; NaN for None or anything that is not a number."""
     try:
         return math.nan if x is None else float(x)
     except (TypeError, ValueError):

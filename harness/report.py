@@ -324,8 +324,7 @@ def write_index(out: Path) -> Path:
     `out`, released by the kernel if its holder dies); the temporary files of dead writers are removed."""
     with exclusive(out / ".index.lock"):
         for pattern in (".*.tmp", "*/.*.tmp", "*/vtu/.*.tmp"):
-            for folder in {p.parent for p in out.glob(pattern)}:
-                remove_stray_files(folder)
+            remove_stray_files(out, pattern)
         return _write_index(out)
 
 
