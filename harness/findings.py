@@ -45,8 +45,27 @@ def target_text(record: dict[str, Any]) -> str:
     return target if tol == 0 and sign != "±" else f"{target} {sign} {number(tol, u, 2)}"
 
 
-def _solvers(record: dict[str, Any]) -> list[str]:
+def solvers_of(record: dict[str, Any]) -> list[str]:
+    """The solvers a verdict is about (its `solver` field lists them comma-separated)."""
     return [s.strip() for s in str(record.get("solver") or "").split(",") if s.strip()]
+
+
+def state_counts(records: list[dict[str, Any]]) -> dict[str, int]:
+    """How many verdicts are in each state."""
+    return {s: sum(r["verdict"] == s for r in records) for s in STATES}
+
+
+def claim_state(rows: list[dict[str, Any]]) -> str:
+    """A claim's state: the worst of its verdicts (fail, then not-applicable, then pass)."""
+    return next(s for s in STATES if any(r["verdict"] == s for r in rows))
+
+
+def by_claim(records: list[dict[str, Any]]) -> dict[tuple[str, str], list[dict[str, Any]]]:
+    """The verdict records grouped by (study, claim), in the order they come."""
+    claims: dict[tuple[str, str], list[dict[str, Any]]] = {}
+    for r in records:
+        claims.setdefault((r["study"], r["claim"]), []).append(r)
+    return claims
 
 
 def summary_lines(studies: list[dict[str, Any]], records: list[dict[str, Any]]) -> list[dict[str, Any]]:
@@ -55,10 +74,10 @@ def summary_lines(studies: list[dict[str, Any]], records: list[dict[str, Any]]) 
     lines = []
     for study in studies:
         mine = [r for r in records if r["study"] == study["name"]]
-        unattributed = [r for r in mine if not _solvers(r)]  # e.g. a claim whose rows are all missing
+        unattributed = [r for r in mine if not solvers_of(r)]  # e.g. a claim whose rows are all missing
         for solver in [*study["solvers"], *(["(no rows)"] if unattributed else [])]:
-            about = [r for r in mine if solver in _solvers(r)] if solver != "(no rows)" else unattributed
-            counts = {s: sum(r["verdict"] == s for r in about) for s in STATES}
+            about = [r for r in mine if solver in solvers_of(r)] if solver != "(no rows)" else unattributed
+            counts = state_counts(about)
             orders = [o for o in study.get("orders", []) if o["solver"] == solver]
             judged = sorted(about, key=lambda r: (r["verdict"] != "fail", -severity(r)))
             lines.append({"study": study["name"], "solver": solver, **counts, "orders": orders,
@@ -96,7 +115,7 @@ def sentence(claim: list[dict[str, Any]]) -> tuple[str, str]:
     fails, the values against the target with the reference kind and tolerance."""
     first = claim[0]
     states = [r["verdict"] for r in claim]
-    state = next(s for s in STATES if s in states)
+    state = claim_state(claim)
     key = _case_word(first.get("case") or "")[0]
     cases = [_case_word(r.get("case") or "")[1] for r in claim]
     if key == "n" and all(r.get("nodes") for r in claim):
@@ -126,11 +145,8 @@ def sentence(claim: list[dict[str, Any]]) -> tuple[str, str]:
 
 def findings(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
     """One finding per claim (study, claim, state, sentence), failures first, then by study."""
-    claims: dict[tuple[str, str], list[dict[str, Any]]] = {}
-    for r in records:
-        claims.setdefault((r["study"], r["claim"]), []).append(r)
     out = []
-    for (study, claim), rows in claims.items():
+    for (study, claim), rows in by_claim(records).items():
         state, text = sentence(rows)
         out.append({"study": study, "claim": claim, "state": state, "text": text})
     return sorted(out, key=lambda f: (STATES.index(f["state"]), f["study"]))

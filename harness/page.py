@@ -14,7 +14,16 @@ from typing import Any
 
 import pandas as pd
 
-from pcverify.harness.findings import orders_text, target_text, value_text
+from pcverify.harness.findings import (
+    STATES,
+    by_claim,
+    claim_state,
+    orders_text,
+    solvers_of,
+    state_counts,
+    target_text,
+    value_text,
+)
 from pcverify.harness.formatting import cell, measured, number
 
 MAX_TABLE_ROWS = 200  # rows shown in a collapsed table; the CSV beside it has all of them
@@ -121,7 +130,7 @@ def _count(n: int, state: str) -> str:
 
 def summary_section(lines: list[dict[str, Any]], records: list[dict[str, Any]], meta: str) -> str:
     """The first screen: one line per study and solver (failures first) with counts, orders, headline."""
-    total = {s: sum(r["verdict"] == s for r in records) for s in ("fail", "not-applicable", "pass")}
+    total = state_counts(records)
     head = (f"<section id='summary'><h1>pcverify report</h1><p class='meta'>{e(meta)} · {len(records)} verdicts: "
             f"<span class='verdict-word fail'>{total['fail']} fail</span> "
             f"<span class='verdict-word not-applicable'>{total['not-applicable']} not applicable</span> "
@@ -173,16 +182,9 @@ def _case_chip(r: dict[str, Any]) -> str:
 
 def verdicts_section(records: list[dict[str, Any]]) -> str:
     """One row per claim (statement once), its cases as coloured cells; a filter by study, solver, verdict."""
-    claims: dict[tuple[str, str], list[dict[str, Any]]] = {}
-    for r in records:
-        claims.setdefault((r["study"], r["claim"]), []).append(r)
-    order = ("fail", "not-applicable", "pass")
-
-    def state(rows: list[dict[str, Any]]) -> str:
-        return next(s for s in order if any(r["verdict"] == s for r in rows))
-
+    claims = by_claim(records)
     studies = sorted({r["study"] for r in records})
-    solvers = sorted({s.strip() for r in records for s in str(r.get("solver") or "").split(",") if s.strip()})
+    solvers = sorted({s for r in records for s in solvers_of(r)})
     options = lambda vals: "".join(f"<option value='{e(v)}'>{e(v)}</option>" for v in vals)  # noqa: E731
     parts = ["<section id='verdicts'><h2>Verdicts by claim</h2><p class='meta'>Each claim once, its cases as cells "
              "(green pass, red fail, grey not applicable); hover or open a cell for value, target, error, uncertainty, "
@@ -190,19 +192,19 @@ def verdicts_section(records: list[dict[str, Any]]) -> str:
              "<div class='filter'><label>study <select id='filter-study'><option value=''>all</option>"
              f"{options(studies)}</select></label><label>solver <select id='filter-solver'><option value=''>all"
              f"</option>{options(solvers)}</select></label><label>verdict <select id='filter-verdict'>"
-             f"<option value=''>any</option>{options(order)}</select></label>"
+             f"<option value=''>any</option>{options(STATES)}</select></label>"
              "<button id='hide-passing' type='button' aria-pressed='false'>hide passing claims</button>"
              "<span id='filter-count' class='meta'></span></div>",
              "<table id='verdicts-table'><tr><th>claim</th><th>cases</th></tr>"]
-    for (study, claim), rows in sorted(claims.items(), key=lambda kv: (order.index(state(kv[1])), kv[0])):
+    for (study, claim), rows in sorted(claims.items(), key=lambda kv: (STATES.index(claim_state(kv[1])), kv[0])):
         first = rows[0]
-        solvers_of = sorted({s.strip() for r in rows for s in str(r.get("solver") or "").split(",") if s.strip()})
+        about = sorted({s for r in rows for s in solvers_of(r)})
         verdicts = sorted({r["verdict"] for r in rows})
         commands = sorted({str(r.get("command") or "") for r in rows})
         commands = [c for c in commands if c.startswith("pcverify study")]
         group = "".join(f"<div><code>{e(c)}</code></div>" for c in commands[:1])
-        parts.append(f"<tr class='claim' data-study='{e(study)}' data-solvers='{e(' '.join(solvers_of))}' "
-                     f"data-verdicts='{e(' '.join(verdicts))}' data-state='{state(rows)}'>"
+        parts.append(f"<tr class='claim' data-study='{e(study)}' data-solvers='{e(' '.join(about))}' "
+                     f"data-verdicts='{e(' '.join(verdicts))}' data-state='{claim_state(rows)}'>"
                      f"<td class='claim'><b>{e(claim)}</b> <span class='ref'>{e(first['reference'])}</span> "
                      f"<a class='meta' href='#{anchor(study)}'>{e(study)}</a>"
                      f"<div class='statement'>{e(first['statement'])}</div>{group}</td>"
@@ -257,7 +259,7 @@ def study_section(folder: Path, man: dict[str, Any], records: list[dict[str, Any
     """A study: its verdict counts and command, then per group its figures and collapsed tables."""
     name = man["name"]
     mine = [r for r in records if r["study"] == name]
-    counts = ", ".join(f"{sum(r['verdict'] == s for r in mine)} {s}" for s in ("fail", "not-applicable", "pass"))
+    counts = ", ".join(f"{n} {s}" for s, n in state_counts(mine).items())
     parts = [f"<section class='study' id='{anchor(name)}'><h2>{e(man['title'])}</h2>",
              f"<p class='meta'>study <b>{e(name)}</b> · {counts if mine else 'no claims'} · rerun: "
              f"<code>{e(man.get('rerun') or 'pcverify study ' + name)}</code></p>"]
