@@ -67,17 +67,18 @@ def linear_step_limit(K: np.ndarray, C: np.ndarray, omega_max: float, lo: float,
     """dt omega_max / 2 at which the spectral radius of the one-step amplification matrix of the
     leapfrog scheme with lagged damping crosses 1; K and C are the free-DOF stiffness and damping
     over the mass (dense).  Bisection on [lo, hi] to `tol`."""
-    eye = np.eye(K.shape[0])
-
-    def radius(h: float) -> float:
-        dt = 2 * h / omega_max
-        amp = np.block([[2 * eye - dt * C - dt * dt * K, -eye + dt * C], [eye, 0 * eye]])
-        return float(np.abs(sla.eigvals(amp)).max())
-
     while hi - lo > tol:
         mid = 0.5 * (lo + hi)
-        lo, hi = (lo, mid) if radius(mid) > 1 + 1e-9 else (mid, hi)
+        lo, hi = (lo, mid) if step_radius(K, C, 2 * mid / omega_max) > 1 + 1e-9 else (mid, hi)
     return 0.5 * (lo + hi)
+
+
+def step_radius(K: np.ndarray, C: np.ndarray, dt: float) -> float:
+    """Spectral radius of the one-step amplification matrix of x_{n+1} = (2 - dt C - dt^2 K) x_n
+    - (1 - dt C) x_{n-1} (mass-scaled K and C, dense): the scheme is stable where it is <= 1."""
+    eye = np.eye(K.shape[0])
+    amp = np.block([[2 * eye - dt * C - dt * dt * K, -eye + dt * C], [eye, np.zeros_like(eye)]])
+    return float(np.abs(sla.eigvals(amp)).max())
 
 
 def top_modes(K: sp.csr_matrix, mass: float, dofs: np.ndarray, k: int | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -182,15 +183,11 @@ def discrete_stability_limit(basis: tuple[np.ndarray, np.ndarray, str], C: sp.cs
     elastic = omega > 1e-6 * omega.max()  # rigid-body modes (free lattices): undamped, marginal, never limit dt
     omega, phi = omega[elastic], phi[:, elastic]
     Cr = phi.T @ (C[dofs][:, dofs] @ phi)
-    m = len(omega)
-    eye = np.eye(m)
     w2 = np.diag(omega**2)
     wmax = float(omega.max())
 
     def rho(h: float) -> float:
-        dt = 2.0 * h / wmax
-        amp = np.block([[2 * eye - dt * Cr - dt * dt * w2, -eye + dt * Cr], [eye, np.zeros((m, m))]])
-        return float(np.abs(sla.eigvals(amp)).max())
+        return step_radius(w2, Cr, 2.0 * h / wmax)
 
     if rho(1.0) <= 1 + tol:
         return 1.0
