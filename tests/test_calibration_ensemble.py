@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from pcverify.harness.catalogue import make_scene
-from pcverify.scene import Resolution
+from pcverify.scene import Resolution, SceneError
 from pcverify.solvers.registry import get_solver
 
 BASE = dict(hot_face="driven", face_drive_direction="z", kernel="ensemble", t_end=3.0, dt=2e-4)
@@ -50,3 +50,15 @@ def test_ensemble_agrees_with_fixed_list_kernel(runs):
         if f.status == "ok":
             assert np.abs(_nodes(b) - _nodes(f)).max() < 5e-3
     assert len({round(b.summary["bulk_median"], 3) for b in batch}) == 3  # the sets really differ
+
+
+def test_a_set_the_ensemble_cannot_run_gets_the_error_its_solve_raises():
+    """A Langevin hot face (the default) is not for the ensemble kernel: its entry in the batch is the
+    SceneError that its own `solve` raises, word for word, and the other set still runs."""
+    solver, scene = get_solver("macromolecule"), make_scene("bar-heat-faces")
+    langevin = dict(kernel="ensemble", t_end=0.05, dt=2e-4)
+    with pytest.raises(SceneError) as alone:
+        solver.solve(scene, Resolution(2), **langevin)
+    batch = solver.solve_batch(scene, Resolution(2), [langevin, SETS[0] | {"t_end": 0.05}])
+    assert isinstance(batch[0], SceneError) and str(batch[0]) == str(alone.value)
+    assert "Langevin" in str(batch[0]) and np.isfinite(batch[1].summary["bulk_median"])

@@ -30,7 +30,7 @@ from .elastic_modes import macromolecule_modes
 from .fixes import Fixes
 from .force import SevenRoot
 from .kernels import KERNELS
-from .large_n.heat import ENSEMBLE, ensemble_problem, run_heat, shared_key
+from .large_n.heat import ENSEMBLE, require_ensemble, run_heat, shared_key
 from .lattice import Lattice
 from .probe import MacromoleculeProbe
 from .setup import DEFAULT_DAMPING_RATIO, Setup, prepare
@@ -168,9 +168,10 @@ class Macromolecule:
                 if (p["kernel"] == ENSEMBLE and self.supports(scene)[0] and "modes" not in scene.physics
                         and resolution.refine == 1):
                     s = prepare(scene, resolution.n, p)
-                if s is None or ensemble_problem(s, p):
+                if s is None:
                     out[i] = self.solve(scene, resolution, samples=samples, **params)
                 else:
+                    require_ensemble(s, p)  # the SceneError `solve` would raise, without preparing the run again
                     groups.setdefault((shared_key(p), s.dt), []).append((i, p, s, time.perf_counter() - t0))
             except (SceneError, ValueError, ArithmeticError) as exc:
                 out[i] = exc

@@ -78,6 +78,13 @@ def ensemble_problem(setup: Setup, p: dict[str, Any]) -> str:
     return ""
 
 
+def require_ensemble(setup: Setup, p: dict[str, Any]) -> None:
+    """Raise the SceneError naming why the ensemble kernel cannot run this prepared run, if it cannot."""
+    why = ensemble_problem(setup, p)
+    if why:
+        raise SceneError(f"kernel={ENSEMBLE!r} cannot run this scene: {why}")
+
+
 def shared_key(p: dict[str, Any]) -> tuple:
     """The parameters replicas of one ensemble must share (everything but PER_REPLICA)."""
     return tuple(sorted((k, v) for k, v in p.items() if k not in PER_REPLICA))
@@ -93,9 +100,7 @@ def run_heat(scene: Any, setups: list[Setup], params: list[dict[str, Any]], thre
         return []
     s0, p0 = setups[0], params[0]
     for s, p in zip(setups, params, strict=True):
-        why = ensemble_problem(s, p)
-        if why:
-            raise SceneError(f"kernel={ENSEMBLE!r} cannot run this scene: {why}")
+        require_ensemble(s, p)
         if s.dt != s0.dt or shared_key(p) != shared_key(p0) or s.lattice.size != s0.lattice.size:
             raise SceneError("kernel='ensemble': replicas must share the time step and every parameter but "
                              f"{', '.join(PER_REPLICA)}; give dt explicitly to run different f_top together")
