@@ -58,9 +58,10 @@ class Analysis:
     task: Callable[[dict[str, Any]], CellTask] = field(default=lambda options: SOLVE)
 
 
-def _reference_values(g: Any, done: Tables) -> dict[str, float] | None:
-    """Reference value per quantity from an earlier group's table (option reference_table, e.g. the
-    Richardson fits of a converged continuum sequence: its `extrapolated` column by `quantity`)."""
+def _reference_values(g: Any, done: Tables) -> dict[str, dict[str, Any]] | None:
+    """Reference per quantity from an earlier group's table (option reference_table, e.g. the Richardson fits
+    of a converged continuum sequence: its `extrapolated` column by `quantity`), with its uncertainty (the
+    `<metric>_unc` column, 0 if the table has none) and its Richardson class (`kind`)."""
     name = g.options.get("reference_table")
     if not name:
         return None
@@ -69,7 +70,10 @@ def _reference_values(g: Any, done: Tables) -> dict[str, float] | None:
         return {}
     metric = g.options.get("reference_metric", "extrapolated")
     rows = table.dropna(subset=[metric]) if metric in table else table.iloc[0:0]
-    return {str(q): float(v) for q, v in zip(rows["quantity"], rows[metric], strict=True)}
+    unc = rows[f"{metric}_unc"] if f"{metric}_unc" in rows else pd.Series(0.0, index=rows.index)
+    kind = rows["kind"] if "kind" in rows else pd.Series("", index=rows.index)
+    return {str(q): {"value": float(v), "unc": float(u), "kind": str(k)}
+            for q, v, u, k in zip(rows["quantity"], rows[metric], unc, kind, strict=True)}
 
 
 def _convergence_tables(g: Any, res: list[dict[str, Any]], done: Tables) -> Tables:
@@ -80,14 +84,20 @@ def _convergence_tables(g: Any, res: list[dict[str, Any]], done: Tables) -> Tabl
 
 def _convergence_figures(g: Any, res: list[dict[str, Any]], t: Tables, folder: Path) -> list[str]:
     levels, fits = t[f"{g.id}-levels"], t[f"{g.id}-fits"]
+    levels = _ok(levels)
     quantities = list(g.options.get("quantities", ["volume_mean", "bulk_median"]))
-    err_cols = [c for c in levels.columns if c.endswith(".linf") or c.startswith("err.")]
+    err_cols = [c for c in levels.columns if (c.endswith(".linf") or c.startswith("err.")) and not c.endswith("_unc")]
     drawn = not levels.empty and figures.convergence(levels, err_cols or quantities, folder / g.id, g.title, fits)
     return [f"{g.id}.png"] if drawn else []
 
 
+def _ok(df: pd.DataFrame) -> pd.DataFrame:
+    """The rows of ok cells (tables of measurements keep the others as rows with their status)."""
+    return df[df["status"] == "ok"] if "status" in df else df
+
+
 def _timing_figures(g: Any, res: list[dict[str, Any]], t: Tables, folder: Path) -> list[str]:
-    df = t[f"{g.id}-timing"]
+    df = _ok(t[f"{g.id}-timing"])
     return [f"{g.id}.png"] if not df.empty and figures.cost(df, folder / g.id, g.title) else []
 
 
@@ -97,11 +107,12 @@ def _work_precision_tables(g: Any, res: list[dict[str, Any]], done: Tables) -> T
 
 def _work_precision_figures(g: Any, res: list[dict[str, Any]], t: Tables, folder: Path) -> list[str]:
     error = f"err.{g.options.get('error', 'nodes.l2')}"
-    return [f"{g.id}.png"] if figures.work_precision(t[f"{g.id}-work-precision"], error, folder / g.id, g.title) else []
+    df = _ok(t[f"{g.id}-work-precision"]).dropna(subset=[error]) if error in t[f"{g.id}-work-precision"] else None
+    return [f"{g.id}.png"] if df is not None and figures.work_precision(df, error, folder / g.id, g.title) else []
 
 
 def _stability_tables(g: Any, res: list[dict[str, Any]], done: Tables) -> Tables:
-    limits, smap = stability.tables(res)
+    limits, smap = stability.tables(res, g.options.get("probe", "limit"))
     out = {}
     if not limits.empty:
         out[f"{g.id}-limits"] = limits
@@ -114,6 +125,7 @@ def _stability_figures(g: Any, res: list[dict[str, Any]], t: Tables, folder: Pat
     drawn = []
     limits = t.get(f"{g.id}-limits")
     if limits is not None:
+        limits = _ok(limits)
         meta = {(r["solver"], r["scene"]): {k: r["summary"][k] for k in ("quantity", "theory_label", "x_axis")}
                 for r in res if "quantity" in (r.get("summary") or {})
                 and r["summary"].get("probe") == "limit"}
@@ -121,6 +133,7 @@ def _stability_figures(g: Any, res: list[dict[str, Any]], t: Tables, folder: Pat
             drawn.append(f"{g.id}-limits.png")
     smap = t.get(f"{g.id}-map")
     if smap is not None:
+        smap = _ok(smap)
         for (solver, n), part in smap.groupby(["solver", "n"]):
             name = f"{g.id}-map-{solver}-n{n}"
             if figures.stability_map(part, folder / name, f"{g.title}: {solver} n={n}"):

@@ -93,7 +93,7 @@ class _Evaluator:
         results, counts = execute(mini, self.cache, jobs=self.jobs, progress=False, rerun=self.rerun,
                                   allow_large=self.allow_large)
         self.hits += counts["cached"]
-        self.runs += counts["done"] + counts["failed"]
+        self.runs += counts["done"]
         return results
 
     # -- references and errors

@@ -1,4 +1,4 @@
-"""Command line `pcverify`: scenes, solvers, run, study, report, bench.
+"""Command line `pcverify`: scenes, solvers, run, study, verdict, report, bench.
 
 Every bad input ends in one line `pcverify: error: ...` naming the parameter and the
 allowed range, with exit code 2; never a traceback (unless --debug).
@@ -12,6 +12,7 @@ import dataclasses
 import json
 import signal
 import sys
+import tempfile
 import threading
 import time
 from collections.abc import Iterator
@@ -30,7 +31,7 @@ from pcverify.harness.execution import CELL_ERRORS, cached_results, execute, pla
 from pcverify.harness.interrupt import received, remember_sigint
 from pcverify.harness.limits import check_work
 from pcverify.harness.report import manifests, study_verdicts, warn, write_index, write_study_report
-from pcverify.harness.reproduce import select_groups
+from pcverify.harness.reproduce import claim_groups, select_groups
 from pcverify.harness.study import MAX_CELLS, load_study, study_files
 from pcverify.scene import Param, Resolution, SceneError, shown
 from pcverify.solvers.protocol import skipped
@@ -48,6 +49,7 @@ examples:
   pcverify study default --dry-run                  show what is cached and what would run
   pcverify study stability --group limit-mca-heat   run one group of a study (from the cache where it can)
   pcverify study my.toml --strict                   exit 1 when a claim fails (a CI gate)
+  pcverify verdict heat-particles mca-steady-line   judge one claim, print its value (from the cache)
   pcverify report                                   rebuild reports/index.html from the cache
   pcverify bench                                    benchmarks, saved and compared with the previous run
 
@@ -293,8 +295,10 @@ def cmd_study(args: argparse.Namespace) -> int:
             if not args.json:
                 calib = (f", calibrations: {counts['calibration_runs']} solver runs, {counts['calibration_cached']} "
                          "cached" if study.calibrations else "")
+                not_ok = sum(v for k, v in counts["statuses"].items() if k not in ("ok", "skipped", "failed"))
                 print(f"{study.name}: {counts['cells']} cells, {counts['cached']} cached, {counts['done']} run, "
-                      f"{counts['failed']} failed, {counts['corrupt']} corrupt entries recomputed{calib} "
+                      f"{counts['failed']} failed, {not_ok} other non-ok, {counts['corrupt']} corrupt entries "
+                      f"recomputed{calib} "
                       f"-> {out / study.name}/")
         if not args.dry_run:
             index = write_index(out)
@@ -314,18 +318,65 @@ def selected_groups(studies: list[Any], name: str, groups: list[str] | None) -> 
     return [select_groups(studies[0], groups)]
 
 
+GATE_STATES = ("fail", "inconclusive", "not-applicable")  # what --strict refuses: anything not verified
+
+
 def verdict_gate(records: list[dict[str, Any]], strict: bool) -> int:
-    """Exit code of `study`: with --strict, 1 when a claim failed (each failed verdict listed on stderr)."""
-    failed = [r for r in records if r.get("verdict") == "fail"]
-    if not strict or not failed:
+    """Exit code of `study`: with --strict, 1 when any verdict is not a pass (fail, inconclusive or not
+    applicable), each listed on stderr with why and the command that reproduces it."""
+    bad = [r for r in records if r.get("verdict") in GATE_STATES]
+    if not strict or not bad:
         return 0
-    for r in failed:
+    for r in bad:
         case = f" {r['case']}" if r.get("case") else ""
-        print(f"pcverify: claim failed: {r['study']}/{r['claim']}{case}: {r['metric']} = {r['value']!r}, target "
-              f"{r['target']!r} ({r['sense']}, tolerance {r['tolerance']!r}, {r['reference']}); reproduce: "
-              f"{r['command']}", file=sys.stderr)
-    print(f"pcverify: {len(failed)} failed verdicts of {len(records)} (--strict)", file=sys.stderr)
+        value = "no value" if r.get("value") is None else f"{r['metric']} = {r['value']!r}"
+        unc = f" ± {r['uncertainty']!r}" if r.get("uncertainty") is not None else ""
+        target = "" if r.get("target") is None else f", target {r['target']!r}"
+        why = f"; why: {r['note']}" if r.get("note") else ""
+        print(f"pcverify: claim {r['verdict']}: {r['study']}/{r['claim']}{case}: {value}{unc}{target} ({r['sense']}, "
+              f"tolerance {r['tolerance']!r}, {r['reference']}){why}; reproduce: {r['command']}", file=sys.stderr)
+    counts = ", ".join(f"{sum(r['verdict'] == s for r in bad)} {s}" for s in GATE_STATES)
+    print(f"pcverify: {len(bad)} of {len(records)} verdicts are not a pass ({counts}) (--strict)", file=sys.stderr)
     return 1
+
+
+def cmd_verdict(args: argparse.Namespace) -> int:
+    """`pcverify verdict STUDY CLAIM [--case CASE]`: run the groups (or calibration) the claim reads, through
+    the cache like a study, judge the claim and print each verdict's value, target, error, uncertainty and
+    tolerance.  Exit 1 unless every verdict printed is a pass."""
+    with remember_sigint():
+        study = load_study(args.study, args.allow_large)
+        claims = {c.id: c for c in study.claims}
+        if args.claim not in claims:
+            raise CliError(f"claim={shown(args.claim)} is unknown in study {study.name}; allowed: one of "
+                           f"{', '.join(claims) or '(the study has no claims)'}")
+        claim = claims[args.claim]
+        part = dataclasses.replace(select_groups(study, claim_groups(study, claim)), claims=[claim], selected=())
+        cache = Cache(args.cache or Path(args.out) / "cache")
+        with tempfile.TemporaryDirectory(prefix="pcverify-verdict-") as tmp:
+            shown_bar = not args.json and any(g.cells for g in part.groups)
+            results, _ = execute(part, cache, jobs=args.jobs, progress=shown_bar, allow_large=args.allow_large)
+            extra = [calibration_section(run_calibration(part, cal, cache, jobs=args.jobs, allow_large=args.allow_large,
+                                                         progress=not args.json), Path(tmp) / study.name)
+                     for cal in part.calibrations]
+            write_study_report(part, results, Path(tmp), extra=extra)
+            records = study_verdicts(Path(tmp), study.name)
+    cases = [r["case"] for r in records]
+    if args.case is not None:
+        records = [r for r in records if r["case"] == args.case]
+        if not records:
+            raise CliError(f"--case {shown(args.case)} is not a case of claim {claim.id}; allowed: one of "
+                           f"{', '.join(repr(c) for c in cases)}")
+    if args.json:
+        print(json.dumps(records))
+    else:
+        for r in records:
+            print(f"{r['study']}/{r['claim']}" + (f" {r['case']}" if r["case"] else "") + f": {r['verdict']}")
+            for key in ("metric", "value", "uncertainty", "target", "error", "tolerance", "sense", "reference",
+                        "basis", "note", "solver"):
+                if r.get(key) not in (None, ""):
+                    print(f"  {key:<12} {r[key]!r}" if isinstance(r[key], float) else f"  {key:<12} {r[key]}")
+    return 0 if all(r["verdict"] == "pass" for r in records) else 1
 
 
 def cmd_report(args: argparse.Namespace) -> int:
@@ -341,12 +392,15 @@ def cmd_report(args: argparse.Namespace) -> int:
     for source, run_command in sources.items():
         try:
             study = load_study(source)
-        except (SceneError, OSError) as exc:
+        except (SceneError, SolverUnavailable, OSError) as exc:
             if source in shipped:
                 raise
             warn(f"study file {source} (named by a manifest in {out}) does not load: {exc}; skipped")
             continue
         results = cached_results(study, cache)
+        reported = (out / study.name / "manifest.json").exists()
+        if not reported and all(r["status"] == "missing" for r in results):
+            results = []  # never run here: nothing to rebuild (a study reported before is rebuilt, missing cells named)
         extra = []
         for cal in study.calibrations:  # the same search through the cached cells; a missing one: left out
             try:
@@ -355,13 +409,17 @@ def cmd_report(args: argparse.Namespace) -> int:
                 continue
         if results or extra:
             write_study_report(study, results, out, run_command, extra=extra)
-            rebuilt.append({"study": study.name, "study_file": source, "cells_cached": len(results)})
+            missing = sum(r["status"] == "missing" for r in results)
+            rebuilt.append({"study": study.name, "study_file": source, "cells_cached": len(results) - missing,
+                            "cells_missing": missing})
     index = write_index(out)
     if args.json:
         print(json.dumps({"index": str(index), "studies": rebuilt}))
     else:
         for r in rebuilt:
-            print(f"{r['study']}: rebuilt from {r['cells_cached']} cached cells")
+            lost = (f"; {r['cells_missing']} cells missing or corrupt in the cache: their claims fail, rerun the study"
+                    if r["cells_missing"] else "")
+            print(f"{r['study']}: rebuilt from {r['cells_cached']} cached cells{lost}")
         print(f"report: {index}")
     return 0
 
@@ -435,9 +493,23 @@ def build_parser() -> argparse.ArgumentParser:
                    "of verdicts.json; with --dry-run: the plan of every cell), nothing else on stdout")
     p.add_argument("--group", action="append", metavar="ID", help="run only this group of the study (repeatable; "
                    "the groups it reads tables from are included)")
-    p.add_argument("--strict", action="store_true", help="exit 1 when any claim fails, listing the failed claims on "
-                   "stderr (a CI gate)")
+    p.add_argument("--strict", action="store_true", help="exit 1 when any verdict is not a pass (fail, inconclusive or "
+                   "not applicable), listing each with why and its reproducing command on stderr (a CI gate)")
     p.set_defaults(func=cmd_study)
+
+    p = sub.add_parser("verdict", help="judge one claim of a study and print its value, target, error, uncertainty",
+                       description="Run the groups a claim reads (cached cells are read back), judge the claim and "
+                       "print each verdict: the command printed beside every verdict in the report.  Exit 1 unless "
+                       "every verdict printed is a pass.")
+    p.add_argument("study", help="study name or a path to a .toml file")
+    p.add_argument("claim", help="claim id (see the study file)")
+    p.add_argument("--case", default=None, help="one case of the claim, as the report writes it (e.g. n=4)")
+    p.add_argument("--out", default="reports", help="where the study's cache is (default reports/: reports/cache)")
+    p.add_argument("--cache", default=None, help="cache folder (default OUT/cache)")
+    p.add_argument("--jobs", type=int_in("jobs", 1, 256), default=1, help="parallel cells on local cores (default 1)")
+    p.add_argument("--allow-large", action="store_true", help="run cells beyond the work and memory limits")
+    p.add_argument("--json", action="store_true", help="print the verdict records as JSON")
+    p.set_defaults(func=cmd_verdict)
 
     p = sub.add_parser("bench", help="run the benchmarks, save them, compare with the previous saved run")
     p.add_argument("--tests", default="tests/bench", help="benchmark folder (default tests/bench)")

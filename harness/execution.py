@@ -14,6 +14,7 @@ import sys
 import threading
 import time
 import warnings
+from collections import Counter
 from collections.abc import Iterator
 from typing import Any
 
@@ -187,6 +188,7 @@ def execute(study: Study, cache: Cache, jobs: int = 1, progress: bool = True, sc
             tqdm.write(f"cache entry {key} ({cells[i].describe()}) is {state}; recomputing", file=sys.stderr)
         if entry is not None:
             counts["cached"] += 1
+            counts["failed"] += entry.get("status") == "failed"  # a failed cell stays failed when read back
         else:
             todo.append(i)
         results.append(entry)
@@ -211,13 +213,11 @@ def execute(study: Study, cache: Cache, jobs: int = 1, progress: bool = True, sc
 
     def share(i: int, res: dict[str, Any], done: bool) -> None:
         results[i] = as_cell(res, cells[i])
-        if done:
-            counts["failed" if res.get("status") == "failed" else "done"] += 1
-        else:
-            counts["cached"] += 1
+        counts["done" if done else "cached"] += 1
         for j in same[i]:
             results[j] = as_cell(res, cells[j])
             counts["cached"] += 1
+        counts["failed"] += (res.get("status") == "failed") * (1 + len(same[i]))
         bar.set_postfix(done=counts["done"], cached=counts["cached"], failed=counts["failed"])
         bar.update(1 + len(same[i]))
 
@@ -251,7 +251,9 @@ def execute(study: Study, cache: Cache, jobs: int = 1, progress: bool = True, sc
         bar.close()
         if client is not None:
             client.close()
-    return [r for r in results if r is not None], counts
+    done = [r for r in results if r is not None]
+    counts["statuses"] = dict(sorted(Counter(str(r.get("status")) for r in done).items()))
+    return done, counts
 
 
 def _run(study: Study, cells: list[Cell], identities: list[tuple[dict[str, Any], str | None]], todo: list[int],
@@ -297,10 +299,22 @@ def _wait_for(cache: Cache, key: str, poll: float = 0.5) -> dict[str, Any] | Non
 
 
 def cached_results(study: Study, cache: Cache) -> list[dict[str, Any]]:
-    """The results of a study's cells that are in the cache (corrupt or missing ones left out)."""
-    cells = [c for g in study.groups for c in g.cells]
-    entries = (as_cell(cache.load(cell_key(cell_identity(c)[0]))[0], c) for c in cells)
-    return [e for e in entries if e is not None]
+    """The results of a study's cells as the cache holds them; a cell whose entry is missing or corrupt is a
+    result of status `missing` that says so (a report rebuilt from the cache never judges a claim on what is
+    left after a cell dropped out)."""
+    out = []
+    for c in (c for g in study.groups for c in g.cells):
+        key = cell_key(cell_identity(c)[0])
+        entry, state = cache.load(key)
+        out.append(as_cell(entry, c) if entry is not None else missing_result(c, key, state))
+    return out
+
+
+def missing_result(cell: Cell, key: str, state: str) -> dict[str, Any]:
+    """The result of a cell the cache cannot give back (`state`: miss or corrupt: why), status missing."""
+    why = "has no entry" if state == "miss" else f"entry is {state}"
+    return as_cell({"status": "missing", "reason": f"the cache {why} (key {key}): rerun the study to compute it",
+                    "cache_key": key}, cell) or {}
 
 
 def as_cell(entry: dict[str, Any] | None, cell: Cell) -> dict[str, Any] | None:

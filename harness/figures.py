@@ -502,7 +502,7 @@ def stability_map(part: pd.DataFrame, path: Path, title: str) -> bool:
     for ax, D in zip(axes[0], amps, strict=True):
         sub = part[part["drive_amplitude"] == D]
         for status, (marker, colour) in STATUS_STYLE.items():
-            pick = sub[sub["status"] == status]
+            pick = sub[sub["run_status"] == status]
             if not pick.empty:
                 ax.scatter(pick["dt_ratio"], pick["damping_ratio"].clip(lower=1e-5), marker=marker, c=colour,
                            label=status)

@@ -11,8 +11,8 @@ from collections.abc import Iterable
 from typing import Any
 
 from pcverify.harness.formatting import measured, number, to_float, unit_of
+from pcverify.harness.verdict import STATES
 
-STATES = ("fail", "not-applicable", "pass")
 REFERENCE_WORDS = {"analytic": "analytic solution", "extrapolated": "extrapolated continuum",
                    "mesh-dependent": "mesh-dependent continuum", "same-grid": "continuum on the same grid",
                    "theory": "theory", "paper": "the paper"}
@@ -38,11 +38,14 @@ def value_text(record: dict[str, Any]) -> str:
 
 
 def target_text(record: dict[str, Any]) -> str:
-    sign = {"within": "±", "at-most": "+", "at-least": "−"}[record.get("sense") or "within"]
-    u = unit(record)
-    tol = to_float(record.get("tolerance"))
-    target = number(record.get("target"), u, 4)
-    return target if tol == 0 and sign != "±" else f"{target} {sign} {number(tol, u, 2)}"
+    """The bound a verdict is judged against: "0.3333", "at least 1.8", "at most 0.01"; its tolerance is written
+    apart ("±" is kept for uncertainties)."""
+    word = {"within": "", "at-most": "at most ", "at-least": "at least "}[record.get("sense") or "within"]
+    return f"{word}{number(record.get('target'), unit(record), 4)}"
+
+
+def tolerance_text(record: dict[str, Any]) -> str:
+    return f"tolerance {number(record.get('tolerance'), unit(record), 2)}"
 
 
 def solvers_of(record: dict[str, Any]) -> list[str]:
@@ -56,7 +59,7 @@ def state_counts(records: list[dict[str, Any]]) -> dict[str, int]:
 
 
 def claim_state(rows: list[dict[str, Any]]) -> str:
-    """A claim's state: the worst of its verdicts (fail, then not-applicable, then pass)."""
+    """A claim's state: the worst of its verdicts (fail, inconclusive, not-applicable, pass)."""
     return next(s for s in STATES if any(r["verdict"] == s for r in rows))
 
 
@@ -82,7 +85,8 @@ def summary_lines(studies: list[dict[str, Any]], records: list[dict[str, Any]]) 
             judged = sorted(about, key=lambda r: (r["verdict"] != "fail", -severity(r)))
             lines.append({"study": study["name"], "solver": solver, **counts, "orders": orders,
                           "headline": judged[0] if judged else None})
-    return sorted(lines, key=lambda x: (-x["fail"], -x["not-applicable"], -(x["pass"] > 0), x["study"], x["solver"]))
+    return sorted(lines, key=lambda x: (-x["fail"], -x["inconclusive"], -x["not-applicable"], -(x["pass"] > 0),
+                                        x["study"], x["solver"]))
 
 
 def orders_text(orders: list[dict[str, Any]], limit: int = 3) -> tuple[str, str]:
@@ -120,26 +124,38 @@ def sentence(claim: list[dict[str, Any]]) -> tuple[str, str]:
     cases = [_case_word(r.get("case") or "")[1] for r in claim]
     if key == "n" and all(r.get("nodes") for r in claim):
         cases = [f"{c} ({int(r['nodes'])} nodes)" for c, r in zip(cases, claim, strict=True)]
-    judged = [r for r in claim if r["verdict"] != "not-applicable"]
+    judged = [r for r in claim if r["verdict"] != "not-applicable" and r.get("value") is not None]
     where = ""
     if key and len(claim) > 1:
         failing = [c for c, s in zip(cases, states, strict=True) if s == "fail"]
-        where = (f"fails at {key} = {_joined(failing)}" if failing and len(failing) < len(judged)
-                 else ("fails at every case" if failing else "holds at every case judged"))
+        open_ = [c for c, s in zip(cases, states, strict=True) if s == "inconclusive"]
+        parts = []
+        if failing:
+            parts.append("fails at every case" if len(failing) == len(claim)
+                         else f"fails at {key} = {_joined(failing)}")
+        if open_:
+            parts.append("is inconclusive at every case" if len(open_) == len(claim)
+                         else f"is inconclusive at {key} = {_joined(open_)}")
+        where = ", ".join(parts) or "holds at every case judged"
     else:
-        where = {"fail": "fails", "pass": "holds", "not-applicable": "is not applicable"}[state]
+        where = {"fail": "fails", "pass": "holds", "not-applicable": "is not applicable",
+                 "inconclusive": "is inconclusive"}[state]
     text = f"{first['statement'].rstrip('.')}: {where}."
     if judged:
         values = _joined(value_text(r) for r in judged)
         targets = sorted({target_text(r) for r in judged})
         at = f" at {key} = {_joined(c for c, r in zip(cases, claim, strict=True) if r in judged)}" if key else ""
         against = targets[0] if len(targets) == 1 else _joined(target_text(r) for r in judged)
-        text += (f" {first.get('metric') or 'value'}{at}: {values}, against {against} "
-                 f"({REFERENCE_WORDS.get(first['reference'], first['reference'])}).")
+        text += (f" {first.get('metric') or 'value'}{at}: {values}, against {against} ({tolerance_text(first)}; "
+                 f"{REFERENCE_WORDS.get(first['reference'], first['reference'])}).")
     missing = [r for r in claim if r["verdict"] == "not-applicable"]
     if missing:
         at = "" if len(claim) == 1 else f" at {len(missing)} cases"
         text += f" Not applicable{at}: {missing[0]['note']}."
+    unjudged = [r for r in claim if r["verdict"] != "not-applicable" and r.get("value") is None]
+    if unjudged:
+        at = "" if len(claim) == 1 else f" at {len(unjudged)} cases"
+        text += f" Not judged{at}: {unjudged[0]['note']}."
     return state, text
 
 

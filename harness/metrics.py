@@ -22,8 +22,20 @@ def field_errors(values: np.ndarray, reference: np.ndarray) -> dict[str, float]:
     return {"l2": float(np.sqrt(np.mean(d * d))), "linf": float(np.max(np.abs(d)))}
 
 
-def observed_order(h: np.ndarray, err: np.ndarray, finest: int | None = None) -> tuple[float, float]:
-    """Least-squares slope p and constant C of log err = log C + p log h over the `finest` smallest h."""
+@dataclass(frozen=True)
+class OrderFit:
+    """A least-squares fit log err = log C + p log h: the order p, the constant C, the standard error of p
+    (nan for two points: a line through two points has no residual to estimate it from) and the h used."""
+
+    order: float
+    constant: float
+    order_se: float
+    h: tuple[float, ...]
+
+
+def fit_order(h: np.ndarray, err: np.ndarray, finest: int | None = None) -> OrderFit:
+    """The order fitted over the `finest` smallest h, with the standard error of the slope from the residuals
+    (the textbook s / sqrt(sum (x - mean x)^2) with s^2 = SSR / (m - 2) on m points)."""
     h = np.asarray(h, dtype=float)
     err = np.abs(np.asarray(err, dtype=float))
     order = np.argsort(h)
@@ -33,8 +45,19 @@ def observed_order(h: np.ndarray, err: np.ndarray, finest: int | None = None) ->
         raise ValueError("observed_order needs at least two points")
     if np.any(err[order] <= 0) or np.any(h[order] <= 0):
         raise ValueError("observed_order needs positive h and errors")
-    p, logc = np.polyfit(np.log(h[order]), np.log(err[order]), 1)
-    return float(p), float(math.exp(logc))
+    x, y = np.log(h[order]), np.log(err[order])
+    p, logc = np.polyfit(x, y, 1)
+    se = math.nan
+    if order.size > 2:
+        residual = y - (p * x + logc)
+        se = float(math.sqrt(float(residual @ residual) / (order.size - 2) / float(((x - x.mean()) ** 2).sum())))
+    return OrderFit(float(p), float(math.exp(logc)), se, tuple(float(v) for v in np.sort(h[order])))
+
+
+def observed_order(h: np.ndarray, err: np.ndarray, finest: int | None = None) -> tuple[float, float]:
+    """Least-squares slope p and constant C of log err = log C + p log h over the `finest` smallest h."""
+    fit = fit_order(h, err, finest)
+    return fit.order, fit.constant
 
 
 def classify(values: np.ndarray) -> str:

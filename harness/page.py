@@ -22,6 +22,7 @@ from pcverify.harness.findings import (
     solvers_of,
     state_counts,
     target_text,
+    tolerance_text,
     value_text,
 )
 from pcverify.harness.formatting import cell, measured, number
@@ -43,9 +44,9 @@ h3{font-size:15px;margin:18px 0 6px}
 table{border-collapse:collapse;font-size:12px}
 td,th{border:1px solid #d4d4d4;padding:2px 6px;text-align:left;vertical-align:top}
 th{background:#f0f0f0}
-.pass{background:#d9f2d0}.fail{background:#f7cfcf}.not-applicable{background:#e8e8e8}
+.pass{background:#d9f2d0}.fail{background:#f7cfcf}.inconclusive{background:#fbe7b5}.not-applicable{background:#e8e8e8}
 .count{text-align:right;font-variant-numeric:tabular-nums;min-width:2.5em}
-.count.fail:empty,.count.pass:empty{background:none}
+.count.fail:empty,.count.pass:empty,.count.inconclusive:empty{background:none}
 #summary-table{width:100%;table-layout:fixed}
 #summary-table td{white-space:nowrap;overflow:hidden;text-overflow:ellipsis}
 #findings li{margin:3px 0}#findings ul{padding-left:18px}
@@ -133,24 +134,29 @@ def summary_section(lines: list[dict[str, Any]], records: list[dict[str, Any]], 
     total = state_counts(records)
     head = (f"<section id='summary'><h1>pcverify report</h1><p class='meta'>{e(meta)} · {len(records)} verdicts: "
             f"<span class='verdict-word fail'>{total['fail']} fail</span> "
+            f"<span class='verdict-word inconclusive'>{total['inconclusive']} inconclusive</span> "
             f"<span class='verdict-word not-applicable'>{total['not-applicable']} not applicable</span> "
             f"<span class='verdict-word pass'>{total['pass']} pass</span> · "
             "<a href='verdicts.json'>verdicts.json</a></p>")
     rows = ["<table id='summary-table'><colgroup><col style='width:11%'><col style='width:11%'>"
-            "<col style='width:4.5%'><col style='width:4.5%'><col style='width:4.5%'><col style='width:26%'><col>"
-            "</colgroup><tr><th>study</th><th>solver</th><th>fail</th><th>n/a</th><th>pass</th>"
+            "<col style='width:4.5%'><col style='width:5.5%'><col style='width:4.5%'><col style='width:4.5%'>"
+            "<col style='width:24%'><col></colgroup><tr><th>study</th><th>solver</th><th>fail</th>"
+            "<th title='inconclusive: the uncertainty band straddles the bound'>incon&shy;clusive</th><th>n/a</th>"
+            "<th>pass</th>"
             "<th>observed orders</th><th>headline (farthest from its bound)</th></tr>"]
     for line in lines:
         short, full = orders_text(line["orders"])
         h = line["headline"]
         headline = "no claim" if h is None else (
             f"<span class='verdict-word {h['verdict']}'>{e(h['verdict'])}</span> "
-            f"{e(' '.join(filter(None, (h['claim'], h.get('case')))))}: {e(value_text(h))} vs {e(target_text(h))}"
-            if h["verdict"] != "not-applicable" else f"{e(h['claim'])}: not applicable")
+            f"{e(' '.join(filter(None, (h['claim'], h.get('case')))))}: {e(value_text(h))} vs {e(target_text(h))} "
+            f"({e(tolerance_text(h))})"
+            if h.get("value") is not None else f"{e(h['claim'])}: {e(h['verdict'])} ({e(str(h.get('note') or ''))})")
         title = "" if h is None else f"{h['statement']} ({h['reference']})"
         rows.append(f"<tr><td><a href='#{anchor(line['study'])}'>{e(line['study'])}</a></td>"
                     f"<td>{e(line['solver'])}</td>"
-                    f"{_count(line['fail'], 'fail')}{_count(line['not-applicable'], 'not-applicable')}"
+                    f"{_count(line['fail'], 'fail')}{_count(line['inconclusive'], 'inconclusive')}"
+                    f"{_count(line['not-applicable'], 'not-applicable')}"
                     f"{_count(line['pass'], 'pass')}<td title='{e(full)}'>{e(short) or '—'}</td>"
                     f"<td title='{e(title)}'>{headline}</td></tr>")
     rows.append("</table>")
@@ -166,12 +172,13 @@ def findings_section(found: list[dict[str, Any]]) -> str:
 
 def _case_chip(r: dict[str, Any]) -> str:
     label = r.get("case") or "all"
-    shown = value_text(r) if r["verdict"] != "not-applicable" else "n/a"
+    shown = value_text(r) if r.get("value") is not None else ("n/a" if r["verdict"] == "not-applicable" else "no value")
     fields = [("verdict", r["verdict"]), ("solver", r.get("solver") or ""), ("value", value_text(r)),
               ("target", target_text(r)), ("error", measured(r.get("error"), "", math.nan, r.get("tolerance"))),
               ("uncertainty", number(r.get("uncertainty"), "", 2)), ("tolerance", number(r.get("tolerance"), "", 3)),
               ("reference", r["reference"]), ("note", r.get("note") or "")]
-    if r["verdict"] == "not-applicable":
+    fields.insert(-1, ("basis", r.get("basis") or ""))
+    if r.get("value") is None:
         fields = [f for f in fields if f[0] in ("verdict", "solver", "reference", "note")]
     hover = "; ".join(f"{k}: {v}" for k, v in fields if v) + f"; command: {r.get('command') or ''}"
     body = "".join(f"<dt>{k}</dt><dd>{e(str(v))}</dd>" for k, v in fields if v)
@@ -187,7 +194,8 @@ def verdicts_section(records: list[dict[str, Any]]) -> str:
     solvers = sorted({s for r in records for s in solvers_of(r)})
     options = lambda vals: "".join(f"<option value='{e(v)}'>{e(v)}</option>" for v in vals)  # noqa: E731
     parts = ["<section id='verdicts'><h2>Verdicts by claim</h2><p class='meta'>Each claim once, its cases as cells "
-             "(green pass, red fail, grey not applicable); hover or open a cell for value, target, error, uncertainty, "
+             "(green pass, red fail, amber inconclusive: the uncertainty band straddles the bound, grey not "
+             "applicable); hover or open a cell for value, target, error, uncertainty, "
              "tolerance and the command that reproduces the number.</p>",
              "<div class='filter'><label>study <select id='filter-study'><option value=''>all</option>"
              f"{options(studies)}</select></label><label>solver <select id='filter-solver'><option value=''>all"
@@ -225,7 +233,7 @@ def data_table(df: pd.DataFrame, table_id: str) -> str:
         tds = []
         for c, v in zip(cols, row, strict=True):
             text = "" if isinstance(v, float) and math.isnan(v) else cell(v, str(c))
-            cls = f" class='{text}'" if c == "verdict" and text in ("pass", "fail", "not-applicable") else ""
+            cls = f" class='{text}'" if c == "verdict" and text in STATES else ""
             tip = f" title='{e(text)}'" if len(text) > 24 else ""
             tds.append(f"<td{cls}{tip}>{e(text)}</td>")
         out.append("<tr>" + "".join(tds) + "</tr>")

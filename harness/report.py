@@ -130,16 +130,48 @@ def write_study_report(study: Any, results: list[dict[str, Any]], out: Path, run
             section["tables"].append(f"{name}.csv")
         all_tables.update(tables)
         manifest["sections"].append(section)
-    _write_csv(pd.concat(group_cells, ignore_index=True) if group_cells else pd.DataFrame(), folder / "cells.csv")
+    cells = pd.concat(group_cells, ignore_index=True) if group_cells else pd.DataFrame()
     manifest["orders"] = _orders(study, all_tables)
+    table = None
     if study.claims:
         table = verdict.verdicts(study.name, study.claims, all_tables, verdict_commands(study, results))
         table["nodes"] = _lattice_nodes(study, study.claims, table)
+    if study.selected:  # --group: the rest of the study's report stays as it was
+        manifest, cells, table = _merged(folder, study, manifest, cells, table)
+    _write_csv(cells, folder / "cells.csv")
+    if table is not None:
         _write_table(table, folder / "verdicts")
         atomic_write(folder / "verdicts.json", json.dumps(verdict.records(table), indent=1))
         manifest["verdicts"] = "verdicts.csv"
     atomic_write(folder / "manifest.json", json.dumps(manifest, indent=1))  # last: it names the files above
     return folder
+
+
+def _merged(folder: Path, study: Any, manifest: dict[str, Any], cells: pd.DataFrame, table: pd.DataFrame | None
+            ) -> tuple[dict[str, Any], pd.DataFrame, pd.DataFrame | None]:
+    """A report of some groups merged into the study's report already in `folder`: sections, orders, cells and
+    verdicts of the groups and claims just rebuilt replace theirs; every other one is kept as it was."""
+    old, why = read_json(folder / "manifest.json")
+    if why or _manifest_problem(old, study.name):
+        return manifest, cells, table
+    new_ids = {sec["id"] for sec in manifest["sections"]}
+    fresh = {sec["id"]: sec for sec in manifest["sections"]}
+    sections = [fresh.pop(sec["id"], sec) for sec in old.get("sections", [])]
+    manifest["sections"] = sections + list(fresh.values())
+    manifest["orders"] = [o for o in old.get("orders", []) if o["group"] not in new_ids] + manifest["orders"]
+    manifest["solvers"] = sorted(set(manifest["solvers"]) | set(old.get("solvers") or []))
+    manifest["rerun"] = old.get("rerun") or manifest["rerun"]
+    previous = _read_csv(folder / "cells.csv") if (folder / "cells.csv").exists() else pd.DataFrame()
+    if "group" in previous and not previous.empty:
+        cells = pd.concat([previous[~previous["group"].isin(new_ids)], cells], ignore_index=True)
+    before = study_verdicts(folder.parent, study.name)
+    rebuilt = set() if table is None else set(table["claim"])
+    kept = [r for r in before if r["claim"] not in rebuilt]
+    if kept:
+        table = pd.concat([pd.DataFrame(kept), table], ignore_index=True) if table is not None else pd.DataFrame(kept)
+        order = {c: k for k, c in enumerate(dict.fromkeys([r["claim"] for r in before] + list(table["claim"])))}
+        table = table.sort_values("claim", key=lambda col: col.map(order), kind="stable").reset_index(drop=True)
+    return manifest, cells, table
 
 
 def study_verdicts(out: Path, study: str) -> list[dict[str, Any]]:
@@ -157,12 +189,15 @@ def study_verdicts(out: Path, study: str) -> list[dict[str, Any]]:
     return verdict.records(table.astype(object).where(table.notna(), None)) if not table.empty else []
 
 
+OPTIONAL_VERDICT_COLUMNS = ("basis",)  # columns a report written by an earlier version lacks
+
+
 def _records_problem(doc: Any, study: str) -> str:
     """Why `doc` is not a list of the study's verdict records ("" if it is)."""
     if not isinstance(doc, list) or not all(isinstance(r, dict) for r in doc):
         return "is not a list of verdict records"
     for r in doc:
-        missing = [c for c in verdict.VERDICT_COLUMNS if c not in r]
+        missing = [c for c in verdict.VERDICT_COLUMNS if c not in r and c not in OPTIONAL_VERDICT_COLUMNS]
         if missing:
             return f"has a verdict record without {missing[0]}"
         if r["study"] != study or r["verdict"] not in STATES:

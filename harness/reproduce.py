@@ -1,10 +1,11 @@
-"""Reproducing a number: the command that recomputes a verdict's value, and the part of a study it runs.
+"""Reproducing a number: the command that prints a verdict's value, and the part of a study it runs.
 
-A value that comes from one cell of a solve task is reproduced by `pcverify run SCENE --solver S --n N
-[--refine R] [--set KEY=VALUE ...]`; any other (a fit over a sequence of cells, a stability probe, an
-aggregate over several cells, a scene or solver that only a study file or plugin defines) by
-`pcverify study NAME --group ID`, which runs that group (with the groups whose tables it reads) and
-reads every finished cell back from the cache.
+A value that is one summary scalar or one error of one cell of a solve task is reproduced by `pcverify run
+SCENE --solver S --n N [--refine R] [--set KEY=VALUE ...]`, which prints it (the errors against the scene's
+reference included); any other (a fit over a sequence of cells, a stability probe, an aggregate over several
+cells, a difference from other rows, a scene or solver that only a study file or plugin defines) by
+`pcverify verdict NAME CLAIM [--case CASE]`, which runs the groups the claim reads (finished cells read back
+from the cache) and prints the verdict's value, target, error, uncertainty and tolerance.
 """
 
 from __future__ import annotations
@@ -61,7 +62,7 @@ def select_groups(study: Study, ids: list[str]) -> Study:
         return all(table_group(study, t) in keep or any(t.startswith(f"{c.id}-") for c in kept_calibrations)
                    for t in (claim.table, claim.against_table or claim.table))
 
-    return dataclasses.replace(study, groups=[g for g in study.groups if g.id in keep],
+    return dataclasses.replace(study, groups=[g for g in study.groups if g.id in keep], selected=tuple(ids),
                                claims=[c for c in study.claims if kept(c)], calibrations=kept_calibrations)
 
 
@@ -127,26 +128,44 @@ def _one_cell(rows: pd.DataFrame, results: list[dict[str, Any]]) -> dict[str, An
     return found[0] if len(found) == 1 else None
 
 
+def verdict_command(study: Study, claim: str, case: str = "") -> str:
+    """`pcverify verdict NAME CLAIM [--case CASE]` (NAME: the shipped name, else the study file's path)."""
+    shipped = study_files().get(study.name)
+    name = study.name if shipped is not None and study.path is not None and shipped == study.path else str(study.path)
+    parts = ["pcverify", "verdict", name, claim] + (["--case", case] if case else [])
+    return " ".join(shlex.quote(p) for p in parts)
+
+
+def claim_groups(study: Study, claim: Claim) -> list[str]:
+    """The groups and calibrations whose tables a claim reads."""
+    ids = []
+    for table in (claim.table, claim.against_table or claim.table):
+        gid = table_group(study, table)
+        ids += [gid] if gid else [c.id for c in study.calibrations if table.startswith(f"{c.id}-")]
+    return list(dict.fromkeys(ids))
+
+
+def _printed_by_run(metric: str, result: dict[str, Any]) -> bool:
+    """Whether `pcverify run` prints this metric of this cell by its name: a summary scalar, or an error
+    `err.SET.NORM` against the scene's reference."""
+    value = (result.get("summary") or {}).get(metric)
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        return True
+    sample, _, norm = metric.removeprefix("err.").rpartition(".")
+    return metric.startswith("err.") and norm in ("l2", "linf") and sample in (result.get("errors") or {})
+
+
 def verdict_commands(study: Study, results: list[dict[str, Any]]) -> Command:
     """The `command` function of `verdict.verdicts` for this study and its results."""
     solve_groups = {g.id for g in study.groups if g.cells and all(c.task.name == "solve" for c in g.cells)}
 
-    def rows_command(table: str, rows: pd.DataFrame | None) -> str:
-        gid = table_group(study, table)
-        if gid is None:  # a calibration's table is rerun (from the cache) by its calibration alone
-            return study_command(study, [c.id for c in study.calibrations if table.startswith(f"{c.id}-")][:1])
-        if gid in solve_groups and rows is not None:
-            result = _one_cell(rows, [r for r in results if r.get("group") == gid])
-            command = run_command(result) if result is not None else None
-            if command:
-                return command
-        return study_command(study, [gid])
-
-    def command(claim: Claim, value_rows: pd.DataFrame, target_rows: pd.DataFrame | None) -> str:
-        text = rows_command(claim.table, value_rows)
-        if target_rows is not None:
-            target = rows_command(claim.against_table or claim.table, target_rows)
-            text = text if target == text else f"{text} && {target}"
-        return text
+    def command(claim: Claim, case: str, value_rows: pd.DataFrame, target_rows: pd.DataFrame | None) -> str:
+        gid = table_group(study, claim.table)
+        if target_rows is None and gid in solve_groups and not value_rows.empty:
+            result = _one_cell(value_rows, [r for r in results if r.get("group") == gid])
+            text = run_command(result) if result is not None and _printed_by_run(claim.metric, result) else None
+            if text:
+                return text
+        return verdict_command(study, claim.id, case)
 
     return command

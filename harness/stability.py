@@ -148,15 +148,21 @@ class StabilityTask:
                 "wall_s": time.perf_counter() - t0, "resolution": {"n": resolution.n, "refine": 1}}
 
 
-def tables(results: list[dict[str, Any]]) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """(limits, map) tables of a stability group's cell results."""
+def tables(results: list[dict[str, Any]], probe: str = "limit") -> tuple[pd.DataFrame, pd.DataFrame]:
+    """(limits, map) tables of a stability group's cell results.  A measured row has status ok (a map row's
+    `run_status` is what the run it measured did); a cell with no measurement (skipped, or the cell raised)
+    is a row of its group's table (`probe`) with its status and reason, so a claim over it cannot pass."""
     rows: dict[str, list[dict[str, Any]]] = {"limit": [], "map": []}
     for r in results:
         s = r.get("summary") or {}
-        if "probe" not in s:  # skipped, or the cell raised: no measurement (a solver's own "failed" has one)
-            continue
         sp = r.get("solver_params") or {}
-        row = {"solver": r["solver"], "scene": r["scene"], "n": r["n"],
+        if "probe" not in s:
+            row = {"solver": r["solver"], "scene": r["scene"], "n": r["n"], "status": r.get("status"),
+                   "reason": r.get("reason") or "", "damping_ratio": sp.get("damping_ratio"),
+                   "drive_amplitude": sp.get("drive_amplitude"), "damping": sp.get("damping")}
+            rows[probe].append(row)
+            continue
+        row = {"solver": r["solver"], "scene": r["scene"], "n": r["n"], "status": "ok", "reason": "",
                "damping_ratio": s["zeta"], "drive_amplitude": s.get("drive_amplitude", sp.get("drive_amplitude")),
                "damping": sp.get("damping"),
                "safety_theory": s["safety_theory"]}
@@ -164,8 +170,9 @@ def tables(results: list[dict[str, Any]]) -> tuple[pd.DataFrame, pd.DataFrame]:
             row |= {k: s.get(k) for k in ("measured_safety", "linear_safety", "relative_deviation", "ratio_tol",
                                           "verdict", "runs", "unstable_runs", "undetected")}
         else:
-            row |= {"dt_ratio": s["dt_ratio"], "safety": s["safety"], "status": r["status"],
-                    "kernel_status": s["kernel_status"], "stopped_at_step": s["stopped_at_step"],
-                    "steps_planned": s["steps_planned"], "hops": s["hops"], "undetected": s["undetected"]}
+            row |= {"dt_ratio": s["dt_ratio"], "safety": s["safety"], "run_status": r["status"],
+                    "run_reason": r.get("reason") or "", "kernel_status": s["kernel_status"],
+                    "stopped_at_step": s["stopped_at_step"], "steps_planned": s["steps_planned"], "hops": s["hops"],
+                    "undetected": s["undetected"]}
         rows[s["probe"]].append(row)
     return pd.DataFrame(rows["limit"]), pd.DataFrame(rows["map"])

@@ -25,6 +25,7 @@ from pcverify.harness.studyfile import check_study_document, read_study_document
 from pcverify.harness.tasks import SOLVE, CellTask
 from pcverify.harness.verdict import Claim, parse_claims
 from pcverify.scene import Scene, SceneError
+from pcverify.solvers.registry import SolverUnavailable, get_solver
 
 MAX_CELLS = 10_000  # a larger study needs --allow-large
 
@@ -70,6 +71,7 @@ class Study:
     plugins: tuple[str, ...] = ()
     path: Path | None = None
     calibrations: list[Calibration] = field(default_factory=list)
+    selected: tuple[str, ...] = ()  # `--group` ids: a report of this study merges with the study's full report
 
 
 def study_files() -> dict[str, Path]:
@@ -106,8 +108,20 @@ def load_study(name_or_path: str, allow_large: bool = False) -> Study:
     groups = [_group(g, f"{path.name} group {gi + 1}", gi, plugins) for gi, g in enumerate(doc.get("group", []))]
     claims = parse_claims(doc.get("claim", []), path.name)
     calibrations = parse_calibrations(doc["calibration"], f"study file {path.name}") if "calibration" in doc else []
+    require_solvers(sorted({c.solver for g in groups for c in g.cells} | {c.solver for c in calibrations}),
+                    f"study file {path.name}")
     return Study(doc.get("name", path.stem), doc.get("title", path.stem), groups, claims, plugins, path.resolve(),
                  calibrations)
+
+
+def require_solvers(names: list[str], where: str) -> None:
+    """Every solver a study names must import: a plugin (entry point, module or module:Class) that fails to
+    is an error naming it before anything runs, never cells skipped and claims left unjudged."""
+    for name in names:
+        try:
+            get_solver(name)
+        except SolverUnavailable as exc:
+            raise SolverUnavailable(f"{where} names {exc}") from None
 
 
 def cell_count(doc: dict[str, Any], path: Path) -> int:

@@ -12,7 +12,7 @@ import numpy as np
 import pandas as pd
 
 from pcverify.harness.catalogue import make_scene
-from pcverify.harness.metrics import field_errors, observed_order, richardson
+from pcverify.harness.metrics import field_errors, fit_order, richardson
 from pcverify.references import analytic
 
 
@@ -66,70 +66,104 @@ def analytic_errors(result: dict[str, Any]) -> dict[str, float]:
     return out
 
 
+def _level_label(n: int, refine: int, refined: bool) -> str:
+    return f"n={n}/refine={refine}" if refined else f"n={n}"
+
+
+def _not_ok(seq: pd.DataFrame, refined: bool) -> str:
+    """The cells of a sequence that are not ok, in words ("" if none): what a fit over it lost."""
+    lost = seq[seq["status"] != "ok"]
+    return "; ".join(f"{_level_label(r.n, r.refine, refined)} {r.status}" + (f" ({r.reason})" if r.reason else "")
+                     for r in lost.itertuples())
+
+
 def convergence(results: list[dict[str, Any]], quantities: list[str],
-                reference: dict[str, float] | None = None) -> tuple[pd.DataFrame, pd.DataFrame]:
+                reference: dict[str, dict[str, Any]] | None = None) -> tuple[pd.DataFrame, pd.DataFrame]:
     """(levels, fits): per sequence (solver + params) the values by h, and the fitted orders / GCI.
 
-    With an analytic reference the fit is of the error (L2 and Linf per sample set) against h (`monotone`
-    says whether the fitted errors decrease with every refinement; if not, the order is pre-asymptotic);
-    with a `reference` value per quantity (e.g. an extrapolated continuum result) of the relative
-    error err.<quantity>; without either, three-grid Richardson extrapolation with the GCI on
-    each summary quantity.
+    Every cell is a level row with its status; only ok levels enter a fit, and a fit names the levels it
+    used (`used`) and the cells of its sequence that were not ok (`missing`), so a claim on a fit that lost
+    a cell cannot pass.  With an analytic reference the fit is of the error (L2 and Linf per sample set)
+    against h, with the standard error of the fitted order (`order_unc`; `monotone` says whether the
+    fitted errors decrease with every refinement; if not, the order is pre-asymptotic); with a `reference`
+    per quantity (value, uncertainty, Richardson class of an extrapolated continuum result) of the relative
+    error err.<quantity>, whose uncertainty (`err.<quantity>_unc`) and class (`reference_class`) come with it;
+    without either, three-grid Richardson extrapolation with the GCI on each summary quantity
+    (`extrapolated_unc`: the GCI band of the extrapolated value).
     """
-    ok = [r for r in results if r.get("status") == "ok"]
     rows = []
-    for r in ok:
+    for r in results:
+        ok = r.get("status") == "ok"
         row = {"solver": r["solver"], "params": ", ".join(f"{k}={v}" for k, v in sorted(r["solver_params"].items())),
-               "n": r["n"], "refine": r["refine"], "h": spacing(r), "unknowns": r["unknowns"],
-               "wall_s": r["wall_s"]}
+               "n": r["n"], "refine": r["refine"], "h": spacing(r), "unknowns": r.get("unknowns"),
+               "wall_s": r.get("wall_s"), "status": r.get("status"), "reason": r.get("reason") or ""}
         values = scalars(r)
         row.update({q: values.get(q) for q in quantities})
-        row.update(analytic_errors(r))
+        if ok:
+            row.update(analytic_errors(r))
         for q, ref in (reference or {}).items():
-            if values.get(q) is not None and ref:
-                row[f"err.{q}"] = abs(values[q] - ref) / abs(ref)
+            if ok and values.get(q) is not None and ref["value"]:
+                row[f"err.{q}"] = abs(values[q] - ref["value"]) / abs(ref["value"])
+                row[f"err.{q}_unc"] = abs(ref["unc"]) / abs(ref["value"])
+                row["reference_class"] = ref["kind"]
         rows.append(row)
     levels = pd.DataFrame(rows)
     fits = []
     if levels.empty:
         return levels, pd.DataFrame()
-    for (solver, params), seq in levels.groupby(["solver", "params"], sort=False):
-        seq = seq.sort_values("h", ascending=False)
+    for (solver, params), whole in levels.groupby(["solver", "params"], sort=False):
+        refined = whole["refine"].nunique() > 1 or bool((whole["refine"] != 1).any())
+        missing = _not_ok(whole, refined)
+        seq = whole[whole["status"] == "ok"].sort_values("h", ascending=False)
         h = seq["h"].to_numpy(float)
-        err_cols = [c for c in seq.columns if c.endswith((".l2", ".linf")) or c.startswith("err.")]
+        labels = [_level_label(n, k, refined) for n, k in zip(seq["n"], seq["refine"], strict=True)]
+        head = {"solver": solver, "params": params, "cells": len(whole), "missing": missing}
+        err_cols = [c for c in seq.columns if (c.endswith((".l2", ".linf")) or c.startswith("err."))
+                    and not c.endswith("_unc")]
         for col in err_cols:
             e = seq[col].to_numpy(float)
             if len(h) >= 2 and np.all(e > 0):
                 finest = min(len(h), 4)
-                p, _ = observed_order(h, e, finest=finest)
+                fit = fit_order(h, e, finest=finest)
                 kind = "extrapolated" if col.startswith("err.") else "analytic"
-                fits.append({"solver": solver, "params": params, "quantity": col, "reference": kind,
-                             "levels": len(h), "order": p, "finest": e[-1], "extrapolated": 0.0,
-                             "gci_fine": np.nan, "kind": "error",
-                             "monotone": bool(np.all(np.diff(e[-finest:]) < 0))})
+                row = head | {"quantity": col, "reference": kind, "levels": len(h), "used": ", ".join(labels[-finest:]),
+                              "order": fit.order, "order_unc": fit.order_se, "finest": e[-1], "extrapolated": 0.0,
+                              "gci_fine": np.nan, "kind": "error",
+                              "monotone": bool(np.all(np.diff(e[-finest:]) < 0))}
+                if "reference_class" in seq:
+                    row["reference_class"] = seq["reference_class"].iloc[-1]
+                fits.append(row)
         if err_cols:
             continue
         for q in quantities:
             f = seq[q].to_numpy(float)
             if len(h) < 3 or not np.all(np.isfinite(f)):
                 continue
+            used = ", ".join(labels[-3:])
             try:
                 rr = richardson(h, f)
             except ValueError as exc:
-                fits.append({"solver": solver, "params": params, "quantity": q, "reference": "richardson",
-                             "levels": len(h), "kind": f"undefined ({exc})"})
+                fits.append(head | {"quantity": q, "reference": "richardson", "levels": len(h), "used": used,
+                                    "kind": f"undefined ({exc})"})
                 continue
-            fits.append({"solver": solver, "params": params, "quantity": q, "reference": "richardson",
-                         "levels": len(h), "order": rr.order, "finest": f[-1], "extrapolated": rr.extrapolated,
-                         "gci_fine": rr.gci_fine, "kind": rr.kind, "monotone": rr.kind == "monotonic"})
+            fits.append(head | {"quantity": q, "reference": "richardson", "levels": len(h), "used": used,
+                                "order": rr.order, "finest": f[-1], "extrapolated": rr.extrapolated,
+                                "extrapolated_unc": rr.uncertainty, "gci_fine": rr.gci_fine, "kind": rr.kind,
+                                "monotone": rr.kind == "monotonic"})
     return levels, pd.DataFrame(fits)
 
 
+def _not_ok_row(r: dict[str, Any]) -> dict[str, Any]:
+    """The row of a cell that is not ok in a table of measurements: who it is, its status and why."""
+    return {"solver": r["solver"], "n": r["n"], "refine": r["refine"], "status": r.get("status"),
+            "reason": r.get("reason") or "", "unknowns": np.nan, "wall_s": np.nan}
+
+
 def timing(results: list[dict[str, Any]]) -> pd.DataFrame:
-    """Unknowns against wall time (and its parts) per solver."""
-    rows = [{"solver": r["solver"], "n": r["n"], "refine": r["refine"], "unknowns": r["unknowns"],
+    """Unknowns against wall time (and its parts) per solver; a cell that is not ok is a row with its status."""
+    rows = [{"solver": r["solver"], "n": r["n"], "refine": r["refine"], "status": "ok", "unknowns": r["unknowns"],
              "wall_s": r["wall_s"], **{k: v for k, v in (r.get("work") or {}).items() if k != "unknowns"}}
-            for r in results if r.get("status") == "ok"]
+            if r.get("status") == "ok" else _not_ok_row(r) for r in results]
     df = pd.DataFrame(rows)
     return df.sort_values(["solver", "unknowns"]) if not df.empty else df
 
@@ -144,18 +178,19 @@ def work_counter(result: dict[str, Any]) -> tuple[str, float]:
 
 
 def work_precision(results: list[dict[str, Any]], error: str = "nodes.l2") -> pd.DataFrame:
-    """Error against the analytic reference with the wall time and work counter of every ok cell."""
+    """Error against the analytic reference with the wall time and work counter of every ok cell; a cell that
+    is not ok is a row with its status (no error: a claim on it cannot pass)."""
     rows = []
     for r in results:
         if r.get("status") != "ok":
+            rows.append(_not_ok_row(r))
             continue
         errors = analytic_errors(r)
-        if error not in errors:
-            continue
         name, work = work_counter(r)
-        rows.append({"solver": r["solver"], "n": r["n"], "refine": r["refine"], "unknowns": r["unknowns"],
-                     "wall_s": r["wall_s"], "kernel_s": (r.get("summary") or {}).get("kernel_s"),
-                     "work": work, "work_kind": name, f"err.{error}": errors[error],
+        rows.append({"solver": r["solver"], "n": r["n"], "refine": r["refine"], "status": "ok",
+                     "unknowns": r["unknowns"], "wall_s": r["wall_s"],
+                     "kernel_s": (r.get("summary") or {}).get("kernel_s"),
+                     "work": work, "work_kind": name, f"err.{error}": errors.get(error, np.nan),
                      "timing": r.get("timing", "parallel pass")})
     df = pd.DataFrame(rows)
     return df.sort_values(["solver", "wall_s"]) if not df.empty else df

@@ -2,12 +2,28 @@
 
 A claim is data in the study file (`[[claim]]`): which table, which rows (`select`), which column
 (`metric`), how rows are combined (`aggregate`), the target and tolerance, and the kind of
-reference the number stands on (analytic / extrapolated / mesh-dependent / same-grid / theory).
+reference the number stands on (analytic / extrapolated / mesh-dependent / same-grid / theory / paper).
 `per` splits a claim into one verdict per value of a column (e.g. per n); `against` takes the
 target from other rows (of `against_table`, default the same table; column `against_metric`,
 default the metric), matched by the `per` value unless `against` fixes that column itself.
-A claim with no usable rows is "not-applicable" with the reason, never a pass.  Each verdict names the
-solvers its value comes from and, given a `command` function, the command that reproduces its number.
+
+A pass must mean something, so a claim is judged on all its cases or on none:
+- every value its selection names must be in the table, and every row it reads must stand on cells of an
+  allowed status (`statuses`, default ok; a table of cells has a `status` column, a derived table a `missing`
+  column naming the cells it lost) with a finite value; otherwise the verdict is `fail`, naming the cases
+  (`not-applicable` only for a case whose cells were all skipped, where the claim says `allow_skipped`);
+- a verdict is three-valued: `pass` when the value's whole uncertainty band lies inside the bound, `fail`
+  when it lies wholly outside, `inconclusive` when the band straddles the bound (so an uncertainty larger
+  than the tolerance never passes).  The uncertainty is the claim's number or column, `spread` (the
+  standard error of the mean over a case's replica rows), or the table's own `<metric>_unc` column; a
+  target read from other rows adds its `<metric>_unc` in quadrature.  A named uncertainty that is unknown
+  makes the verdict inconclusive;
+- a value that stands on a Richardson sequence classified oscillatory or divergent (column `kind` or
+  `reference_class`) says so and is at best inconclusive; so is a value from a chaotic run (status
+  `defect`) unless it is the mean of replicas judged with `uncertainty = "spread"`.
+
+Each verdict names the solvers its value comes from, what it stands on (`basis`) and, given a `command`
+function, the command that reproduces its number.
 """
 
 from __future__ import annotations
@@ -24,9 +40,15 @@ from pcverify.scene import SceneError, shown
 
 REFERENCE_KINDS = ("analytic", "extrapolated", "mesh-dependent", "same-grid", "theory", "paper")
 SENSES = ("within", "at-most", "at-least")
+STATES = ("fail", "inconclusive", "not-applicable", "pass")  # worst first
 AGGREGATES = {"max": np.max, "min": np.min, "median": np.median, "mean": np.mean}
+CELL_STATUSES = ("ok", "unstable", "skipped", "non-stationary", "defect", "failed", "missing")
+CHAOTIC = ("defect",)  # statuses of runs whose digits are a property of the arithmetic, not of the model
+SPREAD = "spread"  # uncertainty = the standard error of the mean over a case's replica rows
+MIN_REPLICAS = 3
+SUSPECT_SEQUENCES = ("oscillatory", "divergent")
 VERDICT_COLUMNS = ("study", "claim", "statement", "case", "solver", "reference", "metric", "value", "target", "error",
-                   "uncertainty", "tolerance", "sense", "verdict", "note", "command")
+                   "uncertainty", "tolerance", "sense", "verdict", "basis", "note", "command")
 
 
 @dataclass(frozen=True)
@@ -47,14 +69,17 @@ class Claim:
     against: dict[str, Any] = field(default_factory=dict)
     against_table: str = ""  # default: the claim's own table
     against_metric: str = ""  # default: the claim's metric
-    uncertainty: float | str = math.nan  # a number, or a column aggregated like the metric
+    uncertainty: float | str = math.nan  # a number, a column aggregated like the metric, or "spread"
     sense: str = "within"  # within: |value - target| <= tol; at-most: value <= target + tol; at-least: >= target - tol
+    statuses: tuple[str, ...] = ("ok",)  # cell statuses a case may stand on
+    allow_skipped: bool = False  # a case whose cells were all skipped is not-applicable instead of fail
 
 
 FIELD_TYPES = {"id": "text", "text": "text", "table": "text", "metric": "text", "reference": "text", "per": "text",
                "against_table": "text", "against_metric": "text", "aggregate": "text", "sense": "text",
                "tolerance": "number", "target": "number", "absolute": "true/false", "select": "a table",
-               "against": "a table", "uncertainty": "a number or a column name"}
+               "against": "a table", "uncertainty": "a number or a column name", "statuses": "a list of statuses",
+               "allow_skipped": "true/false"}
 
 
 def _type_ok(kind: str, value: Any) -> bool:
@@ -69,6 +94,8 @@ def _type_ok(kind: str, value: Any) -> bool:
         return isinstance(value, dict) and all(
             isinstance(v, (str, int, float, bool)) or (isinstance(v, list) and all(
                 isinstance(x, (str, int, float, bool)) for x in v)) for v in value.values())
+    if kind == "a list of statuses":
+        return isinstance(value, list) and bool(value) and all(v in CELL_STATUSES for v in value)
     return number or isinstance(value, str)
 
 
@@ -90,7 +117,8 @@ def parse_claims(items: list[dict[str, Any]], where: str) -> list[Claim]:
                 raise SceneError(f"{at}: {name} is missing")
         for name, value in item.items():
             if not _type_ok(FIELD_TYPES[name], value):
-                raise SceneError(f"{at}: {name}={shown(value)} is not valid; allowed: {FIELD_TYPES[name]}")
+                allowed = FIELD_TYPES[name] + (f" ({', '.join(CELL_STATUSES)})" if name == "statuses" else "")
+                raise SceneError(f"{at}: {name}={shown(value)} is not valid; allowed: {allowed}")
         if item["id"] in ids:
             raise SceneError(f"{at}: id={item['id']!r} is used by another claim; allowed: one id per claim")
         ids.add(item["id"])
@@ -104,6 +132,11 @@ def parse_claims(items: list[dict[str, Any]], where: str) -> list[Claim]:
         tol = item["tolerance"]
         if isinstance(tol, bool) or not isinstance(tol, (int, float)) or not math.isfinite(tol) or tol < 0:
             raise SceneError(f"{at}: tolerance={tol!r} is out of range; allowed: number in [0, inf)")
+        if item.get("uncertainty") == SPREAD and item.get("aggregate", "max") != "mean":
+            raise SceneError(f"{at}: uncertainty=\"spread\" is the standard error of a mean; allowed: it with "
+                             "aggregate = \"mean\"")
+        if "statuses" in item:
+            item = item | {"statuses": tuple(item["statuses"])}
         claims.append(Claim(**item))
     return claims
 
@@ -117,78 +150,207 @@ def _rows(df: pd.DataFrame, select: dict[str, Any]) -> pd.DataFrame:
     return df
 
 
-def _aggregate(df: pd.DataFrame, column: str, how: str) -> float:
+def _absent(df: pd.DataFrame, select: dict[str, Any]) -> list[str]:
+    """The values a selection names that no row of `df` has ("n=4", ...): every case named must be present."""
+    out = []
+    for col, want in select.items():
+        have = set(df[col].dropna().tolist()) if col in df.columns else set()
+        out += [f"{col}={w}" for w in (want if isinstance(want, list) else [want]) if w not in have]
+    return out
+
+
+def _values(df: pd.DataFrame, column: str) -> np.ndarray:
     if column not in df.columns:
-        return math.nan
-    values = pd.to_numeric(df[column], errors="coerce").to_numpy(float)
-    values = values[np.isfinite(values)]
-    return float(AGGREGATES[how](values)) if values.size else math.nan
+        return np.full(len(df), math.nan)
+    return pd.to_numeric(df[column], errors="coerce").to_numpy(float)
 
 
-# the command that reproduces a verdict's number, from the claim, its value rows and its target rows (or None)
-Command = Callable[["Claim", pd.DataFrame, "pd.DataFrame | None"], str]
+def _aggregate(values: np.ndarray, how: str) -> float:
+    return float(AGGREGATES[how](values)) if values.size and np.all(np.isfinite(values)) else math.nan
+
+
+def _text(value: Any) -> str:
+    return "" if value is None or (isinstance(value, float) and math.isnan(value)) else str(value)
+
+
+def _label(row: pd.Series) -> str:
+    """A row's cell in words: solver, n, refine, params, where the table has them."""
+    parts = [f"{k}={row[k]}" for k in ("solver", "n", "refine") if k in row and _text(row[k])]
+    for k in ("params", "scene_params"):
+        if k in row and _text(row[k]):
+            parts.append(f"[{row[k]}]")
+    return " ".join(parts) or "a row"
+
+
+def _problems(rows: pd.DataFrame, claim: Claim) -> tuple[list[str], list[str]]:
+    """(why the rows cannot be judged, why they are only skipped): rows whose cells are not of an allowed
+    status, rows that lost cells (`missing`), rows of the metric with no finite value."""
+    bad, skipped = [], []
+    for _, row in rows.iterrows():
+        status = _text(row.get("status")) or "ok"
+        if status == "skipped" and claim.allow_skipped:
+            skipped.append(f"{_label(row)} skipped ({_text(row.get('reason'))})")
+        elif status not in claim.statuses:
+            reason = _text(row.get("reason"))
+            bad.append(f"{_label(row)} {status}" + (f" ({reason})" if reason else ""))
+        elif _text(row.get("missing")):
+            bad.append(f"{_label(row)} lost {row['missing']}")
+    return bad, skipped
+
+
+def _suspect(rows: pd.DataFrame) -> list[str]:
+    """Richardson sequences the rows stand on that are oscillatory or divergent."""
+    out = []
+    for col in ("kind", "reference_class"):
+        if col in rows.columns:
+            out += sorted({str(v) for v in rows[col].dropna() if str(v) in SUSPECT_SEQUENCES})
+    return sorted(set(out))
+
+
+def _uncertainty(rows: pd.DataFrame, spec: float | str, metric: str, values: np.ndarray) -> tuple[float, bool]:
+    """(uncertainty, named): the claim's number or column (max over the rows), the standard error of the mean
+    of the rows (`spread`), else the table's `<metric>_unc` column; `named` says the claim or table asks for
+    one, so an unknown value cannot be read as zero."""
+    if isinstance(spec, str) and spec == SPREAD:
+        if values.size < MIN_REPLICAS:
+            return math.nan, True
+        return float(np.std(values, ddof=1) / math.sqrt(values.size)), True
+    if isinstance(spec, str):
+        u = _values(rows, spec)
+        return (float(np.max(u)) if u.size and np.all(np.isfinite(u)) else math.nan), True
+    if math.isfinite(spec):
+        return float(spec), True
+    if f"{metric}_unc" in rows.columns:
+        u = _values(rows, f"{metric}_unc")
+        return (float(np.max(u)) if u.size and np.all(np.isfinite(u)) else math.nan), True
+    return math.nan, False
+
+
+def decide(value: float, target: float, tolerance: float, sense: str, uncertainty: float) -> str:
+    """pass / fail / inconclusive of a value with an uncertainty band (0 if unknown) against its bound."""
+    u = uncertainty if math.isfinite(uncertainty) else 0.0
+    if sense == "within":
+        miss = abs(value - target) - tolerance
+    elif sense == "at-most":
+        miss = value - (target + tolerance)
+    else:
+        miss = (target - tolerance) - value
+    if miss + u <= 0:
+        return "pass"
+    return "fail" if miss - u > 0 else "inconclusive"
+
+
+# the command that reproduces a verdict's number, from the claim, its case, its value rows and its target rows
+Command = Callable[["Claim", str, pd.DataFrame, "pd.DataFrame | None"], str]
 
 
 def _solvers(rows: pd.DataFrame) -> str:
     return ", ".join(sorted({str(s) for s in rows["solver"].dropna()})) if "solver" in rows else ""
 
 
+def _basis(rows: pd.DataFrame) -> str:
+    """What a value stands on: the levels of a fit, or how many rows were combined."""
+    if "used" in rows.columns:
+        used = sorted({_text(u) for u in rows["used"] if _text(u)})
+        if used:
+            return "; ".join(f"fit over {u}" for u in used)
+    return f"{len(rows)} rows" if len(rows) > 1 else ""
+
+
 def judge(study: str, claim: Claim, tables: dict[str, pd.DataFrame], command: Command | None = None
           ) -> list[dict[str, Any]]:
     """Verdict rows for one claim (one per `per` value)."""
     base = {"study": study, "claim": claim.id, "statement": claim.text, "reference": claim.reference,
-            "metric": claim.metric, "tolerance": claim.tolerance, "sense": claim.sense}
+            "metric": claim.metric, "tolerance": claim.tolerance, "sense": claim.sense, "basis": ""}
+
+    def whole(note: str) -> list[dict[str, Any]]:
+        cmd = command(claim, "", pd.DataFrame(), None) if command else ""
+        return [base | {"case": "", "verdict": "fail", "note": note, "command": cmd}]
+
     df = tables.get(claim.table)
     if df is None or df.empty:
-        cmd = command(claim, pd.DataFrame(), None) if command else ""
-        return [base | {"case": "", "verdict": "not-applicable", "note": f"table {claim.table} has no rows",
-                        "command": cmd}]
+        return whole(f"table {claim.table} has no rows: the claim is judged on nothing")
     missing = [c for c in (claim.metric, claim.per, *claim.select) if c and c not in df.columns]
     if missing:
-        cmd = command(claim, pd.DataFrame(), None) if command else ""
-        return [base | {"case": "", "verdict": "not-applicable", "command": cmd,
-                        "note": f"column {missing[0]} is not in table {claim.table} (columns: "
-                                f"{', '.join(map(str, df.columns))})"}]
+        return whole(f"column {missing[0]} is not in table {claim.table} (columns: {', '.join(map(str, df.columns))})")
+    absent = _absent(df, claim.select)
+    if absent:
+        return whole(f"no row of table {claim.table} has {', '.join(absent)}: a case the claim names is missing")
     rows = _rows(df, claim.select)
     others = None
     if claim.against or claim.against_table:
-        others = _rows(tables.get(claim.against_table or claim.table, pd.DataFrame()), claim.against)
-    cases = sorted(rows[claim.per].dropna().unique().tolist()) if claim.per and claim.per in rows else []
-    cases = cases or [None]
-    out = []
-    for case in cases:
-        part = rows if case is None else rows[rows[claim.per] == case]
-        row = base | {"case": "" if case is None else f"{claim.per}={case}", "solver": _solvers(part)}
-        value = _aggregate(part, claim.metric, claim.aggregate)
-        target = claim.target
-        ref = None
-        if others is not None:
-            matched = case is None or claim.per in claim.against or claim.per not in others
-            ref = others if matched else others[others[claim.per] == case]
-            target = _aggregate(ref, claim.against_metric or claim.metric, claim.aggregate)
-        row["command"] = command(claim, part, ref) if command else ""
-        if not (math.isfinite(value) and math.isfinite(target)):
-            reasons = sorted(set(str(r) for r in part.get("reason", pd.Series(dtype=str)).dropna() if r))
-            statuses = sorted(set(part.get("status", pd.Series(dtype=str)).dropna()))
-            note = f"no finite {claim.metric} in the selected rows"
-            note += f" (status {', '.join(statuses)}: {reasons[0]})" if reasons else ""
-            out.append(row | {"verdict": "not-applicable", "note": note})
-            continue
-        if isinstance(claim.uncertainty, str):
-            unc = _aggregate(part, claim.uncertainty, "max")
-        else:
-            unc = float(claim.uncertainty)
-        value = abs(value) if claim.absolute else value
-        error = abs(value - target)
-        ok = {"within": error <= claim.tolerance, "at-most": value <= target + claim.tolerance,
-              "at-least": value >= target - claim.tolerance}[claim.sense]
-        notes = [] if claim.sense == "within" else [f"{claim.sense} target"]
-        if "monotone" in part and not part["monotone"].fillna(True).astype(bool).all():
-            notes.append("pre-asymptotic: the errors do not decrease with every refinement, so the fitted order "
-                         "is not yet the asymptotic rate")
-        out.append(row | {"value": value, "target": target, "error": error, "uncertainty": unc,
-                          "verdict": "pass" if ok else "fail", "note": "; ".join(notes)})
-    return out
+        table = tables.get(claim.against_table or claim.table, pd.DataFrame())
+        absent = _absent(table, claim.against)
+        if absent:
+            return whole(f"no row of table {claim.against_table or claim.table} has {', '.join(absent)}: the "
+                         "target's rows are missing")
+        others = _rows(table, claim.against)
+    cases = sorted(rows[claim.per].dropna().unique().tolist()) if claim.per else []
+    return [_judge_case(claim, base, rows, others, case, command) for case in cases or [None]]
+
+
+def _judge_case(claim: Claim, base: dict[str, Any], rows: pd.DataFrame, others: pd.DataFrame | None, case: Any,
+                command: Command | None) -> dict[str, Any]:
+    part = rows if case is None else rows[rows[claim.per] == case]
+    label = "" if case is None else f"{claim.per}={case}"
+    ref = None
+    if others is not None:
+        matched = case is None or claim.per in claim.against or claim.per not in others
+        ref = others if matched else others[others[claim.per] == case]
+    row = base | {"case": label, "solver": _solvers(part), "basis": _basis(part),
+                  "command": command(claim, label, part, ref) if command else ""}
+    bad, skipped = _problems(part, claim)
+    if ref is not None:
+        ref_bad, ref_skipped = _problems(ref, claim)
+        bad += [f"target: {b}" for b in ref_bad]
+        skipped += ref_skipped
+    if bad:
+        return row | {"verdict": "fail", "note": "not judged on all its cells: " + "; ".join(bad)}
+    if skipped and (len(skipped) >= len(part) + (0 if ref is None else len(ref))):
+        return row | {"verdict": "not-applicable", "note": "skipped: " + "; ".join(skipped)}
+    if skipped:
+        return row | {"verdict": "fail", "note": "some of its cells were skipped: " + "; ".join(skipped)}
+    if part.empty or (ref is not None and ref.empty):
+        return row | {"verdict": "fail", "note": "no rows for this case" + (" in the target" if not part.empty else "")}
+    values = _values(part, claim.metric)
+    value = _aggregate(values, claim.aggregate)
+    target, target_u = claim.target, 0.0
+    metric = claim.against_metric or claim.metric
+    if ref is not None:
+        target = _aggregate(_values(ref, metric), claim.aggregate)
+        if f"{metric}_unc" in ref.columns:
+            target_u = _aggregate(_values(ref, f"{metric}_unc"), "max")
+    if not (math.isfinite(value) and math.isfinite(target)):
+        which = claim.metric if not math.isfinite(value) else f"target {metric}"
+        return row | {"verdict": "fail", "note": f"no finite {which} in every selected row"}
+    value_u, own = _uncertainty(part, claim.uncertainty, claim.metric, values)
+    ref_named = ref is not None and f"{metric}_unc" in ref.columns
+    named = own or ref_named
+    unc = math.hypot(value_u if own else 0.0, target_u if ref_named else 0.0) if named else math.nan
+    value = abs(value) if claim.absolute else value
+    verdict = decide(value, target, claim.tolerance, claim.sense, unc)
+    notes = [] if claim.sense == "within" else [f"{claim.sense} target"]
+    if verdict == "inconclusive":
+        notes.append("its uncertainty band straddles the bound")
+    downgrade = []
+    if named and not math.isfinite(unc):
+        downgrade.append("its uncertainty is unknown" + (f" (fewer than {MIN_REPLICAS} replicas)"
+                                                         if claim.uncertainty == SPREAD else ""))
+    chaotic = sorted({str(s) for s in part.get("status", pd.Series(dtype=str)).dropna() if str(s) in CHAOTIC})
+    if chaotic and not (claim.uncertainty == SPREAD and values.size >= MIN_REPLICAS):
+        downgrade.append(f"it stands on a chaotic run (status {', '.join(chaotic)}): one trajectory's digits, not "
+                         f"the mean of {MIN_REPLICAS} or more replicas")
+    suspect = _suspect(part) + [f"target {s}" for s in (_suspect(ref) if ref is not None else [])]
+    if suspect:
+        downgrade.append(f"its reference sequence is {', '.join(suspect)} (Richardson classification)")
+    if downgrade and verdict == "pass":
+        verdict = "inconclusive"
+    notes += downgrade
+    if "monotone" in part and not part["monotone"].fillna(True).astype(bool).all():
+        notes.append("pre-asymptotic: the errors do not decrease with every refinement, so the fitted order "
+                     "is not yet the asymptotic rate")
+    return row | {"value": value, "target": target, "error": abs(value - target), "uncertainty": unc,
+                  "verdict": verdict, "note": "; ".join(notes)}
 
 
 def verdicts(study: str, claims: list[Claim], tables: dict[str, pd.DataFrame], command: Command | None = None

@@ -26,9 +26,9 @@ def test_sentence_says_where_a_claim_fails_with_values_and_reference():
     assert state == "fail"
     assert text.startswith("statement of third: fails at n = 2 (16 nodes) / 3 (63 nodes).")
     assert "bulk_median at n = 2 (16 nodes) / 3 (63 nodes) / 4 (160 nodes): 0.159 / 0.098 / 0.310" in text
-    assert "against 0.3333 ± 0.050 (the paper)" in text
+    assert "against 0.3333 (tolerance 0.050; the paper)" in text
     state, text = sentence(RECORDS[3:4])
-    assert state == "pass" and "holds" in text and ": 1.0 × 10⁻¹⁵," in text and "(analytic solution)" in text
+    assert state == "pass" and "holds" in text and ": 1.0 × 10⁻¹⁵," in text and "; analytic solution)" in text
 
 
 def test_findings_and_summary_put_failures_first():

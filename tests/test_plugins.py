@@ -278,7 +278,8 @@ def test_report_rebuilds_a_user_study(toy) -> None:
     _pcverify(sys.executable, "study", "toy.toml", "--out", "out", cwd=where, env=env)
     (where / "out" / "toy" / "faces-cells.csv").unlink()
     report = json.loads(_pcverify(sys.executable, "report", "--out", "out", "--json", cwd=where, env=env).stdout)
-    assert {"study": "toy", "study_file": str(where / "toy.toml"), "cells_cached": 6} in report["studies"]
+    assert {"study": "toy", "study_file": str(where / "toy.toml"), "cells_cached": 6,
+            "cells_missing": 0} in report["studies"]
     assert (where / "out" / "toy" / "faces-cells.csv").exists()
     index = (where / "out" / "index.html").read_text()
     assert "study toy plugin modules" in index and "pcverify study toy.toml --out out" in index
@@ -352,7 +353,7 @@ def test_an_order_fitted_on_errors_that_do_not_decrease_is_flagged_pre_asymptoti
     fits = []
     for mono, errs in ((False, [4e-3, 1e-3, 2e-3]), (True, [4e-3, 1e-3, 2.5e-4])):
         res = [r | {"summary": {"f1_hz": 1.0 + e}} for r, e in zip(results, errs, strict=True)]
-        _, fit = tables.convergence(res, ["f1_hz"], {"f1_hz": 1.0})
+        _, fit = tables.convergence(res, ["f1_hz"], {"f1_hz": {"value": 1.0, "unc": 0.0, "kind": "monotonic"}})
         assert fit["monotone"].tolist() == [mono]
         fits.append(fit)
     claims = parse_claims([{"id": "o", "text": "order", "table": "fits", "metric": "order", "reference": "theory",

@@ -30,15 +30,15 @@ def _claims(**over):
     return parse_claims([base | over], "test.toml")
 
 
-def test_verdicts_pass_fail_and_not_applicable():
+def test_verdicts_pass_fail_and_nothing_to_judge_fails():
     v = verdicts("s", _claims(select={"solver": "a"}), TABLES)
     assert v["verdict"].tolist() == ["pass"] and v["value"][0] == pytest.approx(1e-3)  # max over n
     v = verdicts("s", _claims(select={"solver": "b"}), TABLES)
     assert v["verdict"].tolist() == ["fail"] and v["error"][0] == pytest.approx(5e-2)
-    v = verdicts("s", _claims(select={"solver": "c"}), TABLES)
-    assert v["verdict"].tolist() == ["not-applicable"]
+    v = verdicts("s", _claims(select={"solver": "c"}), TABLES)  # a case the claim names is not there
+    assert v["verdict"].tolist() == ["fail"] and "solver=c" in v["note"][0]
     v = verdicts("s", _claims(table="missing"), TABLES)
-    assert v["verdict"].tolist() == ["not-applicable"]
+    assert v["verdict"].tolist() == ["fail"] and "has no rows" in v["note"][0]
 
 
 def test_verdicts_per_case_against_other_rows_and_uncertainty_column():
@@ -163,7 +163,8 @@ def test_study_report_has_verdicts_figures_and_vtu(report):
     folder = report / "mini"
     v = pd.read_csv(folder / "verdicts.csv").set_index("claim")
     assert v.loc["exact-line", "verdict"] == "pass" and v.loc["exact-line", "value"] < 1e-9
-    assert v.loc["impossible", "verdict"] == "fail" and v.loc["absent", "verdict"] == "not-applicable"
+    assert v.loc["impossible", "verdict"] == "fail" and v.loc["absent", "verdict"] == "fail"
+    assert "solver=nobody" in v.loc["absent", "note"]
     for fig in ("paper-edge-profiles", "paper-render-3d", "wp"):
         assert (folder / f"{fig}.png").stat().st_size > 5000 and (folder / f"{fig}.svg").exists()
     manifest = json.loads((folder / "manifest.json").read_text())
@@ -181,7 +182,7 @@ def test_study_report_has_verdicts_figures_and_vtu(report):
     order = [html.index(f"id='{i}'") for i in ("summary", "findings", "verdicts", "mini", "provenance")]
     assert order == sorted(order)
     figs = [f for s in manifest["sections"] for f in s["figures"]]
-    assert html.count("<img ") == len(figs) >= 5 and "case fail" in html and "--group wp" in html
+    assert html.count("<img ") == len(figs) >= 5 and "case fail" in html and "pcverify verdict" in html
 
 
 def test_every_figure_draws_what_its_legend_lists(report):
@@ -294,9 +295,9 @@ def test_verdict_target_from_another_table():
     assert v["target"].tolist() == [0.32, 0.32] and v["verdict"].tolist() == ["fail", "pass"]
 
 
-def test_verdict_with_no_rows_is_not_applicable_even_per_case():
+def test_verdict_with_no_rows_fails_even_per_case():
     v = verdicts("s", _claims(select={"solver": "nobody"}, per="n"), TABLES)
-    assert v["verdict"].tolist() == ["not-applicable"] and v["case"].tolist() == [""]
+    assert v["verdict"].tolist() == ["fail"] and v["case"].tolist() == [""]
 
 
 def test_verdict_one_sided_claims():

@@ -117,12 +117,14 @@ def test_stability_study_and_report(tmp_path) -> None:
     assert "mca" in skipped and "steady mca heat is a direct solve" in skipped["mca"]
     folder = write_study_report(study, results, tmp_path / "out")
     limits = pd.read_csv(folder / "limit-limits.csv")
+    assert set(limits[limits["status"] == "skipped"]["solver"]) == {"skfem", "mca"}  # rows with the reason
+    limits = limits[limits["status"] == "ok"]
     assert list(limits["damping_ratio"]) == [0.0, 0.2]
     theory = [1.0, math.sqrt(1.04) - 0.2]
     assert limits["safety_theory"].tolist() == pytest.approx(theory, rel=1e-9)
     assert (abs(limits["relative_deviation"]) < 0.06).all()  # ratio_tol 0.01, 0.5 s runs
     smap = pd.read_csv(folder / "map-map.csv")
-    assert set(smap[smap["dt_ratio"] == 1.2]["status"]) == {"unstable"}
+    assert set(smap[smap["dt_ratio"] == 1.2]["run_status"]) == {"unstable"}
     assert not smap["undetected"].any()
     assert (folder / "limit-limits.png").exists() and (folder / "map-map-macromolecule-n2.png").exists()
 

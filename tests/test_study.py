@@ -43,7 +43,7 @@ def test_cache_resume_and_corruption(study_file, tmp_path):
     study = load_study(str(study_file))
     cache = Cache(tmp_path / "cache")
     first, counts = execute(study, cache, progress=False)
-    assert counts == {"cells": 5, "cached": 0, "done": 5, "failed": 0, "corrupt": 0}
+    assert counts == {"cells": 5, "cached": 0, "done": 5, "failed": 0, "corrupt": 0, "statuses": {"ok": 5}}
     again, counts = execute(study, cache, progress=False)
     assert counts["cached"] == 5 and counts["done"] == 0
     assert [r["summary"] for r in again] == [r["summary"] for r in first]

@@ -82,8 +82,8 @@ def test_json_and_verdicts_file_list_every_verdict(study, tmp_path, capsys):
     wrong = by[("wrong-mean", "")]
     assert wrong["verdict"] == "fail" and wrong["value"] == pytest.approx(0.5, abs=1e-9)
     assert wrong["error"] == pytest.approx(0.1, abs=1e-9) and wrong["uncertainty"] is None
-    # a value from several cells is reproduced by its group; one from a single cell by `pcverify run`
-    assert wrong["command"] == f"pcverify study {study} --group faces"
+    # a value from several cells is reproduced by `pcverify verdict`; one error of a single cell by `pcverify run`
+    assert wrong["command"] == f"pcverify verdict {study} wrong-mean"
     assert by[("exact-line", "n=3")]["command"] == "pcverify run bar-heat-faces --solver skfem --n 3"
     assert by[("exact-line", "n=3")]["nodes"] == 63  # 3 x 3 x 7 lattice nodes
 
@@ -98,8 +98,9 @@ def test_strict_exits_1_and_lists_the_failed_claims(study, tmp_path):
                             text=True, timeout=600, check=False)
     assert strict.returncode == 1
     lines = strict.stderr.strip().splitlines()
-    assert any("claim failed: gate/wrong-mean" in x and "--group faces" in x for x in lines)
-    assert not any("exact-line" in x for x in lines) and "1 failed verdicts of 3" in lines[-1]
+    assert any("claim fail: gate/wrong-mean" in x and f"reproduce: pcverify verdict {study} wrong-mean" in x
+               for x in lines)
+    assert not any("exact-line" in x for x in lines) and "1 of 3 verdicts are not a pass" in lines[-1]
 
 
 def test_group_selector_runs_one_group_with_its_claims(study, tmp_path, capsys):
@@ -112,22 +113,23 @@ def test_group_selector_runs_one_group_with_its_claims(study, tmp_path, capsys):
     assert [s["id"] for s in manifest["sections"]] == ["paper"]
     code, stdout, _ = _run(capsys, study, "--out", out, "--json", "--group", "faces", "--strict")
     assert code == 1 and len(json.loads(stdout.strip().splitlines()[-1])[0]["verdicts"]) == 3
+    manifest = json.loads((out / "gate" / "manifest.json").read_text())
+    assert [s["id"] for s in manifest["sections"]] == ["paper", "faces"]  # merged: the paper group stays
     code, _, err = _run(capsys, study, "--out", out, "--group", "nope")
     assert code == 2 and "group='nope' is unknown" in err and "faces, paper" in err
     code, _, err = _run(capsys, "default", "--out", out, "--group", "faces", "--dry-run")
     assert code == 2 and "--group needs one study" in err
 
 
-def test_a_verdict_command_reproduces_its_value(study, tmp_path, capsys):
+def test_a_group_run_never_removes_the_other_groups_verdicts(study, tmp_path, capsys):
+    """Checking one number with --group keeps the rest of the report: every claim's verdict is still there."""
     out = tmp_path / "reports"
     assert _run(capsys, study, "--out", out)[0] == 0
-    record = next(r for r in json.loads((out / "verdicts.json").read_text()) if r["case"] == "n=2")
-    argv = record["command"].split()[1:]
-    assert main([*argv, "--json"]) == 0
-    solved = json.loads(capsys.readouterr().out)
-    err = max(abs(v - (1 - z / 0.03)) for v, (_, _, z) in zip(solved["samples"]["nodes"]["values"],
-                                                                 solved["samples"]["nodes"]["points"], strict=True))
-    assert err == record["value"]  # the same number, bit for bit
+    full = json.loads((out / "gate" / "verdicts.json").read_text())
+    assert _run(capsys, study, "--out", out, "--group", "paper")[0] == 0
+    assert json.loads((out / "gate" / "verdicts.json").read_text()) == full
+    assert [s["id"] for s in json.loads((out / "gate" / "manifest.json").read_text())["sections"]] == ["faces", "paper"]
+    assert json.loads((out / "verdicts.json").read_text()) == full
 
 
 def test_run_command_only_for_what_every_pcverify_process_knows():
