@@ -175,7 +175,8 @@ def _text(value: Any) -> str:
 
 def _label(row: pd.Series) -> str:
     """A row's cell in words: solver, n, refine, params, where the table has them."""
-    parts = [f"{k}={row[k]}" for k in ("solver", "n", "refine") if k in row and _text(row[k])]
+    parts = [f"{k}={row[k]}" for k in ("solver", "n", "refine") if k in row and _text(row[k])
+             and not (k == "refine" and _text(row[k]) == "1")]
     for k in ("params", "scene_params"):
         if k in row and _text(row[k]):
             parts.append(f"[{row[k]}]")

@@ -78,7 +78,11 @@ PARAMETERS: tuple[Param, ...] = (
           choices=("absorbing", "frozen"), kind=str),
     Param("face_gamma", None, "1/s", "bath friction rate of the faces (default omega_max / 2)", low=0.0, high=1e9,
           low_open=True, optional=True),
-    Param("seed", 0, "", "seed of face phases and Langevin noise", low=0, high=2**31 - 1, kind=int),
+    Param("seed", 0, "", "seed of face phases, Langevin noise and the initial perturbation", low=0, high=2**31 - 1,
+          kind=int),
+    Param("perturbation", 0.0, "a 2 pi f_top", "random initial velocities of the free particles (normal, seeded by "
+          "seed), in units of a 2 pi f_top: replicas of a run whose trajectory is chaotic (defect regime) differ by "
+          "it, so their spread measures how much of a value is the arithmetic's", low=0.0, high=1e-3),
     Param("stationarity_tol", 0.1, "", "non-stationary if the hotness of a free particle changes by more than this "
           "(relative to the hottest free one) between the halves of the window", low=0.0, high=10.0, low_open=True),
     Param("blowup_factor", 10.0, "", "unstable if the kinetic energy exceeds this times the energy supplied",
@@ -89,6 +93,14 @@ PARAMETERS: tuple[Param, ...] = (
           kind=int),
     Param("dt_check", False, "", "rerun at dt/2 and report the change in relative hotness", kind=bool),
 )
+
+
+def initial_velocities(s: Setup, p: dict[str, Any]) -> np.ndarray | None:
+    """The seeded random initial velocities of the free particles (`perturbation` > 0), else None (rest)."""
+    if p["perturbation"] == 0:
+        return None
+    scale = p["perturbation"] * s.lattice.a * 2 * np.pi * s.f_top
+    return scale * np.random.default_rng(p["seed"]).standard_normal((s.lattice.size, 3))
 
 
 class Macromolecule:
@@ -145,11 +157,15 @@ class Macromolecule:
             return self._modes(scene, n, p, t_wall)
         s = prepare(scene, n, p)
         if p["kernel"] == ENSEMBLE:
+            if p["perturbation"] > 0:
+                raise SceneError(f"perturbation={p['perturbation']:g} is not allowed with kernel=ensemble; allowed: "
+                                 "0, or another kernel")
             run = run_heat(scene, [s], [p])[0]
         else:
             run = simulate(s.lattice, s.model, s.fixes, s.delta, s.dt, p["t_end"], p["t_start"],
-                           2 * np.pi * p["drive_frequency"], seed=p["seed"], blowup_factor=p["blowup_factor"],
-                           contact_fraction=p["contact_fraction"], kernel=p["kernel"])
+                           2 * np.pi * p["drive_frequency"], v0=initial_velocities(s, p), seed=p["seed"],
+                           blowup_factor=p["blowup_factor"], contact_fraction=p["contact_fraction"],
+                           kernel=p["kernel"])
         return self._heat(scene, n, p, s, run, t_wall, samples)
 
     def solve_batch(self, scene: Scene, resolution: Resolution, param_sets: list[dict[str, Any]],
@@ -226,7 +242,7 @@ class Macromolecule:
             summary.update(self._faces(lat, H, fx, diagnostics))
         if p["dt_check"]:
             fine = simulate(lat, s.model, fx, s.delta, s.dt / 2, p["t_end"], p["t_start"], w_drive,
-                            seed=p["seed"], blowup_factor=p["blowup_factor"], contact_fraction=p["contact_fraction"],
+                            v0=initial_velocities(s, p), seed=p["seed"], blowup_factor=p["blowup_factor"], contact_fraction=p["contact_fraction"],
                             kernel=p["kernel"])
             Hf = fine.hot[0]
             relf = Hf / Hf[free].max()
