@@ -59,15 +59,15 @@ def test_a_bad_study_file_is_refused_before_any_cell_runs(case, text, words, tmp
     ('metric = "err.nodes.l3"\n', "column err.nodes.l3 is not in table g-cells"),
 ])
 def test_a_claim_naming_a_missing_column_says_so(claim, note, tmp_path) -> None:
-    """A claim over a column the table does not have is not-applicable with the reason, never a silent
-    single case or a pass."""
+    """A claim over a column the table does not have fails with the reason, never a silent single case or a
+    pass."""
     metric = 'metric = "err.nodes.linf"\n'
     text = BASE + CLAIM.replace(metric, "" if "metric" in claim else metric)
     (tmp_path / "s.toml").write_text(text + claim)
     out = cli("study", "s.toml", "--out", "out", cwd=tmp_path)
     assert out.returncode == 0, out.stderr[-1500:]
     verdicts = (tmp_path / "out" / "s" / "verdicts.csv").read_text()
-    assert "not-applicable" in verdicts and note in verdicts, verdicts
+    assert ",fail," in verdicts and note in verdicts, verdicts
     tally("study files", "accepted")
 
 
