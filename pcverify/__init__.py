@@ -20,7 +20,11 @@ from __future__ import annotations
 
 from importlib import metadata
 
-from pcverify.scene import (
+from pcverify.numba_guard import guard_numba_cache
+
+guard_numba_cache()  # first: before any module defines a numba function with cache=True
+
+from pcverify.scene import (  # noqa: E402
     ALUMINIUM,
     DURALUMIN,
     FACES,
@@ -42,7 +46,7 @@ from pcverify.scene import (
     SceneError,
     SceneSpec,
 )
-from pcverify.solvers.protocol import (
+from pcverify.solvers.protocol import (  # noqa: E402
     KINDS,
     STATUSES,
     ProbeRun,
