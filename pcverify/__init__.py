@@ -14,6 +14,9 @@ stable is listed in the README):
 Plugins are found through the entry point groups `pcverify.solvers` and `pcverify.scenes`, a study
 file's `plugins = [...]`, or `--solver module:Class`.  Everything else (`pcverify.harness`,
 `pcverify.solvers`, `pcverify.references`) is the product's own and may change between versions.
+
+Importing pcverify guards numba's on-disk cache (`numba_guard`): a function compiled with cache=True
+afterwards is recompiled when any module it reaches by import changes, not only its own file.
 """
 
 from __future__ import annotations

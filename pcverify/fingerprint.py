@@ -234,7 +234,8 @@ def source_closure(module: str) -> dict[str, str]:
         if top not in roots and _installed(origin) and _distributions(top):
             out.update(_distributions(top))  # a module of a namespace package inside an installed distribution
             continue
-        summary = _read(origin, name, spec.submodule_search_locations is not None)
+        # relative imports resolve against the spec's name (pkg.mod for `python -m pkg.mod`, not __main__)
+        summary = _read(origin, spec.name or name, spec.submodule_search_locations is not None)
         if summary is None:
             continue
         read.append(origin)
