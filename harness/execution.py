@@ -22,8 +22,8 @@ from joblib import Parallel, delayed
 from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
+from pcverify.fingerprint import code_fingerprint, module_fingerprint
 from pcverify.harness.cache import Cache, cell_key
-from pcverify.harness.fingerprint import code_fingerprint, module_fingerprint
 from pcverify.harness.interrupt import check_interrupted, ignore_sigint_in_worker
 from pcverify.harness.limits import check_work
 from pcverify.harness.plugins import load_plugins

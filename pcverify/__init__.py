@@ -14,13 +14,20 @@ stable is listed in the README):
 Plugins are found through the entry point groups `pcverify.solvers` and `pcverify.scenes`, a study
 file's `plugins = [...]`, or `--solver module:Class`.  Everything else (`pcverify.harness`,
 `pcverify.solvers`, `pcverify.references`) is the product's own and may change between versions.
+
+Importing pcverify guards numba's on-disk cache (`numba_guard`): a function compiled with cache=True
+afterwards is recompiled when any module it reaches by import changes, not only its own file.
 """
 
 from __future__ import annotations
 
 from importlib import metadata
 
-from pcverify.scene import (
+from pcverify.numba_guard import guard_numba_cache
+
+guard_numba_cache()  # first: before any module defines a numba function with cache=True
+
+from pcverify.scene import (  # noqa: E402
     ALUMINIUM,
     DURALUMIN,
     FACES,
@@ -42,7 +49,7 @@ from pcverify.scene import (
     SceneError,
     SceneSpec,
 )
-from pcverify.solvers.protocol import (
+from pcverify.solvers.protocol import (  # noqa: E402
     KINDS,
     STATUSES,
     ProbeRun,

@@ -105,7 +105,7 @@ class Solver(Protocol):
     takes, with its default, unit and range (`pcverify solvers` lists them).  A solver may also offer
     `stability_probe() -> StabilityProbe` (see below) and `estimate(scene, resolution, **params) ->
     WorkEstimate` (the harness then refuses work beyond its limits before it starts); the cache key holds
-    a fingerprint of the solver's code, so no version needs bumping when results change.
+    a fingerprint of the code the solver reaches by import, so no version needs bumping when results change.
     """
 
     name: str

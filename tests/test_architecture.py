@@ -25,6 +25,7 @@ def test_import_contracts_hold() -> None:
      "The harness reaches solvers only through the registry"),
     ("references/heat_faces.py", "import pcverify.solvers.registry", "Data flows one way"),
     ("scene/geometry.py", "from pcverify.harness import cache", "Data flows one way"),
+    ("fingerprint.py", "from pcverify.scene import params", "Data flows one way"),
     ("harness/cache.py", "from pcverify.harness import study", "Harness layers"),
     ("solvers/particles/mca/automata.py", "from pcverify.solvers.particles.macromolecule import lattice",
      "Particle models and continuum solvers do not import each other"),
