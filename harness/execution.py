@@ -21,6 +21,7 @@ from joblib import Parallel, delayed
 from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
+from pcverify.harness.boundary import Inadmissible
 from pcverify.harness.cache import Cache, cell_key
 from pcverify.harness.fingerprint import code_fingerprint, module_fingerprint
 from pcverify.harness.interrupt import check_interrupted, ignore_sigint_in_worker
@@ -62,8 +63,13 @@ def cell_identity(cell: Cell) -> tuple[dict[str, Any], str | None]:
                       "task_code": module_fingerprint(type(cell.task).__module__)}, None
 
 
-def run_cell(cell: Cell) -> dict[str, Any]:
-    """Run one cell through its task and return its JSON-ready result (skips and failures are results too)."""
+def run_cell(cell: Cell, raise_scene_errors: bool = False) -> dict[str, Any]:
+    """Run one cell through its task and return its JSON-ready result (skips and failures are results too).
+
+    BLAS runs on one thread (results must not depend on --jobs or the machine); the solver's output passes
+    the boundary checks (`boundary`).  Whatever the solve raises, or an output the checks refuse, is the
+    cell's failed status with the reason; with `raise_scene_errors` a SceneError (the solver refusing its
+    input) propagates instead, for the command line to report as bad input."""
     base = {"group": cell.group, "scene": cell.scene.name, "solver": cell.solver, "n": cell.n,
             "refine": cell.refine, "scene_params": dict(cell.scene_params), "solver_params": dict(cell.solver_params)}
     try:
@@ -78,8 +84,12 @@ def run_cell(cell: Cell) -> dict[str, Any]:
     try:
         with threadpool_limits(limits=1, user_api="blas"):  # results must not depend on --jobs
             out = cell.task.run(solver, cell.scene, resolution, dict(cell.solver_params))
-    except CELL_ERRORS as exc:
-        return base | {"status": "failed", "reason": f"{type(exc).__name__}: {exc}"}
+    except Exception as exc:  # noqa: BLE001 - whatever a solver raises is its cell's failure, never a traceback
+        if raise_scene_errors and isinstance(exc, SceneError):
+            raise
+        text = " ".join(str(exc).split())
+        return base | {"status": "failed", "reason": text if isinstance(exc, Inadmissible)
+                       else f"{type(exc).__name__}: {text}"}
     res = dict(out.get("resolution") or {})
     res.setdefault("h", resolution.spacing(cell.scene.box.width))
     return base | out | {"resolution": res}
