@@ -40,9 +40,6 @@ except ImportError:  # --scheduler then says how to install it
 
 SCHEDULER_ADDRESS = re.compile(r"^(tcp|tls|ws|wss|ucx)://[A-Za-z0-9._\-\[\]:]+:[0-9]{1,5}$|^inproc://[\w./\-]+$")
 
-# solve failures that are results of the cell (the input or the numbers), not bugs of the harness
-CELL_ERRORS = (SceneError, ValueError, ArithmeticError, MemoryError)
-
 
 def cell_identity(cell: Cell) -> tuple[dict[str, Any], str | None]:
     """(key payload, skip reason or None) of a cell.  The payload holds the scene's content hash, the
