@@ -3,7 +3,7 @@
 A solver, shipped or a plugin, is trusted with its numbers but not with their form.  Before a result is
 stored or compared with a reference it must be a `Solution` whose sample sets are the ones the scene asks
 for (`scene.sample_sets(n)`, the points `solve` reports at by default), at those points, with one real value
-per point (finite when the status is ok), and whose summary, work, resolution and parameters hold real
+or 3-vector per point (finite when the status is ok), and whose summary, work, resolution and parameters hold real
 numbers where numbers belong; the whole of it must be JSON.  Anything else raises `Inadmissible`, whose
 message names the solver and the first field at fault: the cell's failed status, never a traceback and
 never ok.
@@ -98,7 +98,8 @@ def _count(count: int, what: str) -> str:
 
 
 def _samples(solution: Solution, scene: Scene, resolution: Resolution, who: str) -> None:
-    """Every asked set, at the asked points, one real value per point, finite when ok.  A run that is not ok
+    """Every asked set, at the asked points, one real value (a temperature) or 3-vector (a displacement, a mode
+    shape) per point, finite when ok.  A run that is not ok
     may lack sets (it stopped before it had a field); a modal scene's result is its frequencies, so its sets
     are all there or none."""
     asked = scene.sample_sets(resolution.n)
@@ -132,14 +133,14 @@ def _samples(solution: Solution, scene: Scene, resolution: Resolution, who: str)
                                "of coordinates (m)")
         if values is None:
             raise Inadmissible(f"{who} {field}['values'] that are not real numbers ({_kind(entry['values'])}); "
-                               "allowed: one real number per point")
+                               "allowed: one real number or 3-vector per point")
         if points.ndim != 2 or points.shape[1] != 3:
             raise Inadmissible(f"{who} {field}['points'] of shape {points.shape}; allowed: ({len(want)}, 3)")
         if len(points) != len(want):
             raise Inadmissible(f"{who} {field} with {_count(len(points), 'point')}; the scene asks for {len(want)}")
-        if values.shape != (len(want),):
+        if values.shape not in ((len(want),), (len(want), 3)):
             raise Inadmissible(f"{who} {field}['values'] of shape {values.shape} for {_count(len(want), 'point')}; "
-                               f"allowed: ({len(want)},)")
+                               f"allowed: ({len(want)},) or ({len(want)}, 3)")
         if not np.all(np.isfinite(points)):
             raise Inadmissible(f"{who} {field} with non-finite point coordinates")
         off = np.max(np.abs(points - want), axis=1)
@@ -150,7 +151,7 @@ def _samples(solution: Solution, scene: Scene, resolution: Resolution, who: str)
                                f"the first (point {i}) by {off[i]:.3g} m from "
                                f"({', '.join(f'{c:.6g}' for c in want[i])}) (tolerance {POINT_TOLERANCE * size:.1g} "
                                "m); allowed: the points of scene.sample_sets(n)")
-        bad = np.flatnonzero(~np.isfinite(values))
+        bad = np.flatnonzero(~np.all(np.isfinite(values.reshape(len(want), -1)), axis=1))
         if bad.size and solution.status == "ok":
             raise Inadmissible(f"{who} {field} with {_count(bad.size, 'non-finite value')} ({values[bad[0]]} at point "
                                f"{int(bad[0])}) and status ok; allowed: finite values, or a status that is not "

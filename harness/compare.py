@@ -4,7 +4,8 @@ Per sample set, the absolute L2 (root mean square) and L-infinity errors of the 
 reference at the same points (in the units of the solution's `quantity`), with the kind of reference they
 stand on: "analytic" (the exact solution, `pcverify.references.analytic`).  The errors are stored with the
 cell (its `errors`), so the tables, the calibrations and `pcverify run` read the numbers computed here from
-the cell's own Scene, never from a scene rebuilt by name.  A scene without a reference has no errors.  The
+the cell's own Scene, never from a scene rebuilt by name.  A scene without a reference has no errors, nor
+has a set of vector values (a displacement): the reference is one scalar per point.  The
 cell key holds this module's fingerprint (and that of the references it imports).
 """
 
@@ -26,7 +27,7 @@ def errors(scene: Scene, samples: dict[str, Any] | None) -> dict[str, dict[str, 
     out: dict[str, dict[str, Any]] = {}
     for name, entry in (samples or {}).items():
         values = np.asarray(entry["values"], dtype=float)
-        if values.size == 0:
+        if values.size == 0 or values.ndim != 1:
             continue
         exact = analytic(scene, np.asarray(entry["points"], dtype=float))
         if exact is None:
