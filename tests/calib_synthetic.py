@@ -1,9 +1,10 @@
 """A synthetic solver with a known optimum for the calibration tests (imported as a study plugin).
 
 "calib-quadratic" reports, on any steady heat scene, the scalar q = (x - X0)^2 + 2 (log10 y - log10 Y0)^2
-(in its summary, and as the value at every sample point: a solution has the scene's sample sets) plus noise: a seeded normal of standard deviation `noise` (the seed parameter picks the replica), so the
-objective |q - 0| has its minimum at (X0, Y0) and a noise that replicas measure.  `fail_above`: sets with
-x above it return status "defect" (a failure, never data).  Each finished solve appends one line to the file in
+plus noise (in its summary, and as the value at every sample point: a solution has the scene's sample sets):
+a seeded normal of standard deviation `noise` (the seed parameter picks the replica), so the objective
+|q - 0| has its minimum at (X0, Y0) and a noise that replicas measure.  `fail_above`: sets with x above it
+return status "defect" (a failure, never data).  Each finished solve appends one line to the file in
 $CALIB_SYNTHETIC_LOG (if set), so a test counts solver runs independently of the cache's own counts.
 """
 
