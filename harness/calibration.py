@@ -36,7 +36,7 @@ from pcverify.harness.calibspec import CalibCell, Calibration
 from pcverify.harness.execution import cell_identity, execute
 from pcverify.harness.metrics import richardson
 from pcverify.harness.study import Cell, Group, Study
-from pcverify.harness.tables import analytic_errors, scalars, spacing, work_counter
+from pcverify.harness.tables import scalars, spacing, stored_errors, work_counter
 
 PENALTY = 1e6  # objective handed to the local search for a failed parameter set (steers it away; never data)
 CALIBRATED, VALIDATED = "calibrated on", "validated on"
@@ -140,7 +140,7 @@ class _Evaluator:
         if result.get("status") != "ok":
             return math.nan, math.nan
         if cc.reference is None:
-            e = analytic_errors(result).get(cc.metric, math.nan)
+            e = stored_errors(result).get(cc.metric, math.nan)
             return e, e
         v = scalars(result).get(cc.metric)
         ref = self.reference(cc)

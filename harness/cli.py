@@ -27,12 +27,12 @@ from pcverify.harness.cache import Cache
 from pcverify.harness.calibration import NotCached, calibration_section, run_calibration
 from pcverify.harness.catalogue import entries as scene_entries
 from pcverify.harness.catalogue import get_spec
-from pcverify.harness.execution import CELL_ERRORS, cached_results, execute, plan
+from pcverify.harness.execution import cached_results, cell_identity, execute, plan, run_cell
 from pcverify.harness.interrupt import received, remember_sigint
 from pcverify.harness.limits import check_work
 from pcverify.harness.report import manifests, study_verdicts, warn, write_index, write_study_report
 from pcverify.harness.reproduce import claim_groups, select_groups
-from pcverify.harness.study import MAX_CELLS, load_study, study_files
+from pcverify.harness.study import MAX_CELLS, Cell, load_study, study_files
 from pcverify.scene import Param, Resolution, SceneError, shown
 from pcverify.solvers.protocol import skipped
 from pcverify.solvers.registry import SolverUnavailable, get_solver
@@ -220,27 +220,27 @@ def working(label: str, enabled: bool = True) -> Iterator[None]:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
+    """`pcverify run`: one cell through the study's cell path (`execution.run_cell`: BLAS on one thread, the
+    boundary checks, the compare step), so it prints the numbers a study stores for that cell, errors
+    against the reference included.  Exit 1 when the cell failed."""
     spec = get_spec(args.scene)
     resolution = Resolution(args.n, args.refine)
     solver = get_solver(args.solver)
     scene_vals, solver_vals = split_settings(args.set or [], spec.parameters, solver.parameters)
     scene = spec.make(**scene_vals)
-    ok, reason = solver.supports(scene)
-    if ok:
+    cell = Cell("run", scene, tuple(sorted(scene_vals.items())), args.solver, resolution.n, resolution.refine,
+                tuple(sorted(solver_vals.items())))
+    _, skip = cell_identity(cell)  # the parameters check: a bad value is one error line
+    if skip is None:
         check_work(solver, scene, resolution, solver_vals, args.allow_large)
     with working(f"{solver.name} on {scene.name} n={resolution.n} refine={resolution.refine}", not args.json):
-        try:
-            solution = solver.solve(scene, resolution, **solver_vals) if ok else skipped(scene, solver, resolution,
-                                                                                         reason)
-        except SceneError:
-            raise  # bad input: one error line
-        except CELL_ERRORS as exc:  # the solve itself failed: a result with that status, as in a study
-            solution = dataclasses.replace(skipped(scene, solver, resolution, ""), status="failed",
-                                           reason=f"{type(exc).__name__}: {' '.join(str(exc).split())}")
-    out = solution.to_dict()
+        result = run_cell(cell, raise_scene_errors=True)
+    # every key of a solution, also for a skipped or failed cell (a public interface: keys are never dropped)
+    out = skipped(scene, solver, resolution, "").to_dict() | result
     out["scene_params"] = scene.param_dict
     out["scene_hash"] = scene.content_hash()
-    code = 1 if solution.status == "failed" else 0
+    out.setdefault("errors", {})
+    code = 1 if out["status"] == "failed" else 0
     if args.json:
         print(json.dumps(out))
         return code
@@ -251,9 +251,13 @@ def cmd_run(args: argparse.Namespace) -> int:
     print(f"status   {out['status']}{'  (' + out['reason'] + ')' if out['reason'] else ''}")
     for key, value in out["summary"].items():
         print(f"  {key:<24} {value}")
-    for name, s in solution.samples.items():
-        v = np.asarray(s["values"])
-        print(f"  {name:<24} {v.size} points, {solution.quantity} in [{v.min():.6g}, {v.max():.6g}]")
+    for name, s in out["samples"].items():
+        v = np.asarray(s["values"], dtype=float)
+        span = f"in [{np.nanmin(v):.6g}, {np.nanmax(v):.6g}]" if np.isfinite(v).any() else "not finite"
+        print(f"  {name:<24} {v.size} points, {out['quantity']} {span}")
+    for name, e in out["errors"].items():
+        shown_errors = "  ".join(f"{k} {'n/a' if e.get(k) is None else repr(e[k])}" for k in ("l2", "linf"))
+        print(f"  error {name:<18} {shown_errors}  (absolute, against the {e['reference']} reference)")
     return code
 
 

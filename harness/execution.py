@@ -23,6 +23,8 @@ from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
 from pcverify.fingerprint import code_fingerprint, module_fingerprint
+from pcverify.harness import compare
+from pcverify.harness.boundary import Inadmissible
 from pcverify.harness.cache import Cache, cell_key
 from pcverify.harness.interrupt import check_interrupted, ignore_sigint_in_worker
 from pcverify.harness.limits import check_work
@@ -39,13 +41,11 @@ except ImportError:  # --scheduler then says how to install it
 
 SCHEDULER_ADDRESS = re.compile(r"^(tcp|tls|ws|wss|ucx)://[A-Za-z0-9._\-\[\]:]+:[0-9]{1,5}$|^inproc://[\w./\-]+$")
 
-# solve failures that are results of the cell (the input or the numbers), not bugs of the harness
-CELL_ERRORS = (SceneError, ValueError, ArithmeticError, MemoryError)
-
 
 def cell_identity(cell: Cell) -> tuple[dict[str, Any], str | None]:
     """(key payload, skip reason or None) of a cell.  The payload holds the scene's content hash, the
-    solver's name and code fingerprint (and the task's), the resolution, the task and the parameters."""
+    solver's name and code fingerprint (and the task's), the resolution, the task, the parameters and the
+    fingerprint of the compare step (its errors are part of the result)."""
     payload: dict[str, Any] = {"scene": cell.scene.content_hash(), "solver": cell.solver, "n": cell.n,
                                "refine": cell.refine, "task": cell.task.name}
     if cell.serial:
@@ -60,11 +60,18 @@ def cell_identity(cell: Cell) -> tuple[dict[str, Any], str | None]:
         return payload | {"params": dict(cell.solver_params), "skipped": True}, reason
     params = cell.task.check(solver, dict(cell.solver_params))
     return payload | {"params": params, "code": code_fingerprint(solver),
-                      "task_code": module_fingerprint(type(cell.task).__module__)}, None
+                      "task_code": module_fingerprint(type(cell.task).__module__),
+                      "compare": module_fingerprint(compare.__name__)}, None
 
 
-def run_cell(cell: Cell) -> dict[str, Any]:
-    """Run one cell through its task and return its JSON-ready result (skips and failures are results too)."""
+def run_cell(cell: Cell, raise_scene_errors: bool = False) -> dict[str, Any]:
+    """Run one cell through its task and return its JSON-ready result (skips and failures are results too).
+
+    BLAS runs on one thread (results must not depend on --jobs or the machine); the solver's output passes
+    the boundary checks (`boundary`), then is compared with the scene's reference once (`compare`: the
+    result's `errors`).  Whatever the solve raises, or an output the checks refuse, is the cell's failed
+    status with the reason; with `raise_scene_errors` a SceneError (the solver refusing its input) propagates
+    instead, for the command line to report as bad input."""
     base = {"group": cell.group, "scene": cell.scene.name, "solver": cell.solver, "n": cell.n,
             "refine": cell.refine, "scene_params": dict(cell.scene_params), "solver_params": dict(cell.solver_params)}
     try:
@@ -79,11 +86,15 @@ def run_cell(cell: Cell) -> dict[str, Any]:
     try:
         with threadpool_limits(limits=1, user_api="blas"):  # results must not depend on --jobs
             out = cell.task.run(solver, cell.scene, resolution, dict(cell.solver_params))
-    except CELL_ERRORS as exc:
-        return base | {"status": "failed", "reason": f"{type(exc).__name__}: {exc}"}
+    except Exception as exc:  # noqa: BLE001 - whatever a solver raises is its cell's failure, never a traceback
+        if raise_scene_errors and isinstance(exc, SceneError):
+            raise
+        text = " ".join(str(exc).split())
+        return base | {"status": "failed", "reason": text if isinstance(exc, Inadmissible)
+                       else f"{type(exc).__name__}: {text}"}
     res = dict(out.get("resolution") or {})
     res.setdefault("h", resolution.spacing(cell.scene.box.width))
-    return base | out | {"resolution": res}
+    return base | out | {"resolution": res, "errors": compare.errors(cell.scene, out.get("samples"))}
 
 
 def _indexed(i: int, cell: Cell) -> tuple[int, dict[str, Any]]:

@@ -1,19 +1,20 @@
 """Turn cached cell results into tables: convergence (errors, orders, Richardson/GCI) and timing.
 
 Input is the list of JSON-ready results a study produced; output is pandas DataFrames
-that the report writes as CSV, Markdown and plots.  Nothing here runs a solver.
+that the report writes as CSV, Markdown and plots.  Nothing here runs a solver or evaluates a reference:
+the errors are those the compare step stored with each cell (`pcverify.harness.compare`).
 """
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
 import pandas as pd
 
 from pcverify.harness.catalogue import make_scene
-from pcverify.harness.metrics import field_errors, fit_order, richardson
-from pcverify.references import analytic
+from pcverify.harness.metrics import fit_order, richardson
 
 
 def spacing(result: dict[str, Any]) -> float:
@@ -47,23 +48,16 @@ def cells_table(results: list[dict[str, Any]]) -> pd.DataFrame:
             if isinstance(v, (int, float)):
                 row[f"work.{k}"] = v
         if r.get("status") == "ok":
-            row.update({f"err.{k}": v for k, v in analytic_errors(r).items()})
+            row.update({f"err.{k}": v for k, v in stored_errors(r).items()})
         rows.append(row)
     return pd.DataFrame(rows)
 
 
-def analytic_errors(result: dict[str, Any]) -> dict[str, float]:
-    """L2 / Linf errors of T/t_max per sample set against the analytic solution (empty if none)."""
-    scene = make_scene(result["scene"], **result.get("scene_params", {}))
-    out: dict[str, float] = {}
-    for name, s in (result.get("samples") or {}).items():
-        pts = np.asarray(s["points"], dtype=float)
-        exact = analytic(scene, pts)
-        if exact is None:
-            return {}
-        for kind, value in field_errors(np.asarray(s["values"], dtype=float), exact).items():
-            out[f"{name}.{kind}"] = value
-    return out
+def stored_errors(result: dict[str, Any]) -> dict[str, float]:
+    """The errors the compare step stored with a cell, as columns "<set>.l2" / "<set>.linf" (absolute, against
+    the scene's reference; empty when it has none; NaN where an error is not finite)."""
+    return {f"{name}.{kind}": math.nan if e.get(kind) is None else float(e[kind])
+            for name, e in (result.get("errors") or {}).items() for kind in ("l2", "linf") if kind in e}
 
 
 def _level_label(n: int, refine: int, refined: bool) -> str:
@@ -100,7 +94,7 @@ def convergence(results: list[dict[str, Any]], quantities: list[str],
         values = scalars(r)
         row.update({q: values.get(q) for q in quantities})
         if ok:
-            row.update(analytic_errors(r))
+            row.update(stored_errors(r))
         for q, ref in (reference or {}).items():
             if ok and values.get(q) is not None and ref["value"]:
                 row[f"err.{q}"] = abs(values[q] - ref["value"]) / abs(ref["value"])
@@ -178,14 +172,14 @@ def work_counter(result: dict[str, Any]) -> tuple[str, float]:
 
 
 def work_precision(results: list[dict[str, Any]], error: str = "nodes.l2") -> pd.DataFrame:
-    """Error against the analytic reference with the wall time and work counter of every ok cell; a cell that
-    is not ok is a row with its status (no error: a claim on it cannot pass)."""
+    """Error against the reference (stored with the cell) with the wall time and work counter of every ok cell;
+    a cell that is not ok is a row with its status (no error: a claim on it cannot pass)."""
     rows = []
     for r in results:
         if r.get("status") != "ok":
             rows.append(_not_ok_row(r))
             continue
-        errors = analytic_errors(r)
+        errors = stored_errors(r)
         name, work = work_counter(r)
         rows.append({"solver": r["solver"], "n": r["n"], "refine": r["refine"], "status": "ok",
                      "unknowns": r["unknowns"], "wall_s": r["wall_s"],

@@ -8,6 +8,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, Protocol
 
+from pcverify.harness.boundary import admitted
 from pcverify.harness.stability import StabilityTask
 from pcverify.scene import Resolution, Scene
 from pcverify.solvers.protocol import Solver, effective_params
@@ -30,7 +31,8 @@ class CellTask(Protocol):
 
 @dataclass(frozen=True)
 class SolveTask:
-    """The default task: `solver.solve`, its Solution as a dict, with the solver's kind."""
+    """The default task: `solver.solve`, its Solution as a dict once the boundary checks admit it
+    (`boundary.Inadmissible` otherwise), with the solver's kind."""
 
     @property
     def name(self) -> str:
@@ -44,7 +46,8 @@ class SolveTask:
         return effective_params(solver, params)
 
     def run(self, solver: Solver, scene: Scene, resolution: Resolution, params: dict[str, Any]) -> dict[str, Any]:
-        return solver.solve(scene, resolution, **params).to_dict() | {"solver_kind": solver.kind}
+        solution = solver.solve(scene, resolution, **params)
+        return admitted(solution, solver, scene, resolution) | {"solver_kind": solver.kind}
 
 
 SOLVE = SolveTask()

@@ -1,9 +1,10 @@
 """A synthetic solver with a known optimum for the calibration tests (imported as a study plugin).
 
 "calib-quadratic" reports, on any steady heat scene, the scalar q = (x - X0)^2 + 2 (log10 y - log10 Y0)^2
-plus noise: a seeded normal of standard deviation `noise` (the seed parameter picks the replica), so the
-objective |q - 0| has its minimum at (X0, Y0) and a noise that replicas measure.  `fail_above`: sets with
-x above it return status "defect" (a failure, never data).  Each finished solve appends one line to the file in
+plus noise (in its summary, and as the value at every sample point: a solution has the scene's sample sets):
+a seeded normal of standard deviation `noise` (the seed parameter picks the replica), so the objective
+|q - 0| has its minimum at (X0, Y0) and a noise that replicas measure.  `fail_above`: sets with x above it
+return status "defect" (a failure, never data).  Each finished solve appends one line to the file in
 $CALIB_SYNTHETIC_LOG (if set), so a test counts solver runs independently of the cache's own counts.
 """
 
@@ -49,6 +50,8 @@ class Quadratic:
         rng = np.random.default_rng([int(p["seed"]), resolution.n])
         q = (p["x"] - X0) ** 2 + 2 * (math.log10(p["y"]) - math.log10(Y0)) ** 2 + p["noise"] * rng.standard_normal()
         status = "defect" if p["x"] > p["fail_above"] else "ok"
+        sets = scene.sample_sets(resolution.n) if samples is None else samples
+        field = {k: {"points": v, "values": np.full(len(v), q)} for k, v in sets.items()}  # q everywhere
         return Solution(scene=scene.name, solver=self.name, params=dict(p), resolution={"n": resolution.n},
-                        samples={}, unknowns=1, wall_s=time.perf_counter() - t0, status=status,
+                        samples=field, unknowns=1, wall_s=time.perf_counter() - t0, status=status,
                         summary={"q": float(q), "q_ref": 0.0}, work={"unknowns": 1})

@@ -14,6 +14,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
+
 from .params import SceneError, shown
 
 AXES = ("x", "y", "z")
@@ -79,3 +81,14 @@ class Contact:
     @property
     def sliding(self) -> bool:
         return self.speed > 0.0
+
+    def occupied(self, points: np.ndarray, extent: np.ndarray) -> np.ndarray:
+        """Mask of the `points` (k, 3) that lie in one of the two bodies: body 1 fills the box below the plane,
+        body 2 the box above it within `span` along `direction` (ends included, to 1e-9 of the box along it)."""
+        pts = np.asarray(points, dtype=float).reshape(-1, 3)
+        if self.span is None:
+            return np.ones(len(pts), dtype=bool)
+        upper = pts[:, self.axis_index] > self.position
+        along = pts[:, self.direction_index]
+        tol = 1e-9 * float(extent[self.direction_index])
+        return ~upper | ((along >= self.span[0] - tol) & (along <= self.span[1] + tol))

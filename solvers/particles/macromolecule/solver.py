@@ -242,8 +242,8 @@ class Macromolecule:
             summary.update(self._faces(lat, H, fx, diagnostics))
         if p["dt_check"]:
             fine = simulate(lat, s.model, fx, s.delta, s.dt / 2, p["t_end"], p["t_start"], w_drive,
-                            v0=initial_velocities(s, p), seed=p["seed"], blowup_factor=p["blowup_factor"], contact_fraction=p["contact_fraction"],
-                            kernel=p["kernel"])
+                            v0=initial_velocities(s, p), seed=p["seed"], blowup_factor=p["blowup_factor"],
+                            contact_fraction=p["contact_fraction"], kernel=p["kernel"])
             Hf = fine.hot[0]
             relf = Hf / Hf[free].max()
             summary["dt_sensitivity"] = float(np.max(np.abs(relf - rel)[free]))

@@ -1,0 +1,38 @@
+"""The comparison of a cell's solution with its scene's reference: once, right after the solve.
+
+Per sample set, the absolute L2 (root mean square) and L-infinity errors of the sampled values against the
+reference at the same points (in the units of the solution's `quantity`), with the kind of reference they
+stand on: "analytic" (the exact solution, `pcverify.references.analytic`).  The errors are stored with the
+cell (its `errors`), so the tables, the calibrations and `pcverify run` read the numbers computed here from
+the cell's own Scene, never from a scene rebuilt by name.  A scene without a reference has no errors, nor
+has a set of vector values (a displacement): the reference is one scalar per point.  The
+cell key holds this module's fingerprint (and that of the references it imports).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from pcverify.harness.metrics import field_errors
+from pcverify.references import analytic
+from pcverify.scene import Scene
+
+
+def errors(scene: Scene, samples: dict[str, Any] | None) -> dict[str, dict[str, Any]]:
+    """{set: {"l2": ..., "linf": ..., "reference": kind}} for each non-empty sample set the scene has a
+    reference for; a non-finite error (values of a run that is not ok) is None, as in the JSON of a result."""
+    out: dict[str, dict[str, Any]] = {}
+    for name, entry in (samples or {}).items():
+        values = np.asarray(entry["values"], dtype=float)
+        if values.size == 0 or values.ndim != 1:
+            continue
+        exact = analytic(scene, np.asarray(entry["points"], dtype=float))
+        if exact is None:
+            continue
+        found = field_errors(values, exact)
+        out[name] = {k: v if math.isfinite(v) else None for k, v in found.items()} | {"reference": "analytic"}
+    return out
+
