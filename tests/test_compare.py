@@ -48,7 +48,7 @@ def test_run_prints_the_errors_the_study_stores(tmp_path, capsys) -> None:
     text = capsys.readouterr().out
     lines = [line for line in text.splitlines() if line.strip().startswith("error ")]
     assert len(lines) == 3 and all("against the analytic reference" in line for line in lines), text
-    assert f"l2 {run['errors']['nodes']['l2']:.6g}" in next(line for line in lines if "error nodes" in line)
+    assert f"l2 {run['errors']['nodes']['l2']!r}" in next(line for line in lines if "error nodes" in line)
 
 
 def _without_times(result: dict) -> dict:
@@ -187,7 +187,7 @@ def test_the_cell_key_covers_the_compare_step_and_the_references(tmp_path) -> No
     payload, skip = cell_identity(paper.cells[0])
     assert skip is None and payload["compare"] == module_fingerprint(compare.__name__)
     copy = installed_layout(REPO, tmp_path / "copy")
-    probe = ("import json, pcverify.harness.compare as c; from pcverify.harness.fingerprint import "
+    probe = ("import json, pcverify.harness.compare as c; from pcverify.fingerprint import "
              "module_fingerprint as f; print(json.dumps([c.__file__, f(c.__name__)]))")
 
     def fingerprint() -> tuple[str, str]:

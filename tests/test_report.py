@@ -139,6 +139,15 @@ metric = "err.nodes.l2"
 reference = "analytic"
 tolerance = 1e-30
 [[claim]]
+id = "too-uncertain"
+text = "FiPy's steady profile within 1e-9, with an uncertainty of 1e-8 (inconclusive)"
+table = "faces-cells"
+select = { solver = "fipy" }
+metric = "err.nodes.linf"
+reference = "analytic"
+tolerance = 1e-9
+uncertainty = 1e-8
+[[claim]]
 id = "absent"
 text = "a solver that is not in the study"
 table = "faces-cells"
@@ -164,6 +173,7 @@ def test_study_report_has_verdicts_figures_and_vtu(report):
     v = pd.read_csv(folder / "verdicts.csv").set_index("claim")
     assert v.loc["exact-line", "verdict"] == "pass" and v.loc["exact-line", "value"] < 1e-9
     assert v.loc["impossible", "verdict"] == "fail" and v.loc["absent", "verdict"] == "fail"
+    assert v.loc["too-uncertain", "verdict"] == "inconclusive" and "straddles" in v.loc["too-uncertain", "note"]
     assert "solver=nobody" in v.loc["absent", "note"]
     for fig in ("paper-edge-profiles", "paper-render-3d", "wp"):
         assert (folder / f"{fig}.png").stat().st_size > 5000 and (folder / f"{fig}.svg").exists()
@@ -250,8 +260,8 @@ def test_index_in_headless_chromium(report, tmp_path):
         rows = page.evaluate(ROWS)
         page.click("#hide-passing")
         hidden = page.evaluate(ROWS)
-        page.select_option("#filter-verdict", "not-applicable")
-        only_na = page.evaluate(ROWS)
+        page.select_option("#filter-verdict", "inconclusive")
+        only_open = page.evaluate(ROWS)
         page.evaluate("document.getElementById('mini').scrollIntoView()")
         page.screenshot(path=str(report / "study-section.png"))
         browser.close()
@@ -265,9 +275,9 @@ def test_index_in_headless_chromium(report, tmp_path):
     assert all(ok for _, ok in held["images"])
     assert {"summary-table", "verdicts-table", "provenance-table"} <= set(held["tables"])
     states = [state for state, _ in rows]
-    assert all(shown for _, shown in rows) and {"pass", "fail", "not-applicable"} <= set(states)
+    assert all(shown for _, shown in rows) and {"pass", "fail", "inconclusive"} <= set(states)
     assert [shown for _, shown in hidden] == [state != "pass" for state in states]
-    assert [shown for _, shown in only_na] == [state == "not-applicable" for state in states]
+    assert [shown for _, shown in only_open] == [state == "inconclusive" for state in states]
     for shot in ("first-screen", "study-section"):
         assert (report / f"{shot}.png").stat().st_size > 20_000
 

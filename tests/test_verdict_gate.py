@@ -2,6 +2,8 @@
 command each verdict carries reproducing its number."""
 
 import json
+import re
+import shlex
 import shutil
 import subprocess
 import sys
@@ -142,3 +144,85 @@ def test_run_command_only_for_what_every_pcverify_process_knows():
         "pcverify run bar-heat-patch --solver fipy --n 3 --refine 4 --set t_max=400.0 --set scheme=crank-nicolson")
     assert run_command(cell | {"solver": "not-installed"}) is None  # e.g. registered by a study's plugin module
     assert run_command(cell | {"scene": "not-in-the-catalogue"}) is None  # e.g. a study file's [[scene]]
+
+
+REPRODUCE = """
+name = "reproduce"
+title = "every kind of verdict command"
+[[group]]
+id = "steady"
+title = "steady faces, both continuum solvers"
+analysis = "table"
+scene = "bar-heat-faces"
+solvers = ["skfem", "fipy"]
+n = [2, 3]
+[[group]]
+id = "transient"
+title = "transient faces, scikit-fem at three n"
+analysis = "convergence"
+scene = "bar-heat-faces"
+scene_params = { mode = "transient", t_end = 0.2, dt = 0.01 }
+solvers = ["skfem"]
+n = [3, 4, 5]
+solver_params = { scheme = "crank-nicolson" }
+[[claim]]
+id = "line"
+text = "one error of one cell"
+table = "steady-cells"
+select = { solver = "skfem" }
+per = "n"
+metric = "err.nodes.linf"
+reference = "analytic"
+tolerance = 1e-9
+[[claim]]
+id = "largest-mean"
+text = "an aggregate over cells"
+table = "steady-cells"
+metric = "volume_mean"
+reference = "analytic"
+target = 0.5
+tolerance = 1e-9
+[[claim]]
+id = "same-grid"
+text = "a difference from other rows"
+table = "steady-cells"
+select = { solver = "skfem" }
+against = { solver = "fipy" }
+per = "n"
+metric = "bulk_median"
+reference = "same-grid"
+tolerance = 1e-9
+[[claim]]
+id = "order"
+text = "a fitted order"
+table = "transient-fits"
+select = { quantity = "nodes.l2" }
+metric = "order"
+reference = "analytic"
+target = 2.0
+tolerance = 1.0
+"""
+
+
+def test_the_command_of_every_verdict_prints_its_number(tmp_path, monkeypatch, capsys):
+    """Run the command printed beside each verdict of a small study, as a user would from the study's folder,
+    and find the verdict's value, to the last digit, in what it prints: `pcverify run` for one error of one
+    cell (with the errors against the reference), `pcverify verdict` for aggregates, differences and fits."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "reproduce.toml").write_text(REPRODUCE)
+    assert main(["study", "reproduce.toml"]) == 0
+    records = json.loads((tmp_path / "reports" / "verdicts.json").read_text())
+    assert len(records) == 6 and all(r["value"] is not None for r in records)
+    kinds = set()
+    for r in records:
+        argv = shlex.split(r["command"])
+        assert argv[0] == "pcverify"
+        kinds.add(argv[1])
+        capsys.readouterr()
+        main(argv[1:])
+        printed = capsys.readouterr().out
+        numbers = [float(x) for x in re.findall(r"-?\d+\.\d+(?:e[-+]?\d+)?|-?\d+e[-+]?\d+", printed)]
+        assert r["value"] in numbers, (r["claim"], r["case"], r["command"], printed[-800:])
+    assert kinds == {"run", "verdict"}
+    line = next(r for r in records if r["claim"] == "line" and r["case"] == "n=3")
+    assert line["command"] == "pcverify run bar-heat-faces --solver skfem --n 3"
