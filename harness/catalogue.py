@@ -307,12 +307,21 @@ def get_spec(name: str) -> SceneSpec:
         raise SceneError(f"scene {name!r} ({entry.origin}) is unavailable: {type(exc).__name__}: {exc}") from None
     if not isinstance(spec, SceneSpec):
         raise SceneError(f"scene {name!r} ({entry.origin}): {entry.target} is not a SceneSpec")
+    if spec.name != name:
+        raise SceneError(f"scene {name!r} ({entry.origin}) is a SceneSpec named {spec.name!r}; allowed: a spec "
+                         "registered under its own name")
     return spec
 
 
 def make_scene(name: str, **params: Any) -> Scene:
-    """Build the named scene with parameter overrides; unknown names or bad values raise SceneError."""
-    return get_spec(name).make(**params)
+    """Build the named scene with parameter overrides; unknown names or bad values raise SceneError, and so
+    does a spec that builds a scene under another name (results are labelled by the scene's name: a plugin's
+    scene must never be reported as a shipped one)."""
+    scene = get_spec(name).make(**params)
+    if scene.name != name:
+        raise SceneError(f"scene {name!r} ({entries()[name].origin}) built a scene named {scene.name!r}; allowed: "
+                         "a scene named as its spec")
+    return scene
 
 
 # -- scenes from data: a study file's [[scene]] tables, built from the shipped building blocks --------------

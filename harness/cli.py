@@ -26,7 +26,7 @@ from pcverify import __version__
 from pcverify.harness.cache import Cache
 from pcverify.harness.calibration import NotCached, calibration_section, run_calibration
 from pcverify.harness.catalogue import entries as scene_entries
-from pcverify.harness.catalogue import get_spec
+from pcverify.harness.catalogue import get_spec, make_scene
 from pcverify.harness.execution import cached_results, cell_identity, execute, plan, run_cell
 from pcverify.harness.interrupt import received, remember_sigint
 from pcverify.harness.limits import check_work
@@ -227,7 +227,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     resolution = Resolution(args.n, args.refine)
     solver = get_solver(args.solver)
     scene_vals, solver_vals = split_settings(args.set or [], spec.parameters, solver.parameters)
-    scene = spec.make(**scene_vals)
+    scene = make_scene(args.scene, **scene_vals)
     cell = Cell("run", scene, tuple(sorted(scene_vals.items())), args.solver, resolution.n, resolution.refine,
                 tuple(sorted(solver_vals.items())))
     _, skip = cell_identity(cell)  # the parameters check: a bad value is one error line

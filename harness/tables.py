@@ -159,7 +159,7 @@ def timing(results: list[dict[str, Any]]) -> pd.DataFrame:
              "wall_s": r["wall_s"], **{k: v for k, v in (r.get("work") or {}).items() if k != "unknowns"}}
             if r.get("status") == "ok" else _not_ok_row(r) for r in results]
     df = pd.DataFrame(rows)
-    return df.sort_values(["solver", "unknowns"]) if not df.empty else df
+    return df.sort_values(["solver", "n", "refine"], kind="stable") if not df.empty else df  # not by a clock
 
 
 def work_counter(result: dict[str, Any]) -> tuple[str, float]:
@@ -187,4 +187,4 @@ def work_precision(results: list[dict[str, Any]], error: str = "nodes.l2") -> pd
                      "work": work, "work_kind": name, f"err.{error}": errors.get(error, np.nan),
                      "timing": r.get("timing", "parallel pass")})
     df = pd.DataFrame(rows)
-    return df.sort_values(["solver", "wall_s"]) if not df.empty else df
+    return df.sort_values(["solver", "n", "refine"], kind="stable") if not df.empty else df  # not by a clock

@@ -10,16 +10,20 @@ comparison can fail.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from pcverify.harness.cache import Cache
 from pcverify.harness.catalogue import make_scene
 from pcverify.harness.execution import execute, run_cell
+from pcverify.harness.report import write_study_report
+from pcverify.harness.reproduce import select_groups
 from pcverify.harness.study import load_study
 from pcverify.scene import Resolution
 from pcverify.solvers.registry import SHIPPED
@@ -112,3 +116,46 @@ def test_same_seed_same_arrays_through_the_api() -> None:
     b = Macromolecule().solve(scene, Resolution(2), t_end=0.5, seed=11)
     assert np.array_equal(a.diagnostics["hotness"], b.diagnostics["hotness"])
     assert np.array_equal(a.diagnostics["history"]["rows"], b.diagnostics["history"]["rows"], equal_nan=True)
+
+
+# seconds measured by a clock: the only columns of a table that may differ between two runs of one study
+CLOCK_COLUMNS = ("wall_s", "kernel_s", "kernel_wall_s", "kernel_cpu_s", "assembly_s", "solve_s", "postprocess_s",
+                 "calibrated_wall_s")
+SHIPPED_GROUPS = {  # study: {group: largest n kept} -- a cell of every solver and every analysis, under 2 minutes
+    "continuum-heat": {"faces-steady": 4, "patch-convergence": 3},
+    "heat-particles": {"paper-all": 3, "paper-replicas": 3, "work-precision-steady": 4},
+    "elasticity": {"mca-compression": 3},
+    "contact-friction": {"compression": 4},
+    "stability": {"limit-mca-heat": 3},
+}
+
+
+def _tables(folder: Path) -> dict[str, str]:
+    """Every CSV a study report wrote, with the clock columns removed, as text."""
+    out = {}
+    for path in sorted(folder.glob("*.csv")):
+        if not path.read_text().strip():
+            out[path.name] = ""
+            continue
+        table = pd.read_csv(path, dtype=str, keep_default_na=False)
+        out[path.name] = table[[c for c in table.columns if c.split(".")[-1] not in CLOCK_COLUMNS]].to_csv(index=False)
+    return out
+
+
+@pytest.mark.parametrize("name", sorted(SHIPPED_GROUPS))
+def test_shipped_tables_are_the_same_on_one_and_two_workers(name, tmp_path) -> None:
+    """Groups of every shipped study, at their smallest n, run with --jobs 1 and --jobs 2 from empty caches:
+    every table and verdict file they write is byte-identical once the columns a clock measures are dropped
+    (wall and kernel seconds: they are measurements of the machine, not of the model)."""
+    keep = SHIPPED_GROUPS[name]
+    study = select_groups(load_study(name), list(keep))
+    groups = [dataclasses.replace(g, cells=[c for c in g.cells if c.n <= keep.get(g.id, 3)]) for g in study.groups]
+    study = dataclasses.replace(study, groups=groups, selected=())
+    written = []
+    for jobs in (1, 2):
+        results, _ = execute(study, Cache(tmp_path / f"cache{jobs}"), jobs=jobs, progress=False)
+        folder = write_study_report(study, results, tmp_path / f"out{jobs}")
+        written.append(_tables(folder))
+    assert written[0].keys() == written[1].keys() and len(written[0]) >= 2
+    for table in written[0]:
+        assert written[0][table] == written[1][table], f"{name}/{table} differs between --jobs 1 and --jobs 2"
