@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from .constraints import Constraint, FaceClamp, FaceSupport, TemperatureConstraint
+from .constraints import Constraint, FaceClamp, FaceSupport, PatchTemperature, PointTemperature, TemperatureConstraint
 from .contact import Contact
 from .geometry import Box
 from .loads import InterfaceFlux
@@ -136,11 +136,26 @@ class Scene:
             self.material.require("youngs_modulus", "poisson_ratio")
         if self.contact is not None:
             self._check_contact(self.contact)
-        for c in self.constraints:
+        for k, c in enumerate(self.constraints):
+            self._check_position(k, c)
             heat = isinstance(c, TemperatureConstraint)
             if heat and cond is None or isinstance(c, (FaceSupport, FaceClamp)) and el is None:
                 raise SceneError(f"constraint {type(c).__name__} needs the {'conduction' if heat else 'elasticity'} "
                                  "physics, which the scene does not have")
+
+    def _check_position(self, k: int, c: Any) -> None:
+        """A point constraint's point, or a patch's centre, lies in the body (the closed box): the same check
+        for every solver, before any of them runs."""
+        if isinstance(c, PointTemperature):
+            where, what = c.point, "point"
+        elif isinstance(c, PatchTemperature):
+            where, what = c.centre, "centre"
+        else:
+            return
+        if not self.box.holds(where):
+            raise SceneError(f"constraint {k + 1} ({type(c).__name__}) {what}={shown(where)} m lies outside the "
+                             f"body; allowed: a point in the box [0, {self.box.width:g}] x [0, {self.box.height:g}] "
+                             f"x [0, {self.box.length:g}] m")
 
     def _check_contact(self, contact: Contact) -> None:
         """The interface lies inside the box, body 2's span along the sliding direction too; heating needs
