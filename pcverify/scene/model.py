@@ -199,9 +199,28 @@ class Scene:
         return sets
 
     def content_hash(self) -> str:
-        """Stable hash of everything that defines the scene (not of Python object ids)."""
-        payload = json.dumps(_plain(self), sort_keys=True, default=str)
-        return hashlib.sha256(payload.encode()).hexdigest()[:16]
+        """Stable hash of everything that defines the scene (not of Python object ids): the cache's identity of
+        the scene as it was given, recipe (`params`) included."""
+        return _digest(_plain(self))
+
+    def solver_input_hash(self) -> str:
+        """Stable hash of what a solver reads from the scene: its content without the recipe that built it
+        (name, description, the catalogue's `params`) and without what its own mode ignores (a steady
+        conduction's t_end, dt and initial temperature: the steady field does not depend on them).  Scenes with
+        the same solver input hash are the same problem to every solver; the calibration's overlap guard
+        compares it, so a held-out cell that differs from a fitted one only in what no solver reads is refused."""
+        plain = _plain(self)
+        for key in ("name", "description", "params"):
+            plain.pop(key)
+        heat = plain.get("conduction")
+        if isinstance(heat, dict) and heat.get("mode") == "steady":
+            heat.update(t_end=repr(0.0), dt=repr(0.0), initial_temperature=repr(0.0))
+        return _digest(plain)
+
+
+def _digest(plain: Any) -> str:
+    payload = json.dumps(plain, sort_keys=True, default=str)
+    return hashlib.sha256(payload.encode()).hexdigest()[:16]
 
 
 def _plain(obj: Any) -> Any:
