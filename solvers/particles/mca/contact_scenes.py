@@ -17,14 +17,18 @@ onto the model and summarises the run).
   the slider on its elastic base develops a friction-induced vibration (measured at n = 4, V = 1 m/s,
   1 MPa: after ~0.4 ms the contacts open and close and mu_dr(t) swings by +-0.2 about 0.3).
   mu_dr(t) = F_dr / F_N (eq. 17): F_dr the friction resistance of the contacts on body 2 along the
-  direction, F_N = normal_stress x the far face's area.  The expected value: mu1 (1 + K_av) + mu0 V /
-  normal_stress (every contact sliding at V); its uncertainty from the run length: mu1 (sum_k w_k^2
+  direction, F_N = normal_stress x the far face's area.  The expected value follows the law as implemented
+  (`mu_dr_expected`: mu0 V / sigma + mu1 (1 + K_av) min(1, sigma0 / sigma) min(1, V / v_reg), every contact
+  sliding at V under sigma = F_N / A); its uncertainty from the run length: mu1 (sum_k w_k^2
   var_k)^(1/2), w_k the contacts' shares of the normal force (at the end of the run) and var_k the
   variance of one contact's mean of K over the distance slid in the window (roughness.variance_of_mean).
   Energy balance over the window: work of the drive and of the load against kinetic + elastic energy +
   friction and damping dissipation (the largest imbalance over the window relative to the drive's work).
   With a platen (Contact.platen) the far face is held at its preloaded height while it slides, and F_N is
-  the normal force the contacts carry.
+  the normal force the contacts carry.  The run is ok only if the bodies stayed in contact over the whole
+  window: body 2 not driven beyond body 1's surface (`footprint_room`) and a closed contact in every history
+  row (`contact_lost`; else failed, its numbers kept); and only if the ramp and the whole window fit in
+  max_steps (else failed before any step: a cut window is never averaged).
 - Frictional heating: sliding as above, then MCA heat on the bonded automata (the contact conducts as the
   interface pairs of the rest geometry) from the initial temperature to t_end, each contact's mean friction
   power over the window held constant: half into the slave, half into its rest partners (one-way,
