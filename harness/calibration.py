@@ -37,6 +37,7 @@ from pcverify.harness.execution import cell_identity, execute
 from pcverify.harness.metrics import richardson
 from pcverify.harness.study import Cell, Group, Study
 from pcverify.harness.tables import scalars, spacing, stored_errors, work_counter
+from pcverify.scene import SceneError
 
 PENALTY = 1e6  # objective handed to the local search for a failed parameter set (steers it away; never data)
 CALIBRATED, VALIDATED = "calibrated on", "validated on"
@@ -129,6 +130,16 @@ class _Evaluator:
                     self.references[key] = (math.nan, f"Richardson undefined ({exc})")
             else:
                 self.references[key] = (float(values[0]), "")
+        self._check_zero_references()
+
+    def _check_zero_references(self) -> None:
+        """A relative error against a reference of exactly 0 is undefined: refused in one line naming the cell,
+        before the search spends a run (the cell can say error = "absolute")."""
+        for cc in (*self.cal.calibrate, *self.cal.validate):
+            if cc.reference is not None and cc.error == "relative" and self.reference(cc) == 0.0:
+                raise SceneError(f"calibration {self.cal.id}: cell {cc.describe()} {cc.metric}: its reference "
+                                 f"({cc.reference_label()}) is 0, so a relative error is undefined; allowed: "
+                                 'error = "absolute" for this cell, or a reference that is not 0')
 
     def reference(self, cc: CalibCell) -> float:
         if cc.reference is None:

@@ -3,12 +3,14 @@
 A calibration names a solver, its fixed parameters, the free parameters with bounds (`log = true` to
 search in log space), the calibration cells (scene, n, metric, reference) the objective is measured on,
 and the validation cells held out from it.  A calibration whose calibration and validation cells
-overlap (the same scene, scene parameters, resolution and metric) is refused with the cells named: a
-number the parameters were fitted to is not a validation.  Another metric of a calibration cell's run
+overlap (the same metric of the same run as the solver sees it: what it reads of the scene, the resolution,
+and refine only for a solver that uses it) is refused with the cells named: a number the parameters were
+fitted to is not a validation.  Another metric of a calibration cell's run
 (torsion beside the bending frequency it was fitted to) is allowed, and the validation table says that
 it shares the run.  `pcverify.harness.calibration`
 runs what this module describes; everything here is checked before any cell runs, with one-line
-SceneErrors like the other study-file errors.
+SceneErrors like the other study-file errors: also a budget below the number of calibration cells (it
+would evaluate nothing) and replicas that name a free parameter (the optimum would override them).
 """
 
 from __future__ import annotations
@@ -20,7 +22,7 @@ from typing import Any
 from pcverify.harness.catalogue import make_scene
 from pcverify.harness.studyfile import safe_name
 from pcverify.scene import Scene, SceneError, shown
-from pcverify.solvers.protocol import effective_params
+from pcverify.solvers.protocol import effective_params, uses_refine
 from pcverify.solvers.registry import SolverUnavailable, get_solver
 
 DESIGNS = ("sobol", "lhs")
@@ -100,10 +102,13 @@ class CalibCell:
     metric: str
     reference: Reference | None  # None: the scene's analytic solution
     error: str = "relative"
+    refine_read: bool = True  # whether the calibrated solver reads refine (`protocol.uses_refine`)
 
     def key(self) -> tuple[str, int, int]:
-        """The run this cell measures: the scene's content (name and parameters) and the resolution."""
-        return (self.scene.content_hash(), self.n, self.refine)
+        """The run this cell measures, as the solver sees it: what it reads of the scene
+        (`Scene.solver_input_hash`: not the scene's name, recipe, or the times a steady scene ignores), n, and
+        refine when the solver uses it (else 1)."""
+        return (self.scene.solver_input_hash(), self.n, self.refine if self.refine_read else 1)
 
     def measure(self) -> tuple[str, int, int, str]:
         """Identity for the overlap guard: the run and the metric measured on it."""
@@ -215,7 +220,7 @@ def _reference(value: Any, where: str) -> Reference | None:
     return Reference(solver, n, tuple(refines), tuple(sorted(params.items())))
 
 
-def _cells(item: Any, where: str) -> list[CalibCell]:
+def _cells(item: Any, where: str, refine_read: bool) -> list[CalibCell]:
     item = _table(item, "cell", where)
     _unknown(item, CELL_KEYS, "a calibration or validation cell", where)
     name = item.get("scene")
@@ -246,7 +251,8 @@ def _cells(item: Any, where: str) -> list[CalibCell]:
     error = item.get("error", "relative")
     if error not in ERRORS:
         raise SceneError(f"{where}: error={shown(error)} is unknown; allowed: one of {', '.join(ERRORS)}")
-    return [CalibCell(scene, tuple(sorted(scene_params.items())), n, refine, metric, reference, error) for n in ns]
+    return [CalibCell(scene, tuple(sorted(scene_params.items())), n, refine, metric, reference, error, refine_read)
+            for n in ns]
 
 
 def parse_calibrations(items: Any, where: str) -> list[Calibration]:
@@ -282,16 +288,21 @@ def parse_calibrations(items: Any, where: str) -> list[Calibration]:
             tables = item.get(role)
             if not isinstance(tables, list) or not tables:
                 raise SceneError(f"{at}: no [[calibration.{role}]] tables; allowed: one or more cells")
-            cells[role] = [c for i, t in enumerate(tables) for c in _cells(t, f"{at} {role} {i + 1}")]
-        held = {c.measure() for c in cells["validate"]}
-        overlap = [f"{c.describe()} {c.metric}" for c in cells["calibrate"] if c.measure() in held]
-        if overlap:
-            raise SceneError(f"{at}: calibration and validation cells overlap ({'; '.join(overlap)}); allowed: "
-                             "validation cells held out from calibration (another scene, resolution or metric)")
+            cells[role] = [c for i, t in enumerate(tables)
+                           for c in _cells(t, f"{at} {role} {i + 1}", uses_refine(solver))]
+        _overlap(cells["calibrate"], cells["validate"], solver, at)
         opts = _options(item, at)
+        budget = opts.get("budget", Calibration.budget)
+        if budget < len(cells["calibrate"]):
+            raise SceneError(f"{at}: budget={budget}{'' if 'budget' in item else ' (the default)'} is below the "
+                             f"{len(cells['calibrate'])} calibration cells (one parameter set costs one run per cell: "
+                             f"nothing would be evaluated); allowed: integer in [{len(cells['calibrate'])}, 100000]")
         replicas = _table(item.get("replicas", {}), "replicas", at)
         reps = tuple((k2, tuple(v if isinstance(v, list) else [v])) for k2, v in sorted(replicas.items()))
         for name, values in reps:
+            if name in {p.name for p in free}:
+                raise SceneError(f"{at}: replicas.{name} names a free parameter (the optimum would override it); "
+                                 "allowed: a fixed parameter of the solver (a seed, a run length, ...)")
             for v in values:
                 _solver_params_ok(solver, fixed | {name: v}, f"{at} replicas.{name}")
         defaults = effective_params(solver, fixed)
@@ -299,6 +310,24 @@ def parse_calibrations(items: Any, where: str) -> list[Calibration]:
                                tuple(free), tuple(cells["calibrate"]), tuple(cells["validate"]), replicas=reps,
                                defaults={p.name: defaults[p.name] for p in free}, **opts))
     return out
+
+
+def _overlap(calibrate: list[CalibCell], validate: list[CalibCell], solver: Any, at: str) -> None:
+    """Refuse validation cells that measure a number the parameters were fitted to: the same metric of the same
+    run as the solver sees it (`CalibCell.key`: what it reads of the scene, n, and refine only if it uses it;
+    its parameters are the same in every cell of a calibration: the fixed ones and the fitted values)."""
+    fitted = {c.measure(): c for c in calibrate}
+    overlap = []
+    for v in validate:
+        c = fitted.get(v.measure())
+        if c is not None:
+            same = "" if c.describe() == v.describe() else f" (the run of calibration cell {c.describe()})"
+            overlap.append(f"{v.describe()} {v.metric}{same}")
+    if overlap:
+        why = "" if uses_refine(solver) else f"; {solver.name} ignores refine"
+        raise SceneError(f"{at}: calibration and validation cells overlap ({'; '.join(overlap)}{why}); allowed: "
+                         "validation cells held out from calibration (another scene, resolution or metric: one that "
+                         "changes what the solver computes)")
 
 
 def _options(item: dict[str, Any], at: str) -> dict[str, Any]:

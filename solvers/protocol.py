@@ -106,6 +106,9 @@ class Solver(Protocol):
     `stability_probe() -> StabilityProbe` (see below) and `estimate(scene, resolution, **params) ->
     WorkEstimate` (the harness then refuses work beyond its limits before it starts); the cache key holds
     a fingerprint of the code the solver reaches by import, so no version needs bumping when results change.
+    `uses_refine` (optional, a bool) says whether `resolution.refine` changes what it computes; without it a
+    continuum solver is taken to use it (h = a / refine) and a particle solver to ignore it (its particles are
+    the lattice of n): see `uses_refine`.
     """
 
     name: str
@@ -199,6 +202,14 @@ class StabilityProbe(Protocol):
 
     def linear_limit(self, setup: ProbeSetup) -> float:
         ...
+
+
+def uses_refine(solver: Solver) -> bool:
+    """Whether `refine` changes what `solver` computes: its `uses_refine` attribute when it declares one (a
+    bool), else True for the continuum kind (a grid of h = a / refine) and False for the particle kind.  Cells
+    that differ only in a refine the solver ignores are the same run (the calibration's overlap guard)."""
+    declared = getattr(solver, "uses_refine", None)
+    return declared if isinstance(declared, bool) else solver.kind == "continuum"
 
 
 def effective_params(solver: Solver, given: dict[str, Any]) -> dict[str, Any]:

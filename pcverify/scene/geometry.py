@@ -17,6 +17,12 @@ import numpy as np
 from .params import SceneError, shown
 
 WHOLE = 1e-9  # relative tolerance of "a whole number of spacings"
+# The box's dimensions, m.  Below a micrometre the continuum models stop describing the body (phonon mean free
+# paths in metals are 10-100 nm, grains and the automata of MCA are larger still), and with n and refine up to
+# 1000 a grid spacing stays above 1e-12 m, so the conductances (k h), penalties (k / h^2) and stiffnesses of
+# every solver stay far inside double precision (a 1e-300 m box made FiPy's matrix exactly singular).  Above
+# a kilometre nothing in this project's physics is meant to apply either.
+EXTENT_RANGE = (1e-6, 1e3)
 
 
 @dataclass(frozen=True)
@@ -30,8 +36,9 @@ class Box:
     def __post_init__(self) -> None:
         for name in ("width", "height", "length"):
             v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and 0 < v <= 1e3):
-                raise SceneError(f"{name}={shown(v)} is out of range; allowed: number in (0, 1000] m")
+            low, high = EXTENT_RANGE
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and low <= v <= high):
+                raise SceneError(f"{name}={shown(v)} is out of range; allowed: number in [{low:g}, {high:g}] m")
 
     @property
     def extent(self) -> np.ndarray:
@@ -40,6 +47,18 @@ class Box:
     @property
     def volume(self) -> float:
         return self.width * self.height * self.length
+
+    def holds(self, point: object) -> bool:
+        """Whether `point` is three finite coordinates in the closed box (to 1e-9 of each dimension: a point
+        computed on a face, W / 3 * 3, still counts)."""
+        try:
+            p = np.asarray(point, dtype=float)
+        except (TypeError, ValueError):
+            return False
+        if p.shape != (3,) or not np.all(np.isfinite(p)):
+            return False
+        tol = WHOLE * self.extent
+        return bool(np.all(p >= -tol) and np.all(p <= self.extent + tol))
 
     def lattice_shape(self, n: int) -> tuple[int, int, int]:
         """Nodes per axis of the lattice of resolution n (one spacing a = width / (n - 1))."""

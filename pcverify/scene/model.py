@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from .constraints import Constraint, FaceClamp, FaceSupport, TemperatureConstraint
+from .constraints import Constraint, FaceClamp, FaceSupport, PatchTemperature, PointTemperature, TemperatureConstraint
 from .contact import Contact
 from .geometry import Box
 from .loads import InterfaceFlux
@@ -136,11 +136,26 @@ class Scene:
             self.material.require("youngs_modulus", "poisson_ratio")
         if self.contact is not None:
             self._check_contact(self.contact)
-        for c in self.constraints:
+        for k, c in enumerate(self.constraints):
+            self._check_position(k, c)
             heat = isinstance(c, TemperatureConstraint)
             if heat and cond is None or isinstance(c, (FaceSupport, FaceClamp)) and el is None:
                 raise SceneError(f"constraint {type(c).__name__} needs the {'conduction' if heat else 'elasticity'} "
                                  "physics, which the scene does not have")
+
+    def _check_position(self, k: int, c: Any) -> None:
+        """A point constraint's point, or a patch's centre, lies in the body (the closed box): the same check
+        for every solver, before any of them runs."""
+        if isinstance(c, PointTemperature):
+            where, what = c.point, "point"
+        elif isinstance(c, PatchTemperature):
+            where, what = c.centre, "centre"
+        else:
+            return
+        if not self.box.holds(where):
+            raise SceneError(f"constraint {k + 1} ({type(c).__name__}) {what}={shown(where)} m lies outside the "
+                             f"body; allowed: a point in the box [0, {self.box.width:g}] x [0, {self.box.height:g}] "
+                             f"x [0, {self.box.length:g}] m")
 
     def _check_contact(self, contact: Contact) -> None:
         """The interface lies inside the box, body 2's span along the sliding direction too; heating needs
@@ -184,9 +199,28 @@ class Scene:
         return sets
 
     def content_hash(self) -> str:
-        """Stable hash of everything that defines the scene (not of Python object ids)."""
-        payload = json.dumps(_plain(self), sort_keys=True, default=str)
-        return hashlib.sha256(payload.encode()).hexdigest()[:16]
+        """Stable hash of everything that defines the scene (not of Python object ids): the cache's identity of
+        the scene as it was given, recipe (`params`) included."""
+        return _digest(_plain(self))
+
+    def solver_input_hash(self) -> str:
+        """Stable hash of what a solver reads from the scene: its content without the recipe that built it
+        (name, description, the catalogue's `params`) and without what its own mode ignores (a steady
+        conduction's t_end, dt and initial temperature: the steady field does not depend on them).  Scenes with
+        the same solver input hash are the same problem to every solver; the calibration's overlap guard
+        compares it, so a held-out cell that differs from a fitted one only in what no solver reads is refused."""
+        plain = _plain(self)
+        for key in ("name", "description", "params"):
+            plain.pop(key)
+        heat = plain.get("conduction")
+        if isinstance(heat, dict) and heat.get("mode") == "steady":
+            heat.update(t_end=repr(0.0), dt=repr(0.0), initial_temperature=repr(0.0))
+        return _digest(plain)
+
+
+def _digest(plain: Any) -> str:
+    payload = json.dumps(plain, sort_keys=True, default=str)
+    return hashlib.sha256(payload.encode()).hexdigest()[:16]
 
 
 def _plain(obj: Any) -> Any:

@@ -13,7 +13,8 @@ How constraints reach the equations (all of it FiPy's discretisation):
 - FaceTemperature: `T.constrain(value, where=mesh.facesXxx)` on the exterior faces; FiPy's
   DiffusionTerm then couples the boundary cell to the face value over the half distance h/4.
   FiPy's Grid3D names: facesLeft/Right = x, facesBottom/Top = y, facesFront/Back = z (PHYSICS §1).
-- PointTemperature: the cell containing the point is fixed with a penalty source
+- PointTemperature: the cell of the refined lattice node at the point is fixed (a point between nodes is
+  refused, as scikit-fem and the particle solvers refuse it: `grid.held_node`) with a penalty source
   `-ImplicitSourceTerm(B) + B*T_fix` (B = penalty * k / h^2; default penalty 1e8).  A
   `CellVariable.constrain(where=cell_mask)` does not reach the equations (PHYSICS §5).
   When solving, rows of fully fixed cells are eliminated (T = T_fix exactly, their coupling moved
@@ -92,6 +93,7 @@ from pcverify.scene import (
 )
 from pcverify.solvers.continuum.assembly import grid_graph, split_free
 from pcverify.solvers.continuum.fipy_fast import diffusion_term, tensor_grid3d
+from pcverify.solvers.continuum.grid import held_node
 from pcverify.solvers.continuum.linear_solver import smoothed_aggregation
 from pcverify.solvers.continuum.work import heat_estimate, transient_steps
 from pcverify.solvers.protocol import Solution, WorkEstimate, effective_params, heat_summary
@@ -291,8 +293,8 @@ class FipyHeat:
         fallback: list[int] = []  # patches that "cut" handled with "fraction" (no centre inside rho)
         cen = [_centres(e) for e in edges]
         for ic, c in enumerate(scene.constraints):
-            if isinstance(c, PointTemperature):
-                idx = _cell_of(edges, c.point)
+            if isinstance(c, PointTemperature):  # the cell of the node at the point (grid.held_node's rule)
+                idx = held_node(c.point, float(scene.box.width) / (shape[0] - 1), shape)
                 fixed[idx] = True
                 tfix[idx] = c.value
                 point_cells.append((idx, c.value))

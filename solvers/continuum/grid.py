@@ -29,6 +29,37 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
+from pcverify.scene import SceneError
+
+NODE_TOL = 1e-9  # a point within this fraction of h of a grid node is that node
+
+
+def node_ijk(x: np.ndarray, h: float, shape: tuple[int, int, int], tol: float = NODE_TOL) -> np.ndarray:
+    """(k, 3) indices of the nodes at the points x (k, 3) of a grid of spacing h with `shape` nodes from the
+    origin; ValueError naming the first point that is not a node (to tol h)."""
+    x = np.atleast_2d(np.asarray(x, dtype=float))
+    ijk = np.rint(x / h).astype(np.int64)
+    off = np.abs(ijk * h - x).max(axis=1)
+    bad = (off > tol * h) | np.any(ijk < 0, axis=1) | np.any(ijk >= np.asarray(shape), axis=1)
+    if np.any(bad):
+        raise ValueError(f"point {tuple(float(v) for v in x[np.argmax(bad)])} is not a node of the grid with "
+                         f"spacing h={h:g} m")
+    return ijk
+
+
+def held_node(point, h: float, shape: tuple[int, int, int]) -> tuple[int, int, int]:
+    """The node a PointTemperature holds on a grid of spacing h = a / refine: the node at its point, the same
+    rule in every continuum solver (scikit-fem's node, FiPy's node-centred cell) and in the particle solvers
+    (the particle at the point, refine 1).  A point between nodes is refused, never moved to a nearby node:
+    SceneError naming the point and h."""
+    try:
+        i, j, k = (int(v) for v in node_ijk(np.asarray([point]), h, shape)[0])
+    except ValueError as exc:
+        raise SceneError(f"point constraint: {exc}; allowed: points on grid nodes (h = a / refine: the "
+                         "lattice nodes of n, and more of them at refine > 1)") from None
+    return i, j, k
+
+
 # Corner offsets (di, dj, dk) of a cell, in scikit-fem MeshHex1 local order (as in MeshHex1.init_tensor).
 HEX_CORNERS = np.array(
     [[0, 0, 0], [0, 1, 0], [1, 0, 0], [0, 0, 1], [1, 1, 0], [0, 1, 1], [1, 0, 1], [1, 1, 1]], dtype=np.int64
@@ -263,13 +294,7 @@ class StructuredGrid:
 
     def nearest_node(self, x: np.ndarray, tol: float = 1e-9) -> np.ndarray:
         """Index of the unwarped grid node at each point x (k, 3); ValueError if a point is not a node."""
-        x = np.atleast_2d(np.asarray(x, dtype=float))
-        ijk = np.rint(x / self.h).astype(np.int64)
-        off = np.abs(ijk * self.h - x).max(axis=1)
-        if np.any(off > tol * self.h) or np.any(ijk < 0) or np.any(ijk >= np.asarray(self.shape)):
-            bad = x[np.argmax(off)]
-            raise ValueError(f"point {tuple(bad)} is not a node of the grid with spacing h={self.h:g} m")
-        return self.node_index(ijk)
+        return self.node_index(node_ijk(x, self.h, self.shape, tol))
 
     def face_nodes(self, face: str) -> np.ndarray:
         """Nodes on a box face x0, xW, y0, yH, z0 or zL (faces stay planar under the warps)."""

@@ -56,7 +56,7 @@ from pcverify.scene import (
     SceneError,
 )
 from pcverify.solvers.continuum.assembly import assemble_q1, grid_graph, plane_load, split_free
-from pcverify.solvers.continuum.grid import StructuredGrid, plan_sphere_warp
+from pcverify.solvers.continuum.grid import StructuredGrid, held_node, plan_sphere_warp
 from pcverify.solvers.continuum.linear_solver import SpdSolver, smoothed_aggregation
 from pcverify.solvers.continuum.work import heat_estimate, transient_steps
 from pcverify.solvers.protocol import Solution, WorkEstimate, effective_params, heat_summary
@@ -170,10 +170,7 @@ class SkfemHeat:
             if isinstance(c, FaceTemperature):
                 nodes = grid.face_nodes(c.face)
             elif isinstance(c, PointTemperature):
-                try:
-                    nodes = grid.nearest_node(np.asarray([c.point]))
-                except ValueError as exc:
-                    raise SceneError(f"point constraint: {exc}; allowed: points on lattice nodes") from None
+                nodes = grid.node_index(np.asarray(held_node(c.point, grid.h, grid.shape)))
             elif isinstance(c, PatchTemperature):
                 if patch_mode == "conforming":
                     d = np.linalg.norm(grid.points - np.asarray(c.centre), axis=1)

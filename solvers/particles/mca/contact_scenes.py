@@ -15,16 +15,21 @@ onto the model and summarises the run).
   relaxation rate; 0 = none) acts on each automaton's velocity relative to its body's drive (body 1 at
   rest, body 2 at the drive's velocity), so it damps vibrations and not the sliding itself.  Undamped,
   the slider on its elastic base develops a friction-induced vibration (measured at n = 4, V = 1 m/s,
-  1 MPa: after ~0.4 ms the contacts open and close and mu_dr(t) swings by +-0.2 about 0.3).
+  1 MPa: after ~0.4 ms the contacts open and close and mu_dr(t) swings by +-0.2 about 0.3; 12 of the window's
+  1900 history rows have no closed contact, so the run is failed, its numbers kept).
   mu_dr(t) = F_dr / F_N (eq. 17): F_dr the friction resistance of the contacts on body 2 along the
-  direction, F_N = normal_stress x the far face's area.  The expected value: mu1 (1 + K_av) + mu0 V /
-  normal_stress (every contact sliding at V); its uncertainty from the run length: mu1 (sum_k w_k^2
+  direction, F_N = normal_stress x the far face's area.  The expected value follows the law as implemented
+  (`mu_dr_expected`: mu0 V / sigma + mu1 (1 + K_av) min(1, sigma0 / sigma) min(1, V / v_reg), every contact
+  sliding at V under sigma = F_N / A); its uncertainty from the run length: mu1 (sum_k w_k^2
   var_k)^(1/2), w_k the contacts' shares of the normal force (at the end of the run) and var_k the
   variance of one contact's mean of K over the distance slid in the window (roughness.variance_of_mean).
   Energy balance over the window: work of the drive and of the load against kinetic + elastic energy +
   friction and damping dissipation (the largest imbalance over the window relative to the drive's work).
   With a platen (Contact.platen) the far face is held at its preloaded height while it slides, and F_N is
-  the normal force the contacts carry.
+  the normal force the contacts carry.  The run is ok only if the bodies stayed in contact over the whole
+  window: body 2 not driven beyond body 1's surface (`footprint_room`) and a closed contact in every history
+  row (`contact_lost`; else failed, its numbers kept); and only if the ramp and the whole window fit in
+  max_steps (else failed before any step: a cut window is never averaged).
 - Frictional heating: sliding as above, then MCA heat on the bonded automata (the contact conducts as the
   interface pairs of the rest geometry) from the initial temperature to t_end, each contact's mean friction
   power over the window held constant: half into the slave, half into its rest partners (one-way,
@@ -195,17 +200,26 @@ def _sliding(scene: Scene, aut: Automata, bonded: Automata, el: Elastic, law: ct
     model = Model(aut, el, rotations=p["rotations"], krot=p["krot"], cfl=p["cfl"], gamma=rate, fixm=fixm, fixv=fixv,
                   t_stop=0.0, ke_limit=p["blowup"] * e_load, load=load, contact=law, step_automata=bonded)
     st = model.new_state()
+    t_ramp = p["slide_ramp"] if p["slide_ramp"] is not None else default_slide_ramp(rate)
+    ramp_steps, window_steps = slide_steps(contact, t_ramp, model.dt)
+    summary: dict[str, Any] = {"dt": model.dt, "normal_force_applied": f_normal, "slide_steps_needed":
+                               ramp_steps + window_steps}
+    if ramp_steps + window_steps > p["max_steps"]:  # the window would be cut: refused before any step is spent
+        reason = (f"max_steps={p['max_steps']} would be reached before the averaging window ends: sliding needs "
+                  f"{ramp_steps + window_steps} steps (ramp {ramp_steps} + duration {contact.duration:g} s = "
+                  f"{window_steps} steps of dt {model.dt:.3g} s); allowed: max_steps >= {ramp_steps + window_steps} "
+                  "or a shorter duration")
+        return {"field": None, "quantity": "", "summary": summary, "status": "failed", "reason": reason,
+                "model": model, "state": st}
     scale = contact.normal_stress * float(aut.spacing.min()) ** 2
     status, res, _ = relax(model, st, scale, tol=p["preload_tol"], max_steps=p["max_steps"])
     pre_steps = int(st.counters[mk.C_STEPS])
-    summary: dict[str, Any] = {"dt": model.dt, "preload_steps": pre_steps, "preload_residual": res,
-                               "normal_force_applied": f_normal}
+    summary.update(preload_steps=pre_steps, preload_residual=res)
     summary.update({f"preload_{k}": v for k, v in contact_summary(st).items() if k.startswith("contact_pressure")})
     if status != mk.OK or not res <= p["preload_tol"]:
         kstat, reason = relax_status(status, res, p["preload_tol"], pre_steps, p["max_steps"])
         return {"field": None, "quantity": "", "summary": summary, "status": kstat, "reason": f"preload: {reason}",
                 "model": model, "state": st}
-    t_ramp = p["slide_ramp"] if p["slide_ramp"] is not None else 2 * 2 * math.pi / rate
     t0 = float(st.clock[0])
     fixv[top, dr] = contact.speed
     if contact.platen:
@@ -215,12 +229,11 @@ def _sliding(scene: Scene, aut: Automata, bonded: Automata, el: Elastic, law: ct
     st = st._replace(frame=mk.Frame(frame))
     gamma = rate if p["slide_damping"] is None else p["slide_damping"]
     model.params = model.params._replace(gamma=float(gamma), t_stop=math.inf, ramp_start=t0, ramp=t_ramp)
-    ramp_steps = math.ceil(t_ramp / model.dt)
-    total = min(ramp_steps + math.ceil(contact.duration / model.dt), p["max_steps"])
+    total = ramp_steps + window_steps
     every = max(1, total // p["records"])
     st = st._replace(hist=np.zeros((total // every + 2, mk.N_H)))
     rows: list[np.ndarray] = []
-    st, code, rebuilds = _slide(model, st, pre_steps + min(ramp_steps, total), every, rows)
+    st, code, rebuilds = _slide(model, st, pre_steps + ramp_steps, every, rows)
     t1 = float(st.clock[0])
     heat0 = st.contact.heat.copy()
     dissipated0 = st.contact.dissipated.copy()
@@ -238,8 +251,11 @@ def _sliding(scene: Scene, aut: Automata, bonded: Automata, el: Elastic, law: ct
     elif len(window) < 10:
         status, reason = "failed", f"only {len(window)} history rows in the sliding window"
     else:
-        status, reason = "ok", ""
         summary.update(_friction_summary(window, st, law, contact, f_normal))
+        slid, room = slid_distance(aut, st, contact, ext), footprint_room(aut, contact)
+        summary.update(slid_distance=slid, slide_room=room)
+        reason = contact_lost(window, slid, room, contact)
+        status = "failed" if reason else "ok"
     window_s = float(st.clock[0]) - t1
     heat = st.contact.heat - heat0
     summary["friction_heat_J"] = float(heat.sum())
@@ -268,13 +284,61 @@ def _slide(model: Model, st: mk.State, until: int, every: int, rows: list[np.nda
     return st, code, rebuilds
 
 
+def default_slide_ramp(rate: float) -> float:
+    """The drive's smooth start when `slide_ramp` is not given: two periods 2 pi / rate of the relaxation rate."""
+    return 2 * 2 * math.pi / rate
+
+
+def slide_steps(contact: Contact, t_ramp: float, dt: float) -> tuple[int, int]:
+    """(ramp steps, window steps) of a sliding run: the smooth start, then `duration` at full speed (the
+    averaging window); the solver refuses to cut either short, and `estimate` counts both."""
+    return math.ceil(t_ramp / dt), math.ceil(contact.duration / dt)
+
+
+def slid_distance(aut: Automata, st: mk.State, contact: Contact, extent: np.ndarray) -> float:
+    """How far body 2 was driven along the sliding direction (m): the mean displacement of its far face."""
+    _, high = far_faces(contact)
+    top = aut.on_face(high, extent)
+    return float(np.mean(st.x[top, contact.direction_index] - aut.positions[top, contact.direction_index]))
+
+
+def footprint_room(aut: Automata, contact: Contact) -> float:
+    """How far body 2 may slide along the direction before its leading automata leave body 1's surface: from
+    its leading automata to body 1's last ones, plus half a spacing (the contact search keeps a slave whose foot
+    lies up to EDGE = half a facet outside; beyond that its contact is lost).  A slider as long as its base
+    (no span) has half a spacing."""
+    d = contact.direction_index
+    along = aut.positions[:, d]
+    lead = float(along[aut.body == 1].max())
+    end = float(along[aut.body == 0].max())
+    return end - lead + ct.EDGE * float(aut.spacing[d])
+
+
+def contact_lost(window: np.ndarray, slid: float, room: float, contact: Contact) -> str:
+    """Why the bodies did not stay in contact over the whole averaging window ("" if they did): body 2 slid
+    beyond body 1's surface (its footprint left the base), or a history row of the window has no closed
+    contact (the bodies separated).  mu_dr = F_dr / F_N and the energy balance then describe something other
+    than two bodies sliding on each other (a slider off its base ends with no contact at all)."""
+    if slid > room:
+        return (f"the bodies did not stay in contact: body 2 slid {slid:.3g} m along {contact.direction} by the end "
+                f"of the averaging window, beyond body 1's surface ({room:.3g} m of room for its footprint); "
+                "allowed: speed x (ramp + duration) within the room")
+    open_rows = window[:, mk.H_NC] < 1
+    if open_rows.any():
+        first = float(window[np.argmax(open_rows), mk.H_T])
+        return (f"the bodies did not stay in contact: no closed contact in {int(open_rows.sum())} of "
+                f"{len(window)} history rows of the averaging window (first at t = {first:.4g} s; window "
+                f"{float(window[0, mk.H_T]):.4g} to {float(window[-1, mk.H_T]):.4g} s)")
+    return ""
+
+
 def _heating(scene: Scene, aut: Automata, bonded: Automata, el: Elastic, law: ct.ContactLaw, p: dict[str, Any]
              ) -> dict[str, Any]:
     """Sliding, then MCA heat of the bonded automata (the contact conducts as the interface pairs of the rest
     geometry) from the scene's initial temperature to t_end, fed by the window's mean friction power of each
     contact: half to the slave, half to its rest partners (the facet found at the rest positions, by weight)."""
     out = _sliding(scene, aut, bonded, el, law, p)
-    slave_power = out.pop("power")
+    slave_power = out.pop("power", None)
     summary = out["summary"]
     if out["status"] != "ok" or slave_power is None:
         return out | {"field": None}
@@ -319,16 +383,34 @@ def semi_infinite_rise(flux: float, conductivity: float, diffusivity: float, t: 
     return 2.0 * flux / conductivity * root * (math.exp(-u * u) / math.sqrt(math.pi) - u * float(erfc(u)))
 
 
+def mu_dr_expected(law: ct.ContactLaw, speed: float, pressure: float) -> float:
+    """mu_dr = F_dr / F_N that the friction law (contact.py, eq. 16) gives when every contact slides at the drive's
+    speed V under the same normal stress sigma = F_N / A (A the contact area, F_N the normal force mu_dr is
+    taken against):
+        tau = mu0 V + mu1 (1 + K_mu) min(sigma, sigma0) min(1, V / v_reg),   F_dr = tau A,
+        mu_dr = mu0 V / sigma + mu1 (1 + K_av) min(1, sigma0 / sigma) min(1, V / v_reg),
+    K_av the mean of the roughness process (K_mu enters linearly).  Below v_reg the dry part is the law's
+    viscous regularisation, above sigma0 the normal stress that counts is capped.  Exact for a uniform pressure,
+    or one wholly above sigma0; with a pressure that straddles sigma0 the cap bites less than this says.  Not in
+    it: the explicit step's own cap of the regularised slope (contact.py), which widens the regularisation to
+    tau S dt / m_red -- friction_step_ratio says how close a run comes to it."""
+    if not pressure > 0:
+        return math.nan
+    dry = law.mu1 * (1 + rg.mean(law.rough)) * min(1.0, law.sigma0 / pressure) * min(1.0, speed / law.v_reg)
+    return dry + law.mu0 * speed / pressure
+
+
 def _friction_summary(window: np.ndarray, st: mk.State, law: ct.ContactLaw, contact: Contact,
                       f_normal: float) -> dict[str, Any]:
     """mu_dr statistics over the sliding window, their expected value and uncertainty, the energy balance."""
     ratio = float(window[:, mk.H_FN].mean() / f_normal)
+    f_applied = f_normal
     if contact.platen:  # the platen's reaction is the normal force: the contacts' normal force
         f_normal *= ratio
     mu = window[:, mk.H_FT] / f_normal
     out: dict[str, Any] = {"mu_dr_mean": float(mu.mean()), "mu_dr_std": float(mu.std()), "normal_force_ratio": ratio,
                            "window_s": float(window[-1, mk.H_T] - window[0, mk.H_T])}
-    expected = law.mu1 * (1 + rg.mean(law.rough)) + law.mu0 * contact.speed / contact.normal_stress
+    expected = mu_dr_expected(law, contact.speed, f_normal / f_applied * contact.normal_stress)
     out["mu_dr_expected"] = expected
     out["mu_dr_error"] = abs(out["mu_dr_mean"] / expected - 1) if expected > 0 else math.nan
     con = st.contact
