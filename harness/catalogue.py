@@ -16,6 +16,7 @@ from typing import Any
 from pcverify.scene import (
     ALUMINIUM,
     DURALUMIN,
+    EXTENT_RANGE,
     MATERIALS,
     RESPONSES,
     Box,
@@ -40,13 +41,13 @@ from pcverify.solvers.registry import Entry, Registry
 BOX = Box()  # the paper's bar, 0.01 x 0.01 x 0.03 m (the default dimensions of every catalogue scene)
 PLACEMENTS = ("back-edge", "diagonal")
 
-DIMENSIONS = (
-    Param("width", BOX.width, "m", "box width (x); the lattice spacing is a = width / (n - 1)", low=0.0, high=1.0,
-          low_open=True),
+DIMENSIONS = (  # the box model's own range (EXTENT_RANGE), so `pcverify scenes` shows what is accepted
+    Param("width", BOX.width, "m", "box width (x); the lattice spacing is a = width / (n - 1)", low=EXTENT_RANGE[0],
+          high=EXTENT_RANGE[1]),
     Param("height", BOX.height, "m", "box height (y): a whole number of spacings at the resolutions used",
-          low=0.0, high=1.0, low_open=True),
+          low=EXTENT_RANGE[0], high=EXTENT_RANGE[1]),
     Param("length", BOX.length, "m", "box length (z): a whole number of spacings at the resolutions used",
-          low=0.0, high=1.0, low_open=True),
+          low=EXTENT_RANGE[0], high=EXTENT_RANGE[1]),
 )
 T_MAX = Param("t_max", 500.0, "K", "hot temperature (relative results are T/t_max)", low=1e-3, high=1e5)
 PLACEMENT = Param("placement", "back-edge", "", "which two bottom corners are frozen", choices=PLACEMENTS, kind=str)

@@ -18,7 +18,7 @@ from .constraints import (
     point_patch_note,
 )
 from .contact import Contact
-from .geometry import Box, Resolution
+from .geometry import EXTENT_RANGE, Box, Resolution
 from .loads import InterfaceFlux
 from .material import ALUMINIUM, DURALUMIN, MATERIALS, RESPONSES, Material, Response
 from .model import MODES, PHYSICS, Conduction, Elasticity, Scene
@@ -26,8 +26,8 @@ from .params import Param, SceneError, resolve_params, shown
 from .spec import SceneSpec
 
 __all__ = [
-    "ALUMINIUM", "DURALUMIN", "FACES", "MATERIALS", "MODES", "PHYSICS", "RESPONSES", "Box", "Conduction", "Constraint",
-    "Contact", "Elasticity", "FaceClamp", "FaceSupport", "FaceTemperature", "InterfaceFlux", "Material", "Param",
+    "ALUMINIUM", "DURALUMIN", "EXTENT_RANGE", "FACES", "MATERIALS", "MODES", "PHYSICS", "RESPONSES", "Box",
+    "Conduction", "Constraint", "Contact", "Elasticity", "FaceClamp", "FaceSupport", "FaceTemperature", "InterfaceFlux", "Material", "Param",
     "PatchTemperature", "PointTemperature", "Resolution", "Response", "Scene", "SceneError", "SceneSpec", "Support",
     "TemperatureConstraint", "point_patch_note", "resolve_params", "shown",
 ]
