@@ -27,7 +27,8 @@ from .spec import SceneSpec
 
 __all__ = [
     "ALUMINIUM", "DURALUMIN", "EXTENT_RANGE", "FACES", "MATERIALS", "MODES", "PHYSICS", "RESPONSES", "Box",
-    "Conduction", "Constraint", "Contact", "Elasticity", "FaceClamp", "FaceSupport", "FaceTemperature", "InterfaceFlux", "Material", "Param",
+    "Conduction", "Constraint", "Contact", "Elasticity", "FaceClamp", "FaceSupport", "FaceTemperature",
+    "InterfaceFlux", "Material", "Param",
     "PatchTemperature", "PointTemperature", "Resolution", "Response", "Scene", "SceneError", "SceneSpec", "Support",
     "TemperatureConstraint", "point_patch_note", "resolve_params", "shown",
 ]
