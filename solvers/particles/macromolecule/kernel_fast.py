@@ -572,6 +572,9 @@ def _run(state, lattice, fixes, params, out, square, potential):
         uy = 0.5 * (vmy[i] + vpy[i])
         uz = 0.5 * (vmz[i] + vpz[i])
         kin += ux * ux + uy * uy + uz * uz
+        v0[i, 0] = ux  # the final velocities v_n, written over the initial ones
+        v0[i, 1] = uy
+        v0[i, 2] = uz
     q8 = 0.125 * mass * dt  # KE = m/2 |(vm + vp)/2|^2, times dt
     for i in range(n):
         hot[1, i] = q8 * hot1[i]

@@ -68,6 +68,7 @@ class RunResult:
     wall_s: float
     steps: int
     cpu_s: float = math.nan  # CPU seconds of this process inside the kernel (robust on a shared machine)
+    v: np.ndarray | None = None  # final velocities (fast kernel)
 
     @property
     def status_code(self) -> int:
@@ -118,7 +119,7 @@ def simulate(lat: Lattice, model: SevenRoot, fx: Fixes, delta: float, dt: float,
     counters = out.counters
     steps = np.maximum(counters[[K_HOT_STEPS, K_HALF1, K_HALF2]], 1) * dt
     return RunResult(out.hot / steps[:, None], out.energy, counters, out.history[:rows], out.ever, x, wall,
-                     int(counters[K_STEPS]), cpu)
+                     int(counters[K_STEPS]), cpu, v)
 
 
 ENERGY_TOL = 1e-2  # relative energy-balance error above which a run is not integrated (shipped runs: <= 3e-4)
