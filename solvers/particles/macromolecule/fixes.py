@@ -9,14 +9,19 @@ stroke and q the rest; "symmetric": the same split, centre held at rest.  In bar
 is every particle inside the hot patch sphere (moving rigidly); frozen = every particle inside a frozen
 sphere.  A hot face is a Langevin bath (or driven, hot_face = "driven"), a cold face a 0 K viscous bath
 (or frozen, far_face = "frozen").
+
+The numba half (inlined into `kernel`'s step): each fix's kick, the drives' positions, the start
+velocities v_{-1/2} and the work a fix does, lambda_n = m (v_{n+1/2} - v_{n-1/2}) / dt - F_n (its force).
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from numba import njit
 
 from pcverify.scene import FaceTemperature, PointTemperature, Scene
 
@@ -102,3 +107,138 @@ def make_fixes(scene: Scene, lat: Lattice, p: dict[str, Any], omega_top: float |
     return fx
 
 
+@njit(inline="always")
+def group_force(kind, held, fx, fy, fz):
+    """Sum of the forces on the group particles (in index order)."""
+    s0 = 0.0
+    s1 = 0.0
+    s2 = 0.0
+    for q in range(held.shape[0]):
+        i = held[q]
+        if kind[i] == GROUP:
+            s0 += fx[i]
+            s1 += fy[i]
+            s2 += fz[i]
+    return s0, s1, s2
+
+
+@njit(inline="always")
+def held_velocity(t_next, t_now, dt, kind, held, amp, phase, omega, vc, vx, vy, vz, start):
+    """Velocity of the held particles over [t_now, t_next] into vx, vy, vz (0 for frozen ones).
+
+    `start` is a constant: v_{-1/2} at the start divides the sine difference by dt and leaves out
+    the group's centre velocity (added after); a step multiplies by 1/dt and adds it."""
+    inv_dt = 1.0 / dt
+    for q in range(held.shape[0]):
+        i = held[q]
+        if kind[i] == FROZEN:
+            vx[i] = 0.0
+            vy[i] = 0.0
+            vz[i] = 0.0
+        else:
+            if start:
+                ds = (math.sin(omega * t_next + phase[i]) - math.sin(omega * t_now + phase[i])) / dt
+            else:
+                ds = (math.sin(omega * t_next + phase[i]) - math.sin(omega * t_now + phase[i])) * inv_dt
+            vx[i] = amp[i, 0] * ds
+            vy[i] = amp[i, 1] * ds
+            vz[i] = amp[i, 2] * ds
+            if not start and kind[i] == GROUP:
+                vx[i] += vc[0]
+                vy[i] += vc[1]
+                vz[i] += vc[2]
+
+
+@njit(inline="always")
+def _lam(q, i, mass, inv_dt, f, vm, vp, lam):
+    """lambda of particle i (row q): m (vp - vm) / dt - F."""
+    lam[q, 0] = mass * (vp[0][i] - vm[0][i]) * inv_dt - f[0][i]
+    lam[q, 1] = mass * (vp[1][i] - vm[1][i]) * inv_dt - f[1][i]
+    lam[q, 2] = mass * (vp[2][i] - vm[2][i]) * inv_dt - f[2][i]
+
+
+@njit(inline="always")
+def held_kick(t_next, t_now, dt, kind, held, amp, phase, omega, mass, f, vm, vp, lam, vc, group_mass, free_centre):
+    """v_{n+1/2} of the held particles (prescribed, group; the group's centre from the forces on it)."""
+    if free_centre:
+        s0, s1, s2 = group_force(kind, held, f[0], f[1], f[2])
+        vc[0] += dt * s0 / group_mass
+        vc[1] += dt * s1 / group_mass
+        vc[2] += dt * s2 / group_mass
+    held_velocity(t_next, t_now, dt, kind, held, amp, phase, omega, vc, vp[0], vp[1], vp[2], False)
+    inv_dt = 1.0 / dt
+    for q in range(held.shape[0]):
+        _lam(q, held[q], mass, inv_dt, f, vm, vp, lam)
+
+
+@njit(inline="always")
+def bath_kick(dt, bath, gamma, kt, mass, f, vm, vp, lam):
+    """Langevin particles: exact OU factor with seeded noise, then the kick (kT = 0: an absorbing face)."""
+    fx, fy, fz = f
+    vmx, vmy, vmz = vm
+    vpx, vpy, vpz = vp
+    inv_dt = 1.0 / dt
+    for q in range(bath.shape[0]):
+        i = bath[q]
+        damp = math.exp(-gamma[i] * dt)
+        sig = math.sqrt(kt[i] / mass * (1.0 - damp * damp))
+        vpx[i] = vmx[i] * damp + sig * np.random.standard_normal() + dt * fx[i] / mass  # noqa: NPY002
+        vpy[i] = vmy[i] * damp + sig * np.random.standard_normal() + dt * fy[i] / mass  # noqa: NPY002
+        vpz[i] = vmz[i] * damp + sig * np.random.standard_normal() + dt * fz[i] / mass  # noqa: NPY002
+        _lam(q, i, mass, inv_dt, f, vm, vp, lam)
+
+
+@njit(cache=True)
+def start_velocity(v0, f, vm, kind, held, free, amp, phase, omega, dt, dtm, vc, group_mass, free_centre):
+    """v_{-1/2} from v0 and the forces at t = 0, so that v_{+1/2} = v0 + dt/2 a0 (held particles: their
+    motion over [-dt, 0]; the group's centre velocity from the forces on the group)."""
+    fx, fy, fz = f
+    vmx, vmy, vmz = vm
+    for q in range(free.shape[0]):
+        i = free[q]
+        vmx[i] = v0[i, 0] - 0.5 * dtm * fx[i]
+        vmy[i] = v0[i, 1] - 0.5 * dtm * fy[i]
+        vmz[i] = v0[i, 2] - 0.5 * dtm * fz[i]
+    held_velocity(0.0, -dt, dt, kind, held, amp, phase, omega, vc, vmx, vmy, vmz, True)
+    if free_centre:
+        s0, s1, s2 = group_force(kind, held, fx, fy, fz)
+        vc[0] = -0.5 * dt * s0 / group_mass
+        vc[1] = -0.5 * dt * s1 / group_mass
+        vc[2] = -0.5 * dt * s2 / group_mass
+        for q in range(held.shape[0]):
+            i = held[q]
+            if kind[i] == GROUP:
+                vmx[i] += vc[0]
+                vmy[i] += vc[1]
+                vmz[i] += vc[2]
+
+
+@njit(inline="always")
+def drive_positions(t1, dt, moving, kind, x_rest, amp, phase, omega, vc, cpos, free_centre, pos):
+    """Positions of the driven particles at t1 (after the drift of all particles): x_rest + amp sin(omega t1 +
+    phase), plus the group's centre displacement, advanced here by dt times its velocity."""
+    px, py, pz = pos
+    if free_centre:
+        for d in range(3):
+            cpos[d] += dt * vc[d]
+    for q in range(moving.shape[0]):
+        i = moving[q]
+        s1 = math.sin(omega * t1 + phase[i])
+        px[i] = x_rest[i, 0] + amp[i, 0] * s1
+        py[i] = x_rest[i, 1] + amp[i, 1] * s1
+        pz[i] = x_rest[i, 2] + amp[i, 2] * s1
+        if kind[i] == GROUP:
+            px[i] += cpos[0]
+            py[i] += cpos[1]
+            pz[i] += cpos[2]
+
+
+@njit(inline="always")
+def fix_work(idx, v, lam0, lam1):
+    """sum over idx of v . (lambda_prev + lambda_now) (times dt/2: the work of a fix over one interval)."""
+    vx, vy, vz = v
+    w = 0.0
+    for q in range(idx.shape[0]):
+        i = idx[q]
+        w += vx[i] * (lam0[q, 0] + lam1[q, 0]) + vy[i] * (lam0[q, 1] + lam1[q, 1]) + vz[i] * (lam0[q, 2] + lam1[q, 2])
+    return w

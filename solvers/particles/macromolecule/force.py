@@ -1,6 +1,6 @@
 """Seven-root force characteristic of the macromolecule model (Arinchev): the pair style.
 
-F(r) = A * (a/r)^p * prod_{i=1..7}(r/a - x_i) * STEP(r/a; 2s -> 1, 2 -> 0)   (+ delta * rdot, see integrate)
+F(r) = A * (a/r)^p * prod_{i=1..7}(r/a - x_i) * STEP(r/a; 2s -> 1, 2 -> 0)   (+ delta * rdot: `kernel`)
 
 F > 0 is attraction and F = dU/dr.  The product is taken in units of a (x = r/a), so A is a
 force scale in newtons.  Stable roots x = 1, sqrt2, sqrt3, 2 (the simple-cubic neighbour shells);
@@ -11,8 +11,10 @@ Because STEP has zero value and slope at x = 2, F ~ (r - 2a)^3 there: the fourth
 stable to third order (one-sided: repulsive when compressed, no force beyond 2a), and a pair
 resting at 2a adds no stiffness to the linearised lattice.
 
-The numba functions take the packed coefficient vector of `SevenRoot.coeffs()` so that kernels
-stay pure functions of positions and a float array (JAX-MD style).
+`pair_force` is the force (the kernel's pair loop, the potential energy, the tables); `force_slope_x`
+is its linearisation (F and dF/dx, a running product and its derivative) for the modal analysis and
+the scalar energy quadrature `energy_x`.
+The numba functions take the packed coefficient vector of `SevenRoot.coeffs()`.
 """
 
 from __future__ import annotations
@@ -48,11 +50,6 @@ class SevenRoot:
             raise ValueError(f"s={self.s!r}; allowed: (0, 1)")
 
     @property
-    def stable(self) -> np.ndarray:
-        """Stable roots in units of a."""
-        return STABLE.copy()
-
-    @property
     def unstable(self) -> np.ndarray:
         """Unstable roots in units of a, one in each gap between stable roots."""
         return STABLE[:-1] + self.unstable_fraction * np.diff(STABLE)
@@ -82,43 +79,13 @@ class SevenRoot:
         return c
 
 
-@njit(cache=True, inline="always")
-def _envelope(x: float, c: np.ndarray) -> float:
-    pint = c[C_PINT]
-    if pint >= 0.0:
-        inv = 1.0 / x
-        e = 1.0
-        for _ in range(int(pint)):
-            e *= inv
-        return e
-    return x ** (-c[C_P])
-
-
-@njit(cache=True, inline="always")
-def force_x(x: float, c: np.ndarray) -> float:
-    """Conservative pair force (N) at reduced distance x = r/a (0 beyond the STEP end)."""
-    x1 = c[C_X1]
-    if x >= x1:
-        return 0.0
-    prod = 1.0
-    for i in range(7):
-        prod *= x - c[C_ROOTS + i]
-    f = c[C_A] * _envelope(x, c) * prod
-    x0 = c[C_X0]
-    if x > x0:
-        d = (x - x0) / (x1 - x0)
-        f *= 1.0 - d * d * (3.0 - 2.0 * d)
-    return f
-
-
 @njit(inline="always")
-def force_tree(x, ix, r0, r1, r2, r3, r4, r5, r6, amp_a, p, step_lo, inv_w, square, step=True):
-    """`force_x` branch-free, for the vectorised kernels: the seven root factors multiplied as a
-    depth-3 tree with A folded in (no pow; exact near the roots, where Horner in powers of x
-    cancels), the envelope ix^2 with ix = a/r if `square` (p = 2) else x^-p, and the STEP clamped
-    (1 below its start, 0 from 2a on).  Equal to force_x to rounding.  step=False leaves the STEP
-    out, for callers that stay below its start (its two selects, unrolled 12 times in a quadrature,
-    keep LLVM from vectorising the loop around them)."""
+def pair_force(x, ix, r0, r1, r2, r3, r4, r5, r6, amp_a, p, step_lo, inv_w, square, step=True):
+    """Conservative pair force (N) at reduced distance x = r/a, branch-free (the kernel's loops vectorise):
+    the seven root factors multiplied as a depth-3 tree with A folded in (no pow; exact near the roots,
+    where Horner in powers of x cancels), the envelope ix^2 with ix = a/r if `square` (p = 2) else x^-p,
+    and the STEP clamped (1 below its start, 0 from 2a on).  step=False leaves the STEP out, for callers
+    that stay below its start (its two selects, unrolled in a quadrature, keep LLVM from vectorising)."""
     prod = (((x - r0) * (x - r1)) * ((x - r2) * (x - r3))) * (((x - r4) * (x - r5)) * ((x - r6) * amp_a))
     if square:
         env = ix * ix
@@ -132,9 +99,17 @@ def force_tree(x, ix, r0, r1, r2, r3, r4, r5, r6, amp_a, p, step_lo, inv_w, squa
     return prod * env * (1.0 - d * d * (3.0 - 2.0 * d))
 
 
+@njit(inline="always")
+def force_x(x: float, c: np.ndarray) -> float:
+    """`pair_force` at reduced distance x with the packed coefficients."""
+    return pair_force(x, 1.0 / x, c[C_ROOTS], c[C_ROOTS + 1], c[C_ROOTS + 2], c[C_ROOTS + 3], c[C_ROOTS + 4],
+                      c[C_ROOTS + 5], c[C_ROOTS + 6], c[C_A], c[C_P], c[C_X0], 1.0 / (c[C_X1] - c[C_X0]),
+                      c[C_P] == 2.0)
+
+
 @njit(cache=True)
 def force_slope_x(x: float, c: np.ndarray) -> tuple[float, float]:
-    """(F, dF/dx) at reduced distance x; dF/dr = (dF/dx) / a."""
+    """(F, dF/dx) at reduced distance x; dF/dr = (dF/dx) / a.  F equals `pair_force` to rounding."""
     x1 = c[C_X1]
     if x >= x1:
         return 0.0, 0.0
@@ -144,7 +119,14 @@ def force_slope_x(x: float, c: np.ndarray) -> tuple[float, float]:
         t = x - c[C_ROOTS + i]
         dprod = dprod * t + prod
         prod *= t
-    env = _envelope(x, c)
+    pint = c[C_PINT]
+    if pint >= 0.0:
+        inv = 1.0 / x
+        env = 1.0
+        for _ in range(int(pint)):
+            env *= inv
+    else:
+        env = x ** (-c[C_P])
     denv = -c[C_P] * env / x
     st = 1.0
     dst = 0.0
@@ -166,7 +148,7 @@ def _gl(lo: float, hi: float, c: np.ndarray) -> float:
     mid = 0.5 * (hi + lo)
     s = 0.0
     for k in range(_GL_X.shape[0]):
-        s += _GL_W[k] * force_x(mid + half * _GL_X[k], c)
+        s += _GL_W[k] * force_slope_x(mid + half * _GL_X[k], c)[0]
     return s * half
 
 
@@ -175,7 +157,9 @@ def energy_x(x_from: float, x_to: float, c: np.ndarray) -> float:
     """Integral of F dx from x_from to x_to (multiply by a for joules).
 
     12-point Gauss-Legendre on each smooth piece (split at the STEP ends, where F'' jumps):
-    exact to rounding for the small excursions of a vibrating lattice.
+    exact to rounding for the small excursions of a vibrating lattice.  F in the running-product form
+    of `force_slope_x`: the energies of the shipped runs were computed with it (pair_force's tree
+    differs from it in the last bits, which would move the ledger of runs with pairs across the STEP).
     """
     if x_to == x_from:
         return 0.0
@@ -193,7 +177,7 @@ def energy_x(x_from: float, x_to: float, c: np.ndarray) -> float:
 
 @njit(cache=True)
 def force_array(x: np.ndarray, c: np.ndarray) -> np.ndarray:
-    """Vectorised force_x (N) over reduced distances."""
+    """`force_x` over reduced distances."""
     out = np.empty(x.shape[0])
     for i in range(x.shape[0]):
         out[i] = force_x(x[i], c)
@@ -202,15 +186,9 @@ def force_array(x: np.ndarray, c: np.ndarray) -> np.ndarray:
 
 @njit(cache=True)
 def force_slope_array(x: np.ndarray, c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Vectorised force_slope_x: (F, dF/dx) over reduced distances."""
+    """`force_slope_x` over reduced distances: (F, dF/dx)."""
     f = np.empty(x.shape[0])
     df = np.empty(x.shape[0])
     for i in range(x.shape[0]):
         f[i], df[i] = force_slope_x(x[i], c)
     return f, df
-
-
-def shell_stiffness(model: SevenRoot, a: float) -> np.ndarray:
-    """dF/dr (N/m) at the four stable roots; the last is 0 (STEP ends at 2a)."""
-    _, df = force_slope_array(STABLE.copy(), model.coeffs())
-    return df / a

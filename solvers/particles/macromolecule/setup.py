@@ -81,7 +81,7 @@ def prepare(scene: Scene, n: int, p: dict[str, Any]) -> Setup:
     dt = p["dt"] if p["dt"] is not None else p["safety"] * 2.0 / w_top
     if p["dt"] is None and dt > limit:  # heavy damping: the damped limit is below safety * 2 / omega_max
         dt = p["safety"] * limit
-    if dt > limit:
+    if dt > limit and p["dt_guard"]:
         raise SceneError(f"dt={dt:.6g} s is above the stability limit {limit:.6g} s of the linearised scheme "
                          f"(spectral radius 1; single-mode estimate 2 (sqrt(1+zeta^2) - zeta) / omega_max = "
                          f"{single:.6g} s, omega_max = {w_top:.6g} rad/s, zeta = {zeta:.3g}); allowed: dt <= limit")

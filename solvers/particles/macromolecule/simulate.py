@@ -1,8 +1,8 @@
 """Run a prepared macromolecule lattice and measure it: hotness, energy balance, hops, status.
 
-`simulate` looks a time-stepping kernel up in `kernels.KERNELS` (fast, fastmath or the plain
-reference; the same scheme, equal to rounding), runs it from rest and turns its sums into
-per-particle hotness (the time-mean kinetic energy over the window and its two halves).  `run_status`
+`simulate` runs the kernel (`kernel.run_p2` or `run_any`, by the envelope) from rest, or from a given
+state, and turns its sums into per-particle hotness (the time-mean kinetic energy over the window and
+its two halves).  `run_status`
 classifies a run: unstable (NaN, energy growth, a particle left the bar), defect (broken
 neighbourhood, pairs hopped to another root), non-stationary (the halves disagree) or ok.
 """
@@ -17,7 +17,6 @@ from typing import Any
 import numba
 import numpy as np
 
-from . import kernels
 from .codes import (
     CONTACT,
     DONE,
@@ -49,7 +48,7 @@ from .codes import (
 )
 from .fixes import Fixes
 from .force import SevenRoot
-from .kernel_state import FixArrays, RunOutputs, RunParams, RunState, lattice_arrays
+from .kernel import FixArrays, RunOutputs, RunParams, RunState, lattice_arrays, run_any, run_p2
 from .lattice import Lattice
 
 N_HISTORY = 400
@@ -64,11 +63,11 @@ class RunResult:
     counters: np.ndarray
     history: np.ndarray
     ever: np.ndarray
-    x: np.ndarray
+    x: np.ndarray  # final positions
+    v: np.ndarray  # final velocities
     wall_s: float
     steps: int
-    cpu_s: float = math.nan  # CPU seconds of this process inside the kernel (robust on a shared machine)
-    v: np.ndarray | None = None  # final velocities (fast kernel)
+    cpu_s: float  # CPU seconds of this process inside the kernel (robust on a shared machine)
 
     @property
     def status_code(self) -> int:
@@ -77,17 +76,19 @@ class RunResult:
 
 def simulate(lat: Lattice, model: SevenRoot, fx: Fixes, delta: float, dt: float, t_end: float, t_start: float = 0.0,
              omega: float = 0.0, v0: np.ndarray | None = None, seed: int = 0, blowup_factor: float = 10.0,
-             contact_fraction: float = 0.5, check_every: int | None = None, kernel: str = "fast") -> RunResult:
-    """Run the kernel `kernel` of `kernels.KERNELS` ("fast", the default, "fastmath" or "reference") from
-    rest (or from velocities v0) and return averaged hotness and diagnostics.
+             contact_fraction: float = 0.5, check_every: int | None = None, x0: np.ndarray | None = None) -> RunResult:
+    """Run the kernel from rest (or from positions x0 and velocities v0; held particles start on their fix)
+    and return averaged hotness and diagnostics.
 
     The kernel is compiled or loaded from numba's cache before the clock starts: wall_s and cpu_s are
     the integration alone."""
-    run = kernels.select(kernel, model)
+    run = run_p2 if float(model.p) == 2.0 else run_any
     N = lat.size
     n_steps = int(round(t_end / dt))
     n_start = min(int(round(t_start / dt)), n_steps)
     x = lat.positions + fx.amp * np.sin(fx.phase)[:, None]
+    if x0 is not None:
+        x[fx.kind == FREE] = x0[fx.kind == FREE]
     v = np.zeros((N, 3)) if v0 is None else np.array(v0, dtype=float)
     v[fx.kind != FREE] = 0.0
     ext = lat.positions.max(axis=0)
@@ -96,7 +97,7 @@ def simulate(lat: Lattice, model: SevenRoot, fx: Fixes, delta: float, dt: float,
     held = fx.kind != FREE
     e_scale = 1.5 * fx.kt.sum() + 0.5 * lat.mass * omega**2 * float((fx.amp[held] ** 2).sum())
     args = (
-        RunState(x=x, v0=v),
+        RunState(x=x, v=v),
         lattice_arrays(lat.positions, lat.mass, lat.a, lat.pairs, lat.r0, lat.shell, model.basins()),
         FixArrays(kind=np.ascontiguousarray(fx.kind, dtype=np.int64), amp=np.ascontiguousarray(fx.amp, dtype=float),
                   phase=np.ascontiguousarray(fx.phase, dtype=float), gamma=np.ascontiguousarray(fx.gamma, dtype=float),
@@ -118,8 +119,8 @@ def simulate(lat: Lattice, model: SevenRoot, fx: Fixes, delta: float, dt: float,
     out = args[-1]
     counters = out.counters
     steps = np.maximum(counters[[K_HOT_STEPS, K_HALF1, K_HALF2]], 1) * dt
-    return RunResult(out.hot / steps[:, None], out.energy, counters, out.history[:rows], out.ever, x, wall,
-                     int(counters[K_STEPS]), cpu, v)
+    return RunResult(out.hot / steps[:, None], out.energy, counters, out.history[:rows], out.ever, x, v, wall,
+                     int(counters[K_STEPS]), cpu)
 
 
 ENERGY_TOL = 1e-2  # relative energy-balance error above which a run is not integrated (shipped runs: <= 3e-4)

@@ -1,13 +1,11 @@
 """The macromolecule solver (Arinchev): heat conduction as forced vibration of a particle lattice.
 
 Pieces (LAMMPS split): `lattice` (nodes, masses, fixed pair list), `force` (the seven-root pair style),
-`fixes` (frozen, kinematic drive, Langevin/absorbing faces), the time-stepping kernels, `simulate`
-(computes: hotness, energy balance, hops, neighbourhood; the run's status), `modal` (Hessian,
-frequencies, damping ratio), `setup` (A from f_top, delta from a damping ratio, dt) and `probe` (the
-stability probe).  This module is the glue: parameters, what it supports, and sums turned into a
-Solution.  kernel = "ensemble" runs the large-N ensemble kernel instead (`large_n.heat`), and
-`solve_batch` integrates K parameter sets of one scene in one call of it, each Solution the one its
-own solve gives.
+`fixes` (frozen, kinematic drive, Langevin/absorbing faces), `kernel` (the one integrator: its pair pass
+and its step), `computes` (hops, checks, energies, hotness sums), `simulate` (runs the kernel; hotness,
+energy balance, status), `modal` (Hessian, frequencies, damping ratio), `setup` (A from f_top, delta
+from a damping ratio, dt), `probe` (the stability probe) and `elastic_modes`.  This module is the glue:
+parameters, what it supports, and sums turned into a Solution.
 
 Conventions: hotness H_j = (1/(t_end - t_start)) int KE_j dt; samples are H_j / max over FREE
 particles; the second normalisation (by the driven particle) is in the summary as *_by_driven.
@@ -29,8 +27,6 @@ from . import codes
 from .elastic_modes import macromolecule_modes
 from .fixes import Fixes
 from .force import SevenRoot
-from .kernels import KERNELS
-from .large_n.heat import ENSEMBLE, require_ensemble, run_heat, shared_key
 from .lattice import Lattice
 from .probe import MacromoleculeProbe
 from .setup import DEFAULT_DAMPING_RATIO, Setup, prepare
@@ -58,20 +54,13 @@ PARAMETERS: tuple[Param, ...] = (
     Param("t_start", 0.0, "s", "start of the averaging window", low=0.0, high=1e5),
     Param("safety", 0.05, "", "dt = safety * 2 / omega_max; default 0.05, not 0.1: at 0.1 the driven lattice's "
           "energy balance misses 1e-3 from n = 4 on (2.0-3.1e-3, velocity Verlet's dt^2 error on the anharmonic "
-          "force; kernel_reference.py), at 0.05 it closes to <= 8e-4 for n = 2..11", low=0.0, high=1.0, low_open=True),
+          "force; kernel.py), at 0.05 it closes to <= 8e-4 for n = 2..11", low=0.0, high=1.0, low_open=True),
     Param("dt", None, "s", "time step (overrides safety; must be below the stability limit)", low=0.0, high=1.0,
           low_open=True, optional=True),
     Param("pairs_at_2a", "keep", "", "keep or drop the pairs resting at exactly 2a", choices=("keep", "drop"),
           kind=str),
     Param("face_drive_direction", "y", "", "bar-heat-faces, hot_face=driven: direction of the face drive (z: "
           "normal to the face, longitudinal)", choices=("x", "y", "z"), kind=str),
-    Param("kernel", "fast", "", "time-stepping kernel from the table kernels.KERNELS: fast (kernel_fast.py), "
-          "fastmath (the same compiled with FMA and approximate reciprocals) or the plain reference "
-          "(kernel_reference.py); the same scheme, equal to rounding; or ensemble: the large-N ensemble kernel "
-          "(large_n/heat.py: K parameter sets per call in solve_batch; driven or symmetric drives and 0 K "
-          "faces only, defects and instability seen at checks every n_steps / 400; no energy accounts, so its runs "
-          "cannot pass the energy-balance check and are never ok)",
-          choices=(*KERNELS, ENSEMBLE), kind=str),
     Param("hot_face", "langevin", "", "bar-heat-faces: z=0 face thermostatted or kinematically driven",
           choices=("langevin", "driven"), kind=str),
     Param("far_face", "absorbing", "", "bar-heat-faces: z=L face viscous (0 K bath) or frozen",
@@ -92,6 +81,8 @@ PARAMETERS: tuple[Param, ...] = (
     Param("max_steps", 20_000_000, "", "largest number of time steps a run may take (t_end / dt)", low=1, high=1e10,
           kind=int),
     Param("dt_check", False, "", "rerun at dt/2 and report the change in relative hotness", kind=bool),
+    Param("dt_guard", True, "", "refuse a dt above the stability limit of the linearised scheme; false runs it and "
+          "lets the run's checks report a blow-up (the stability probe's runs)", kind=bool),
 )
 
 
@@ -156,48 +147,10 @@ class Macromolecule:
         if "modes" in scene.physics:
             return self._modes(scene, n, p, t_wall)
         s = prepare(scene, n, p)
-        if p["kernel"] == ENSEMBLE:
-            if p["perturbation"] > 0:
-                raise SceneError(f"perturbation={p['perturbation']:g} is not allowed with kernel=ensemble; allowed: "
-                                 "0, or another kernel")
-            run = run_heat(scene, [s], [p])[0]
-        else:
-            run = simulate(s.lattice, s.model, s.fixes, s.delta, s.dt, p["t_end"], p["t_start"],
-                           2 * np.pi * p["drive_frequency"], v0=initial_velocities(s, p), seed=p["seed"],
-                           blowup_factor=p["blowup_factor"], contact_fraction=p["contact_fraction"],
-                           kernel=p["kernel"])
+        run = simulate(s.lattice, s.model, s.fixes, s.delta, s.dt, p["t_end"], p["t_start"],
+                       2 * np.pi * p["drive_frequency"], v0=initial_velocities(s, p), seed=p["seed"],
+                       blowup_factor=p["blowup_factor"], contact_fraction=p["contact_fraction"])
         return self._heat(scene, n, p, s, run, t_wall, samples)
-
-    def solve_batch(self, scene: Scene, resolution: Resolution, param_sets: list[dict[str, Any]],
-                    samples: dict[str, np.ndarray] | None = None) -> list[Solution | Exception]:
-        """One entry per parameter set: the Solution its own `solve` gives (bit for bit, but for the timings),
-        or the SceneError it would raise.  Sets with kernel = "ensemble" that share everything but the
-        per-replica parameters (`large_n.heat.PER_REPLICA`; dt given explicitly when f_top differs) are
-        integrated as replicas of one ensemble kernel call; any other set is solved alone."""
-        out: list[Solution | Exception | None] = [None] * len(param_sets)
-        groups: dict[tuple, list[tuple[int, dict[str, Any], Setup, float]]] = {}
-        for i, params in enumerate(param_sets):
-            t0 = time.perf_counter()
-            try:
-                p = effective_params(self, params)
-                s = None
-                if (p["kernel"] == ENSEMBLE and self.supports(scene)[0] and "modes" not in scene.physics
-                        and resolution.refine == 1):
-                    s = prepare(scene, resolution.n, p)
-                if s is None:
-                    out[i] = self.solve(scene, resolution, samples=samples, **params)
-                else:
-                    require_ensemble(s, p)  # the SceneError `solve` would raise, without preparing the run again
-                    groups.setdefault((shared_key(p), s.dt), []).append((i, p, s, time.perf_counter() - t0))
-            except (SceneError, ValueError, ArithmeticError) as exc:
-                out[i] = exc
-        for members in groups.values():
-            t0 = time.perf_counter()
-            runs = run_heat(scene, [m[2] for m in members], [m[1] for m in members])
-            share = (time.perf_counter() - t0) / len(members)
-            for (i, p, s, setup_s), run in zip(members, runs, strict=True):
-                out[i] = self._heat(scene, resolution.n, p, s, run, time.perf_counter() - setup_s - share, samples)
-        return [o for o in out if o is not None]
 
     def _heat(self, scene: Scene, n: int, p: dict[str, Any], s: Setup, run: RunResult, t_wall: float,
               samples: dict[str, np.ndarray] | None) -> Solution:
@@ -229,7 +182,9 @@ class Macromolecule:
         )
         diagnostics: dict[str, Any] = {
             "energy": {k: float(run.energy[i]) for k, i in (("start", codes.E_START), ("end", codes.E_END),
-                       ("dissipated", codes.E_DISS), ("drive_work", codes.E_DRIVE), ("bath_work", codes.E_BATH))},
+                       ("dissipated", codes.E_DISS), ("drive_work", codes.E_DRIVE), ("bath_work", codes.E_BATH),
+                       ("kinetic_end", codes.E_KIN_END))},
+            "positions_end": run.x,
             "history": {"columns": ["t", "kinetic", "potential", "dissipated", "drive_work", "bath_work"],
                         "rows": run.history},
             "hopped_pairs_by_shell": np.bincount(lat.shell[run.ever == 1], minlength=4),
@@ -243,7 +198,7 @@ class Macromolecule:
         if p["dt_check"]:
             fine = simulate(lat, s.model, fx, s.delta, s.dt / 2, p["t_end"], p["t_start"], w_drive,
                             v0=initial_velocities(s, p), seed=p["seed"], blowup_factor=p["blowup_factor"],
-                            contact_fraction=p["contact_fraction"], kernel=p["kernel"])
+                            contact_fraction=p["contact_fraction"])
             Hf = fine.hot[0]
             relf = Hf / Hf[free].max()
             summary["dt_sensitivity"] = float(np.max(np.abs(relf - rel)[free]))
