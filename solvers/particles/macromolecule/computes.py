@@ -11,34 +11,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .codes import (
-    CONTACT,
-    DONE,
-    E_BATH,
-    E_DISS,
-    E_DRIVE,
-    E_END,
-    E_KIN_END,
-    E_POT_END,
-    FROZEN,
-    GROWTH,
-    H_BATH,
-    H_DISS,
-    H_DRIVE,
-    H_KIN,
-    H_POT,
-    H_T,
-    ISOLATED,
-    K_FIRST_HOP,
-    K_HOP_EVENTS,
-    K_HOP_PAIRS,
-    K_STATUS,
-    K_STEPS,
-    K_STOP_STEP,
-    LEFT_BAR,
-    NAN,
-    RUNNING,
-)
+from . import codes
 from .force import _GL_W, _GL_X, C_A, C_P, C_ROOTS, C_X0, C_X1, energy_x, pair_force
 
 
@@ -64,12 +37,12 @@ def hops(px, py, pz, o, base, lo, hi, mask, a, out, ever, step, counters):
         if (x < lo) | (x >= hi):
             if out[s] == 0:
                 out[s] = 1
-                counters[K_HOP_EVENTS] += 1
+                counters[codes.K_HOP_EVENTS] += 1
                 if ever[s] == 0:
                     ever[s] = 1
-                    counters[K_HOP_PAIRS] += 1
-                    if counters[K_FIRST_HOP] < 0:
-                        counters[K_FIRST_HOP] = step
+                    counters[codes.K_HOP_PAIRS] += 1
+                    if counters[codes.K_FIRST_HOP] < 0:
+                        counters[codes.K_FIRST_HOP] = step
         elif out[s] != 0:
             out[s] = 0
 
@@ -79,8 +52,8 @@ def reset_outputs(counters, energy):
     """Counters and energies of a run before its first step (no hop yet, running)."""
     for k in range(counters.shape[0]):
         counters[k] = 0
-    counters[K_FIRST_HOP] = -1
-    counters[K_STATUS] = RUNNING
+    counters[codes.K_FIRST_HOP] = -1
+    counters[codes.K_STATUS] = codes.RUNNING
     energy[:] = 0.0
 
 
@@ -111,12 +84,12 @@ def state_check(pos, vm, vp, box_lo, box_hi):
 def verdict(bad, left, kin, supplied, blowup_factor, e_scale):
     """Status of a check from the state alone: NaN, left the bar, energy growth, else RUNNING."""
     if bad:
-        return NAN
+        return codes.NAN
     if left:
-        return LEFT_BAR
+        return codes.LEFT_BAR
     if kin > blowup_factor * (max(supplied, 0.0) + e_scale):
-        return GROWTH
-    return RUNNING
+        return codes.GROWTH
+    return codes.RUNNING
 
 
 @njit(cache=True)
@@ -131,8 +104,8 @@ def neighbourhood(px, py, pz, x_rest, kind, pi, pj, a, cutoff_rest, contact_frac
         near[i] = min(near[i], r)
         near[j] = min(near[j], r)
     for i in range(n):
-        if kind[i] != FROZEN and near[i] > 2.0 * a:
-            return ISOLATED
+        if kind[i] != codes.FROZEN and near[i] > 2.0 * a:
+            return codes.ISOLATED
     # unlisted pairs: only possible when some particle moved more than the skin
     dmax2 = 0.0
     for i in range(n):
@@ -141,7 +114,7 @@ def neighbourhood(px, py, pz, x_rest, kind, pi, pj, a, cutoff_rest, contact_frac
         dz = pz[i] - x_rest[i, 2]
         dmax2 = max(dmax2, dx * dx + dy * dy + dz * dz)
     if 4.0 * dmax2 < skin * skin:
-        return RUNNING
+        return codes.RUNNING
     lim2 = (contact_fraction * a) ** 2
     cut2 = cutoff_rest * cutoff_rest
     for i in range(n):
@@ -155,8 +128,8 @@ def neighbourhood(px, py, pz, x_rest, kind, pi, pj, a, cutoff_rest, contact_frac
             dy = py[j] - py[i]
             dz = pz[j] - pz[i]
             if dx * dx + dy * dy + dz * dz < lim2:
-                return CONTACT
-    return RUNNING
+                return codes.CONTACT
+    return codes.RUNNING
 
 
 @njit(cache=True, boundscheck=False)
@@ -284,23 +257,23 @@ def hot_sums(acc, vm, vp):
 @njit(inline="always")
 def record(history, hrow, t, kin, pot, diss, w_drive, w_bath):
     """One row of the coarse energy history."""
-    history[hrow, H_T] = t
-    history[hrow, H_KIN] = kin
-    history[hrow, H_POT] = pot
-    history[hrow, H_DISS] = diss
-    history[hrow, H_DRIVE] = w_drive
-    history[hrow, H_BATH] = w_bath
+    history[hrow, codes.H_T] = t
+    history[hrow, codes.H_KIN] = kin
+    history[hrow, codes.H_POT] = pot
+    history[hrow, codes.H_DISS] = diss
+    history[hrow, codes.H_DRIVE] = w_drive
+    history[hrow, codes.H_BATH] = w_bath
 
 
 @njit(inline="always")
 def finish(counters, energy, step, status, e_end, diss, w_drive, w_bath, kin_end, pot_end):
     """Counters and energies of a run that stopped at `step` with `status` (RUNNING: completed)."""
-    counters[K_STEPS] = step
-    counters[K_STOP_STEP] = step
-    counters[K_STATUS] = DONE if status == RUNNING else status
-    energy[E_END] = e_end
-    energy[E_DISS] = diss
-    energy[E_DRIVE] = w_drive
-    energy[E_BATH] = w_bath
-    energy[E_KIN_END] = kin_end
-    energy[E_POT_END] = pot_end
+    counters[codes.K_STEPS] = step
+    counters[codes.K_STOP_STEP] = step
+    counters[codes.K_STATUS] = codes.DONE if status == codes.RUNNING else status
+    energy[codes.E_END] = e_end
+    energy[codes.E_DISS] = diss
+    energy[codes.E_DRIVE] = w_drive
+    energy[codes.E_BATH] = w_bath
+    energy[codes.E_KIN_END] = kin_end
+    energy[codes.E_POT_END] = pot_end

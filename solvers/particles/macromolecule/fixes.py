@@ -1,17 +1,13 @@
-"""Fixes of the macromolecule lattice: what each particle's motion is, from the scene's constraints.
+"""Fixes of the macromolecule lattice (LAMMPS "fixes"): what each particle's motion is, from the scene.
 
-Kinds (LAMMPS "fixes"): FREE (Newton, optionally a Langevin bath), FROZEN (held at rest), PRESCRIBED
-(kinematic drive) and GROUP (a rigid side of the red pair whose relative motion is prescribed).
-The red pair: m at the hot corner, q one spacing below; (r_m - r_q).e_y = a + D a sin(2 pi f t) with
-D = drive_amplitude.  drive_sharing "free-centre" (default): the relative motion is prescribed, the
-pair's centre of mass moves freely under the forces on the pair, so m takes m_q/(m_m + m_q) of the
-stroke and q the rest; "symmetric": the same split, centre held at rest.  In bar-heat-patch the m side
-is every particle inside the hot patch sphere (moving rigidly); frozen = every particle inside a frozen
-sphere.  A hot face is a Langevin bath (or driven, hot_face = "driven"), a cold face a 0 K viscous bath
-(or frozen, far_face = "frozen").
-
-The numba half (inlined into `kernel`'s step): each fix's kick, the drives' positions, the start
-velocities v_{-1/2} and the work a fix does, lambda_n = m (v_{n+1/2} - v_{n-1/2}) / dt - F_n (its force).
+FREE (Newton, optionally a Langevin bath), FROZEN, PRESCRIBED (kinematic drive), GROUP (a rigid side of the
+red pair).  The red pair: m at the hot corner, q one spacing below, (r_m - r_q).e_y = a + D a sin(2 pi f t);
+drive_sharing "free-centre": the pair's centre of mass moves freely under the forces on it, so m takes
+m_q/(m_m + m_q) of the stroke and q the rest; "symmetric": the same split, centre at rest.  In bar-heat-patch
+the m side is every particle in the hot patch (rigid), frozen every particle in a frozen one.  A hot face is
+a Langevin bath (or driven), a cold face a 0 K viscous bath (or frozen).  The numba half, inlined into the
+kernel's step: kicks, drive positions, start velocities, and a fix's force lambda_n = m (v_{n+1/2} -
+v_{n-1/2}) / dt - F_n, whose work the ledger counts.
 """
 
 from __future__ import annotations
@@ -40,7 +36,6 @@ class Fixes:
     kt: np.ndarray
     free_centre: bool = False
     hot: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))  # hot reference particles
-    notes: str = ""
 
     @property
     def held(self) -> np.ndarray:
@@ -132,17 +127,13 @@ def held_velocity(t_next, t_now, dt, kind, held, amp, phase, omega, vc, vx, vy, 
     for q in range(held.shape[0]):
         i = held[q]
         if kind[i] == FROZEN:
-            vx[i] = 0.0
-            vy[i] = 0.0
-            vz[i] = 0.0
+            vx[i] = vy[i] = vz[i] = 0.0
         else:
             if start:
                 ds = (math.sin(omega * t_next + phase[i]) - math.sin(omega * t_now + phase[i])) / dt
             else:
                 ds = (math.sin(omega * t_next + phase[i]) - math.sin(omega * t_now + phase[i])) * inv_dt
-            vx[i] = amp[i, 0] * ds
-            vy[i] = amp[i, 1] * ds
-            vz[i] = amp[i, 2] * ds
+            vx[i], vy[i], vz[i] = amp[i, 0] * ds, amp[i, 1] * ds, amp[i, 2] * ds
             if not start and kind[i] == GROUP:
                 vx[i] += vc[0]
                 vy[i] += vc[1]
@@ -162,9 +153,7 @@ def held_kick(t_next, t_now, dt, kind, held, amp, phase, omega, mass, f, vm, vp,
     """v_{n+1/2} of the held particles (prescribed, group; the group's centre from the forces on it)."""
     if free_centre:
         s0, s1, s2 = group_force(kind, held, f[0], f[1], f[2])
-        vc[0] += dt * s0 / group_mass
-        vc[1] += dt * s1 / group_mass
-        vc[2] += dt * s2 / group_mass
+        vc[0], vc[1], vc[2] = vc[0] + dt * s0 / group_mass, vc[1] + dt * s1 / group_mass, vc[2] + dt * s2 / group_mass
     held_velocity(t_next, t_now, dt, kind, held, amp, phase, omega, vc, vp[0], vp[1], vp[2], False)
     inv_dt = 1.0 / dt
     for q in range(held.shape[0]):
@@ -202,9 +191,7 @@ def start_velocity(v0, f, vm, kind, held, free, amp, phase, omega, dt, dtm, vc, 
     held_velocity(0.0, -dt, dt, kind, held, amp, phase, omega, vc, vmx, vmy, vmz, True)
     if free_centre:
         s0, s1, s2 = group_force(kind, held, fx, fy, fz)
-        vc[0] = -0.5 * dt * s0 / group_mass
-        vc[1] = -0.5 * dt * s1 / group_mass
-        vc[2] = -0.5 * dt * s2 / group_mass
+        vc[0], vc[1], vc[2] = -0.5 * dt * s0 / group_mass, -0.5 * dt * s1 / group_mass, -0.5 * dt * s2 / group_mass
         for q in range(held.shape[0]):
             i = held[q]
             if kind[i] == GROUP:
@@ -223,10 +210,8 @@ def drive_positions(t1, dt, moving, kind, x_rest, amp, phase, omega, vc, cpos, f
             cpos[d] += dt * vc[d]
     for q in range(moving.shape[0]):
         i = moving[q]
-        s1 = math.sin(omega * t1 + phase[i])
-        px[i] = x_rest[i, 0] + amp[i, 0] * s1
-        py[i] = x_rest[i, 1] + amp[i, 1] * s1
-        pz[i] = x_rest[i, 2] + amp[i, 2] * s1
+        w = math.sin(omega * t1 + phase[i])
+        px[i], py[i], pz[i] = x_rest[i, 0] + amp[i, 0] * w, x_rest[i, 1] + amp[i, 1] * w, x_rest[i, 2] + amp[i, 2] * w
         if kind[i] == GROUP:
             px[i] += cpos[0]
             py[i] += cpos[1]

@@ -1,20 +1,12 @@
 """Seven-root force characteristic of the macromolecule model (Arinchev): the pair style.
 
-F(r) = A * (a/r)^p * prod_{i=1..7}(r/a - x_i) * STEP(r/a; 2s -> 1, 2 -> 0)   (+ delta * rdot: `kernel`)
+F(r) = A (a/r)^p prod_{i=1..7}(r/a - x_i) STEP(r/a; 2s -> 1, 2 -> 0), F > 0 attraction, F = dU/dr, A a force
+scale (N).  Stable roots x = 1, sqrt2, sqrt3, 2 (the simple-cubic shells), one unstable root in each gap at
+`unstable_fraction` of it; STEP is MSC.Adams' cubic step h0 + (h1 - h0) D^2 (3 - 2D), D = clamp((x - x0)/(x1 -
+x0)).  STEP has zero value and slope at x = 2, so F ~ (r - 2a)^3 there: a pair resting at 2a adds no stiffness.
 
-F > 0 is attraction and F = dU/dr.  The product is taken in units of a (x = r/a), so A is a
-force scale in newtons.  Stable roots x = 1, sqrt2, sqrt3, 2 (the simple-cubic neighbour shells);
-one unstable root inside each gap at `unstable_fraction` of the gap (0.5: the midpoint).
-STEP is MSC.Adams' cubic step h0 + (h1 - h0) * D^2 (3 - 2D), D = clamp((x - x0)/(x1 - x0)).
-
-Because STEP has zero value and slope at x = 2, F ~ (r - 2a)^3 there: the fourth root is only
-stable to third order (one-sided: repulsive when compressed, no force beyond 2a), and a pair
-resting at 2a adds no stiffness to the linearised lattice.
-
-`pair_force` is the force (the kernel's pair loop, the potential energy, the tables); `force_slope_x`
-is its linearisation (F and dF/dx, a running product and its derivative) for the modal analysis and
-the scalar energy quadrature `energy_x`.
-The numba functions take the packed coefficient vector of `SevenRoot.coeffs()`.
+`pair_force` is the force (the kernel's pair loop and potential energy, the tables); `force_slope_x` its
+linearisation (F and dF/dx as a running product and its derivative: the modal analysis and `energy_x`).
 """
 
 from __future__ import annotations
@@ -50,21 +42,16 @@ class SevenRoot:
             raise ValueError(f"s={self.s!r}; allowed: (0, 1)")
 
     @property
-    def unstable(self) -> np.ndarray:
-        """Unstable roots in units of a, one in each gap between stable roots."""
-        return STABLE[:-1] + self.unstable_fraction * np.diff(STABLE)
-
-    @property
     def roots(self) -> np.ndarray:
-        """All seven roots, ascending."""
+        """All seven roots in units of a, ascending: the stable ones and one unstable root in each gap."""
         r = np.empty(7)
         r[0::2] = STABLE
-        r[1::2] = self.unstable
+        r[1::2] = STABLE[:-1] + self.unstable_fraction * np.diff(STABLE)
         return r
 
     def basins(self) -> np.ndarray:
         """(4, 2) root intervals [lo, hi) of each stable root: bounded by the unstable roots."""
-        u = self.unstable
+        u = self.roots[1::2]
         return np.array([[0.0, u[0]], [u[0], u[1]], [u[1], u[2]], [u[2], np.inf]])
 
     def coeffs(self) -> np.ndarray:
@@ -81,11 +68,9 @@ class SevenRoot:
 
 @njit(inline="always")
 def pair_force(x, ix, r0, r1, r2, r3, r4, r5, r6, amp_a, p, step_lo, inv_w, square, step=True):
-    """Conservative pair force (N) at reduced distance x = r/a, branch-free (the kernel's loops vectorise):
-    the seven root factors multiplied as a depth-3 tree with A folded in (no pow; exact near the roots,
-    where Horner in powers of x cancels), the envelope ix^2 with ix = a/r if `square` (p = 2) else x^-p,
-    and the STEP clamped (1 below its start, 0 from 2a on).  step=False leaves the STEP out, for callers
-    that stay below its start (its two selects, unrolled in a quadrature, keep LLVM from vectorising)."""
+    """Conservative pair force (N) at x = r/a, branch-free (the kernel's loops vectorise): the root factors as
+    a depth-3 tree with A folded in (no pow; exact near the roots), the envelope ix^2 (ix = a/r) if `square`
+    (p = 2) else x^-p, the STEP clamped.  step=False leaves the STEP out (for callers below its start)."""
     prod = (((x - r0) * (x - r1)) * ((x - r2) * (x - r3))) * (((x - r4) * (x - r5)) * ((x - r6) * amp_a))
     if square:
         env = ix * ix
@@ -156,11 +141,9 @@ def _gl(lo: float, hi: float, c: np.ndarray) -> float:
 def energy_x(x_from: float, x_to: float, c: np.ndarray) -> float:
     """Integral of F dx from x_from to x_to (multiply by a for joules).
 
-    12-point Gauss-Legendre on each smooth piece (split at the STEP ends, where F'' jumps):
-    exact to rounding for the small excursions of a vibrating lattice.  F in the running-product form
-    of `force_slope_x`: the energies of the shipped runs were computed with it (pair_force's tree
-    differs from it in the last bits, which would move the ledger of runs with pairs across the STEP).
-    """
+    12-point Gauss-Legendre on each smooth piece (split at the STEP's start, where F'' jumps).  F in the
+    running-product form of `force_slope_x`, with which the shipped ledgers were computed (pair_force's tree
+    differs in the last bits, which would move the ledger of runs with pairs across the STEP's start)."""
     if x_to == x_from:
         return 0.0
     lo, hi, sign = (x_from, x_to, 1.0) if x_to > x_from else (x_to, x_from, -1.0)

@@ -1,42 +1,33 @@
 """The macromolecule integrator: one kernel, its inputs, its pair pass and its step with fixes and computes.
 
-Scheme (kick-drift velocity Verlet, v_n = (v_{n-1/2} + v_{n+1/2}) / 2; LAMMPS fix nve with the pair
-damping evaluated at force time, as its dpd styles do):
-  v_{n+1/2} = v_{n-1/2} + dt (Fc(x_n) + Fd(x_n, v_{n-1/2}) + lambda_n) / m
-  x_{n+1}   = x_n + dt v_{n+1/2}
-Fd = delta * rdot e is the radial pair damping with the half-step velocity v_{n-1/2} (DPD-VV's
-half-step predictor): explicit, one force pass per step; a mode of frequency omega and damping ratio
-zeta is stable for omega dt / 2 < sqrt(1 + zeta^2) - zeta (non-proportional damping: the exact limit is
-`modal.discrete_stability_limit`).  lambda_n is what a fix adds (drive, bath), defined by
-m (v_{n+1/2} - v_{n-1/2}) / dt - F_n, so every particle obeys the same two lines.
+Scheme: kick-drift velocity Verlet (v_n = (v_{n-1/2} + v_{n+1/2}) / 2; LAMMPS fix nve with pair damping at
+force time, as its dpd styles do):
+  v_{n+1/2} = v_{n-1/2} + dt (Fc(x_n) + Fd(x_n, v_{n-1/2}) + lambda_n) / m,   x_{n+1} = x_n + dt v_{n+1/2}.
+Fd = delta rdot e, the radial pair damping with the half-step velocity (DPD-VV's predictor): explicit, one
+force pass per step, stable for omega dt / 2 < sqrt(1 + zeta^2) - zeta for one mode (the exact limit:
+`modal.discrete_stability_limit`).  lambda_n = m (v_{n+1/2} - v_{n-1/2}) / dt - F_n is what a fix adds.
 
-Energy ledger (exact algebra per step): E_n = sum 1/2 m v_{n-1/2} . v_{n+1/2} + U(x_n) and
-  E_{n+1} - E_n = 1/2 dt v_{n+1/2} . (Fd_n + Fd_{n+1} + lambda_n + lambda_{n+1}) + bracket,
-the first part minus the dissipation plus the fixes' work, the bracket 1/2 dt v_{n+1/2} . (Fc_n + Fc_{n+1})
-+ U_{n+1} - U_n the trapezoid error of the conservative work: the balance error.  It vanishes for a
-harmonic lattice (linearised forces close to 2e-7); with the seven-root force it is velocity Verlet's
-O(dt^2) error on the anharmonic force, concentrated in the nonlinear resonance of the bond below the red
-pair (measured at n = 5, D = 0.02 a: 2.0e-3 of the drive work at safety 0.1, 5.0e-4 at 0.05), hence the
-solver's default safety 0.05 (every shipped run closes to <= 8e-4).
+Energy ledger (exact algebra): E_n = sum 1/2 m v_{n-1/2} . v_{n+1/2} + U(x_n) changes over a step by
+1/2 dt v_{n+1/2} . (Fd_n + Fd_{n+1} + lambda_n + lambda_{n+1}) (dissipation, fixes' work) plus the trapezoid
+error of the conservative work, the balance error: nil for a harmonic lattice (2e-7 with linearised forces),
+velocity Verlet's O(dt^2) error on the anharmonic force otherwise, in the nonlinear resonance of the bond
+below the red pair (n = 5, D = 0.02 a: 2.0e-3 of the drive work at safety 0.1, 5.0e-4 at 0.05; hence the
+default safety 0.05, where every shipped run closes to <= 8e-4).
 
-Layout (what makes it fast): positions, velocities and forces as x, y, z vectors; the fixed pair list
-as a lattice stencil (`stencil`: groups of equal index offset o and rest shell, each a contiguous loop
-over slots i -> (i, i + o), a 0/1 mask for slots that are not pairs), so LLVM vectorises the pair loop;
-the pair force of a slot added to particle i in one accumulator and subtracted from i + o in another
-(no loop-carried dependence); the whole pass inlined into the step loop.  Dissipation is exact every
-step and kept per slot: over n -> n+1 a slot dissipates 1/2 dt (G_n . dv_{n+1/2} + delta rdot_{n+1}^2),
-G_n = q d_n with q = g/r kept from the previous pass and d_n = d_{n+1} - dt dv_{n+1/2}; the slot sums are
-added (8 fixed partial sums) only when the history is recorded and at the end.  Hop flags are exact
-every pass (an integer count per group; the group's bookkeeping runs only when it changed); NaN, box,
-energy-growth and neighbourhood checks run every `check_every` steps.
-
-Compiled per envelope, only when used: `run_p2` ((a/r)^2, vectorised) and `run_any` (x^-p through pow).
+Layout: x, y, z vectors; the fixed pair list as a lattice stencil (`stencil`: groups of equal index offset o
+and rest shell, each a contiguous loop over slots i -> (i, i + o), a 0/1 mask for non-pairs), so LLVM
+vectorises the pair loop; a slot's force added to i in one accumulator and subtracted from i + o in another;
+the pass inlined into the step loop.  Dissipation is exact and kept per slot: over n -> n+1 a slot
+dissipates 1/2 dt (G_n . dv_{n+1/2} + delta rdot_{n+1}^2), G_n = q d_n (q = g/r of the previous pass,
+d_n = d_{n+1} - dt dv_{n+1/2}), summed (8 fixed partial sums) only for the history and at the end.  Hop
+flags are exact every pass; NaN, box, energy-growth and neighbourhood checks run every `check_every` steps.
+Compiled per envelope, when used: `run_p2` ((a/r)^2, vectorised) and `run_any` (x^-p through pow).
 """
 
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+from collections import namedtuple
 
 import llvmlite.binding as llvm
 import numpy as np
@@ -59,84 +50,31 @@ from .computes import (
 from .fixes import bath_kick, drive_positions, fix_work, held_kick, start_velocity
 from .force import C_A, C_P, C_ROOTS, C_X0, C_X1, pair_force
 
-# The group loop reads 16 and writes 8 arrays; LLVM's default limit on the runtime alias checks this
-# needs ("too many memory checks needed") keeps it scalar.  Raising the limit only changes which loops
-# get vectorised, never a result: no fastmath, and the vectorised loops have no floating-point reductions.
+# LLVM's default limit on runtime alias checks keeps the group loop (16 arrays read, 8 written) scalar; raising
+# it changes which loops vectorise, never a result (no fastmath, no floating-point reductions in them).
 llvm.set_option("", "-vectorize-memory-check-threshold=4096")
 
 
-class RunState(NamedTuple):
-    """Start positions and velocities (N, 3), overwritten with the final ones."""
-
-    x: np.ndarray
-    v: np.ndarray
-
-
-class LatticeArrays(NamedTuple):
-    """Rest positions, particle mass, spacing, the pairs (i < j) and the stencil: per group its offset,
-    first slot, root interval [lo, hi) in units of a and rest distance; per slot a 0/1 mask and the rest
-    distance; each pair's slot."""
-
-    x_rest: np.ndarray
-    mass: float
-    a: float
-    pi: np.ndarray
-    pj: np.ndarray
-    g_off: np.ndarray
-    g_base: np.ndarray
-    g_lo: np.ndarray
-    g_hi: np.ndarray
-    g_r0: np.ndarray
-    mask: np.ndarray
-    r0s: np.ndarray
-    slot: np.ndarray
-
-
-class FixArrays(NamedTuple):
-    """Per-particle fixes (codes.FREE ... GROUP), drive amplitudes (N, 3) and phases, Langevin friction rate
-    and kT, the drive's angular frequency, whether the red pair's centre moves freely, the RNG seed."""
-
-    kind: np.ndarray
-    amp: np.ndarray
-    phase: np.ndarray
-    gamma: np.ndarray
-    kt: np.ndarray
-    omega: float
-    free_centre: bool
-    seed: int
-
-
-class RunParams(NamedTuple):
-    """Force coefficients (force.SevenRoot.coeffs), radial damping, time step; steps to run and the
-    hotness window [n_start, n_end); check interval and blow-up rule (kinetic energy above blowup_factor
-    times the energy supplied, e_scale the drives' and baths' energy scale); the bar's neighbourhood
-    box; the neighbourhood check (contact fraction of a, largest listed rest distance, skin)."""
-
-    coeffs: np.ndarray
-    delta: float
-    dt: float
-    n_steps: int
-    n_start: int
-    n_end: int
-    check_every: int
-    blowup_factor: float
-    e_scale: float
-    box_lo: np.ndarray
-    box_hi: np.ndarray
-    contact_fraction: float
-    cutoff_rest: float
-    skin: float
-
-
-class RunOutputs(NamedTuple):
-    """Filled by the kernel: hot (3, N) sums of KE dt over the window and its halves; energy (codes.E_*);
-    counters (codes.K_*); history (rows, codes.H_*); ever (P,) 1 for pairs that ever left their interval."""
-
-    hot: np.ndarray
-    energy: np.ndarray
-    counters: np.ndarray
-    history: np.ndarray
-    ever: np.ndarray
+# The kernel's five inputs (named tuples numba accepts; arrays C-contiguous, float64 / int64 / int8, so that
+# one compiled signature and its cache entry serve every run):
+# RunState: start positions and velocities (N, 3), overwritten with the final ones.
+RunState = namedtuple("RunState", "x v")
+# LatticeArrays: rest positions, particle mass, spacing, the pairs (i < j) and the stencil: per group its
+# offset, first slot, root interval [lo, hi) in units of a and rest distance; per slot a 0/1 mask and the
+# rest distance; each pair's slot.
+LatticeArrays = namedtuple("LatticeArrays", "x_rest mass a pi pj g_off g_base g_lo g_hi g_r0 mask r0s slot")
+# FixArrays: per-particle fixes (codes.FREE ... GROUP), drive amplitudes (N, 3) and phases, Langevin
+# friction rate and kT, the drive's angular frequency, whether the red pair's centre moves freely, the seed.
+FixArrays = namedtuple("FixArrays", "kind amp phase gamma kt omega free_centre seed")
+# RunParams: force coefficients (force.SevenRoot.coeffs), radial damping, time step; steps to run and the
+# hotness window [n_start, n_end); check interval and blow-up rule (kinetic energy above blowup_factor
+# times the energy supplied, e_scale the drives' and baths' energy scale); the bar's neighbourhood box;
+# the neighbourhood check (contact fraction of a, largest listed rest distance, skin).
+RunParams = namedtuple("RunParams", "coeffs delta dt n_steps n_start n_end check_every blowup_factor e_scale box_lo "
+                                    "box_hi contact_fraction cutoff_rest skin")
+# RunOutputs, filled by the kernel: hot (3, N) sums of KE dt over the window and its halves; energy
+# (codes.E_*); counters (codes.K_*); history (rows, codes.H_*); ever (P,) 1 for pairs that ever hopped.
+RunOutputs = namedtuple("RunOutputs", "hot energy counters history ever")
 
 
 def stencil(pairs: np.ndarray, shell: np.ndarray, n: int, basins: np.ndarray) -> tuple[np.ndarray, ...]:
@@ -172,11 +110,9 @@ def lattice_arrays(x_rest: np.ndarray, mass: float, a: float, pairs: np.ndarray,
 
 @njit(inline="always")
 def _group(pos, vel, o, base, lo, hi, mask, rt, shape, a, delta, dt, qk, dk, out, fi, fj, square):
-    """One stencil group: the damped pair force of each slot added to fi[i] and subtracted from fj[i + o],
-    the slot's dissipation term added to its running sum dk (damping force over distance kept in qk);
-    returns how many slots changed their hop flag (in or out of the root interval) against `out`.
-    No inner loop and no call in the body (either keeps LLVM from vectorising it); indices are unsigned
-    (no wrap-around code)."""
+    """One stencil group: each slot's damped pair force added to fi[i] and subtracted from fj[i + o], its
+    dissipation term added to dk (damping force over distance kept in qk); returns how many slots changed
+    their hop flag against `out`.  No inner loop or call in the body, unsigned indices: it vectorises."""
     px, py, pz = pos
     vx, vy, vz = vel
     fix, fiy, fiz = fi
@@ -191,22 +127,16 @@ def _group(pos, vel, o, base, lo, hi, mask, rt, shape, a, delta, dt, qk, dk, out
         dx, dy, dz = px[j] - px[iu], py[j] - py[iu], pz[j] - pz[iu]
         r = math.sqrt(dx * dx + dy * dy + dz * dz)
         ir = 1.0 / r
-        ex = dx * ir
-        ey = dy * ir
-        ez = dz * ir
+        ex, ey, ez = dx * ir, dy * ir, dz * ir
         x = r * inv_a
         f = pair_force(x, a * ir, r0, r1, r2, r3, r4, r5, r6, amp_a, p, step_lo, inv_w, square) * m
-        dvx = vx[j] - vx[iu]
-        dvy = vy[j] - vy[iu]
-        dvz = vz[j] - vz[iu]
+        dvx, dvy, dvz = vx[j] - vx[iu], vy[j] - vy[iu], vz[j] - vz[iu]
         rdot = dvx * ex + dvy * ey + dvz * ez
         g = delta * rdot * m
         dk[s] += qk[s] * (r * rdot - dt * (dvx * dvx + dvy * dvy + dvz * dvz)) + g * rdot
         qk[s] = g * ir
         f += g
-        tx = f * ex
-        ty = f * ey
-        tz = f * ez
+        tx, ty, tz = f * ex, f * ey, f * ez
         fix[iu] += tx
         fiy[iu] += ty
         fiz[iu] += tz
@@ -227,12 +157,7 @@ def pair_pass(pos, vel, lattice, rt, shape, delta, dt, qk, dk, out, ever, step, 
     fx, fy, fz = f
     px, py, pz = pos
     for i in range(fx.shape[0]):
-        fix[i] = 0.0
-        fiy[i] = 0.0
-        fiz[i] = 0.0
-        fjx[i] = 0.0
-        fjy[i] = 0.0
-        fjz[i] = 0.0
+        fix[i] = fiy[i] = fiz[i] = fjx[i] = fjy[i] = fjz[i] = 0.0
     g_off, g_base, g_lo, g_hi, mask, a = lattice.g_off, lattice.g_base, lattice.g_lo, lattice.g_hi, lattice.mask, \
         lattice.a
     for g in range(g_off.shape[0]):
@@ -274,26 +199,15 @@ def _run(state, lattice, fixes, params, out, square, potential):
     group_mass = mass * np.sum(kind == GROUP)
     if group_mass == 0.0:
         free_centre = False
-    f = _xyz(n)
-    fi = _xyz(n)
-    fj = _xyz(n)
+    f, fi, fj, vm, vp = _xyz(n), _xyz(n), _xyz(n), _xyz(n), _xyz(n)
     fx, fy, fz = f
-    vm = _xyz(n)
-    vp = _xyz(n)
     ns = lattice.mask.shape[0]
-    qk = np.zeros(ns)
-    dk = np.zeros(ns)
-    es = np.zeros(ns)
-    ever_s = np.zeros(ns, dtype=np.int8)
-    out_s = np.zeros(ns, dtype=np.int8)
-    lh0 = np.zeros((held.shape[0], 3))
-    lh1 = np.zeros((held.shape[0], 3))
-    lb0 = np.zeros((bath.shape[0], 3))
-    lb1 = np.zeros((bath.shape[0], 3))
-    vc = np.zeros(3)
-    cpos = np.zeros(3)
-    hot1 = np.zeros(n)
-    hot2 = np.zeros(n)
+    qk, dk, es = np.zeros(ns), np.zeros(ns), np.zeros(ns)  # per slot: damping force / r, dissipation, energy
+    ever_s, out_s = np.zeros(ns, dtype=np.int8), np.zeros(ns, dtype=np.int8)  # hop flags: ever, now
+    lh0, lh1 = np.zeros((held.shape[0], 3)), np.zeros((held.shape[0], 3))  # lambda of held and bath particles
+    lb0, lb1 = np.zeros((bath.shape[0], 3)), np.zeros((bath.shape[0], 3))
+    vc, cpos = np.zeros(3), np.zeros(3)  # the red pair's centre: velocity, displacement
+    hot1, hot2 = np.zeros(n), np.zeros(n)
     reset_outputs(counters, energy)
     n_mid = (n_start + n_end) // 2
     half_m = 0.5 * mass
@@ -301,9 +215,7 @@ def _run(state, lattice, fixes, params, out, square, potential):
 
     vpx, vpy, vpz = vp
     for i in range(n):
-        vpx[i] = v0[i, 0]
-        vpy[i] = v0[i, 1]
-        vpz[i] = v0[i, 2]
+        vpx[i], vpy[i], vpz[i] = v0[i, 0], v0[i, 1], v0[i, 2]
     w_drive = w_bath = 0.0  # work done by drives and baths so far
     hrow = step = 0
     status = RUNNING
@@ -371,18 +283,13 @@ def _run(state, lattice, fixes, params, out, square, potential):
     e1 = 0.0
     kin = 0.0
     for i in range(n):  # after the loop vm = v_{n-1/2}, vp = v_{n+1/2} (no swap on exit)
-        x[i, 0] = px[i]
-        x[i, 1] = py[i]
-        x[i, 2] = pz[i]
+        x[i, 0], x[i, 1], x[i, 2] = px[i], py[i], pz[i]
         e1 += vmx[i] * vpx[i] + vmy[i] * vpy[i] + vmz[i] * vpz[i]
-        v0[i, 0] = 0.5 * (vmx[i] + vpx[i])
-        v0[i, 1] = 0.5 * (vmy[i] + vpy[i])
-        v0[i, 2] = 0.5 * (vmz[i] + vpz[i])
+        v0[i, 0], v0[i, 1], v0[i, 2] = 0.5 * (vmx[i] + vpx[i]), 0.5 * (vmy[i] + vpy[i]), 0.5 * (vmz[i] + vpz[i])
         kin += v0[i, 0] * v0[i, 0] + v0[i, 1] * v0[i, 1] + v0[i, 2] * v0[i, 2]
     q8 = 0.125 * mass * dt  # KE = m/2 |(vm + vp)/2|^2, times dt
     for i in range(n):
-        hot[1, i] = q8 * hot1[i]
-        hot[2, i] = q8 * hot2[i]
+        hot[1, i], hot[2, i] = q8 * hot1[i], q8 * hot2[i]
         hot[0, i] = hot[1, i] + hot[2, i]
     pot = potential(px, py, pz, lattice, c, es)
     finish(counters, energy, step, status, half_m * e1 + pot, 0.5 * dt * sum8(dk), w_drive, w_bath, half_m * kin, pot)

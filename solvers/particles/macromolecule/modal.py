@@ -1,14 +1,9 @@
-"""Modal analysis of the macromolecule lattice: analytic Hessian, frequencies, damping ratio.
+"""Modal analysis of the macromolecule lattice: analytic Hessian, frequencies, damping ratio, step limits.
 
-For a pair (i, j) with separation d = x_j - x_i, r = |d|, e = d/r, the force on i is F(r) e
-(F > 0 attraction).  Its derivative with respect to x_j is B = F'(r) e e^T + F(r)/r (I - e e^T),
-so the Hessian of the potential gets +B on the (i,i) and (j,j) blocks and -B on (i,j), (j,i).
-At rest every pair sits on a root (F = 0), leaving only the F' term; the geometric term is kept
-so the Hessian is right at any configuration (tested against finite differences).
-Radial pair damping delta * rdot gives the damping matrix with B = delta e e^T.
-
-Held particles (frozen, driven) are removed from the eigenproblem.  The stiffness A scales the
-Hessian linearly, so A = A0 (f_top / f0)^2 hits a target top frequency exactly.
+A pair (i, j), d = x_j - x_i, e = d/r, contributes B = F'(r) e e^T + F(r)/r (I - e e^T) (+B on the (i,i) and
+(j,j) blocks, -B on (i,j), (j,i)); at rest F = 0 leaves the F' term, the geometric one keeps the Hessian right
+anywhere.  Radial damping delta rdot gives B = delta e e^T.  Held particles are removed from the eigenproblem;
+A scales the Hessian linearly, so A = A0 (f_top / f0)^2 hits a target top frequency exactly.
 """
 
 from __future__ import annotations
@@ -101,11 +96,6 @@ def top_modes(K: sp.csr_matrix, mass: float, dofs: np.ndarray, k: int | None = N
     return omega, vec / np.sqrt(mass)
 
 
-def top_frequency(K: sp.csr_matrix, mass: float, dofs: np.ndarray) -> float:
-    """Highest natural angular frequency (rad/s)."""
-    return float(top_modes(K, mass, dofs, k=1)[0][-1])
-
-
 def modal_basis(
     K: sp.csr_matrix, mass: float, dofs: np.ndarray, subspace: int = 48
 ) -> tuple[np.ndarray, np.ndarray, str]:
@@ -118,14 +108,10 @@ def modal_basis(
 def damped_top_mode(
     basis: tuple[np.ndarray, np.ndarray, str], C: sp.csr_matrix, dofs: np.ndarray
 ) -> tuple[float, float, str]:
-    """Damping ratio and natural frequency |lambda| of the top mode of M x'' + C x' + K x = 0.
-
-    Solved in state space on the modal basis of `modal_basis`: exact when it holds all modes,
-    else in the subspace of the highest undamped modes (the ones C couples the top mode to
-    most).  The top mode is the underdamped eigenvalue of largest |lambda|;
-    zeta = -Re(lambda)/|lambda|.  When no mode oscillates (heavy damping) the damping ratio is 1 (critical,
-    the bound of every overdamped mode) and the method says so.  Returns (zeta, |lambda|, method).
-    """
+    """(zeta, |lambda|, method) of the top mode of M x'' + C x' + K x = 0: in state space on the basis of
+    `modal_basis` (exact with all modes, else the subspace of the highest ones, which C couples the top mode
+    to most); the top mode is the underdamped eigenvalue of largest |lambda|, zeta = -Re(lambda)/|lambda|;
+    when no mode oscillates zeta = 1 (critical, the bound of every overdamped mode) and the method says so."""
     omega, phi, method = basis
     Cr = phi.T @ (C[dofs][:, dofs] @ phi)
     zeta, modulus = _damped_top(omega, Cr)
@@ -170,15 +156,10 @@ def delta_for_damping_ratio(
 
 def discrete_stability_limit(basis: tuple[np.ndarray, np.ndarray, str], C: sp.csr_matrix, dofs: np.ndarray,
                              tol: float = 1e-9) -> float:
-    """Largest omega_max dt / 2 for which the linearised one-step scheme is stable (spectral radius <= 1).
-
-    The kernel's kick-drift step with lagged damping is, for free particles of a linear lattice,
-    x_{n+1} = (2 - dt C - dt^2 K) x_n - (1 - dt C) x_{n-1} (mass-scaled).  In the modal basis of
-    `modal_basis` (exact when it holds all modes, else its top-mode subspace) K is diag(omega^2)
-    and C is phi^T C phi, full when the damping is not proportional.  Bisection on h = omega_max
-    dt / 2 in (0, 1].  For one mode this is sqrt(1 + zeta^2) - zeta; with non-proportional damping
-    a lower but more damped mode can become unstable first (the 16-particle lattice: see the tests).
-    """
+    """Largest omega_max dt / 2 at which the linearised step x_{n+1} = (2 - dt C - dt^2 K) x_n - (1 - dt C)
+    x_{n-1} (mass-scaled) is stable, in the basis of `modal_basis` (K = diag(omega^2), C = phi^T C phi, full
+    when the damping is not proportional).  One mode: sqrt(1 + zeta^2) - zeta; non-proportional damping can
+    make a lower, more damped mode unstable first (the 16-particle lattice: see the tests)."""
     omega, phi, _ = basis
     elastic = omega > 1e-6 * omega.max()  # rigid-body modes (free lattices): undamped, marginal, never limit dt
     omega, phi = omega[elastic], phi[:, elastic]

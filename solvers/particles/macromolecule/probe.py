@@ -1,10 +1,7 @@
 """Stability probe of the macromolecule solver: the solver's own solve, at a step chosen by the probe.
 
-Theory: velocity Verlet with radial pair damping lagged half a step.  A mode of frequency omega and
-damping ratio zeta is stable for omega dt / 2 < sqrt(1 + zeta^2) - zeta (Jury criterion of
-x_{n+1} - 2 x_n + x_{n-1} = -h^2 x_n - 2 zeta h (x_n - x_{n-1}), h = omega dt); the top mode (omega_max,
-zeta from the damped modal problem) sets dt_theory.  The linear-discrete limit is where the spectral
-radius of the linearised, held lattice's one-step map crosses 1 (Langevin bath friction left out).
+Theory (THEORY): the Jury criterion of the scheme with lagged damping for the top mode.  The linear-discrete
+limit is where the spectral radius of the linearised, held lattice's one-step map crosses 1.
 """
 
 from __future__ import annotations

@@ -1,10 +1,8 @@
 """Run a prepared macromolecule lattice and measure it: hotness, energy balance, hops, status.
 
-`simulate` runs the kernel (`kernel.run_p2` or `run_any`, by the envelope) from rest, or from a given
-state, and turns its sums into per-particle hotness (the time-mean kinetic energy over the window and
-its two halves).  `run_status`
-classifies a run: unstable (NaN, energy growth, a particle left the bar), defect (broken
-neighbourhood, pairs hopped to another root), non-stationary (the halves disagree) or ok.
+`simulate` runs the kernel from rest (or a given state) and turns its sums into per-particle hotness (the
+time-mean kinetic energy over the window and its two halves).  `run_status` classifies a run: unstable
+(NaN, energy growth, left the bar), defect (broken neighbourhood, hops), failed, non-stationary or ok.
 """
 
 from __future__ import annotations
@@ -17,35 +15,7 @@ from typing import Any
 import numba
 import numpy as np
 
-from .codes import (
-    CONTACT,
-    DONE,
-    E_BATH,
-    E_DISS,
-    E_DRIVE,
-    E_END,
-    E_START,
-    FREE,
-    GROWTH,
-    H_KIN,
-    H_T,
-    ISOLATED,
-    K_FIRST_HOP,
-    K_HALF1,
-    K_HALF2,
-    K_HOP_EVENTS,
-    K_HOP_PAIRS,
-    K_HOT_STEPS,
-    K_STATUS,
-    K_STEPS,
-    K_STOP_STEP,
-    LEFT_BAR,
-    N_COUNTERS,
-    N_ENERGY,
-    N_HISTORY_COLUMNS,
-    NAN,
-    STATUS_TEXT,
-)
+from . import codes
 from .fixes import Fixes
 from .force import SevenRoot
 from .kernel import FixArrays, RunOutputs, RunParams, RunState, lattice_arrays, run_any, run_p2
@@ -71,7 +41,7 @@ class RunResult:
 
     @property
     def status_code(self) -> int:
-        return int(self.counters[K_STATUS])
+        return int(self.counters[codes.K_STATUS])
 
 
 def simulate(lat: Lattice, model: SevenRoot, fx: Fixes, delta: float, dt: float, t_end: float, t_start: float = 0.0,
@@ -88,13 +58,13 @@ def simulate(lat: Lattice, model: SevenRoot, fx: Fixes, delta: float, dt: float,
     n_start = min(int(round(t_start / dt)), n_steps)
     x = lat.positions + fx.amp * np.sin(fx.phase)[:, None]
     if x0 is not None:
-        x[fx.kind == FREE] = x0[fx.kind == FREE]
+        x[fx.kind == codes.FREE] = x0[fx.kind == codes.FREE]
     v = np.zeros((N, 3)) if v0 is None else np.array(v0, dtype=float)
-    v[fx.kind != FREE] = 0.0
+    v[fx.kind != codes.FREE] = 0.0
     ext = lat.positions.max(axis=0)
     cutoff = lat.r0.max() * (1 + 1e-9)
     unlisted = 2.0 * lat.a * (1 + 1e-6) if cutoff < 1.999 * lat.a else math.sqrt(5.0) * lat.a
-    held = fx.kind != FREE
+    held = fx.kind != codes.FREE
     e_scale = 1.5 * fx.kt.sum() + 0.5 * lat.mass * omega**2 * float((fx.amp[held] ** 2).sum())
     args = (
         RunState(x=x, v=v),
@@ -108,8 +78,9 @@ def simulate(lat: Lattice, model: SevenRoot, fx: Fixes, delta: float, dt: float,
                   blowup_factor=float(blowup_factor), e_scale=float(e_scale), box_lo=-lat.a * np.ones(3),
                   box_hi=ext + lat.a, contact_fraction=float(contact_fraction), cutoff_rest=float(cutoff),
                   skin=float(unlisted - contact_fraction * lat.a)),
-        RunOutputs(hot=np.zeros((3, N)), energy=np.zeros(N_ENERGY), counters=np.zeros(N_COUNTERS, dtype=np.int64),
-                   history=np.full((N_HISTORY + 2, N_HISTORY_COLUMNS), np.nan),
+        RunOutputs(hot=np.zeros((3, N)), energy=np.zeros(codes.N_ENERGY),
+                   counters=np.zeros(codes.N_COUNTERS, dtype=np.int64),
+                   history=np.full((N_HISTORY + 2, codes.N_HISTORY_COLUMNS), np.nan),
                    ever=np.zeros(len(lat.pairs), dtype=np.int8)),
     )
     compiled = run.compile(tuple(numba.typeof(a) for a in args))  # compile or load from the cache: not timed
@@ -118,9 +89,9 @@ def simulate(lat: Lattice, model: SevenRoot, fx: Fixes, delta: float, dt: float,
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     out = args[-1]
     counters = out.counters
-    steps = np.maximum(counters[[K_HOT_STEPS, K_HALF1, K_HALF2]], 1) * dt
+    steps = np.maximum(counters[[codes.K_HOT_STEPS, codes.K_HALF1, codes.K_HALF2]], 1) * dt
     return RunResult(out.hot / steps[:, None], out.energy, counters, out.history[:rows], out.ever, x, v, wall,
-                     int(counters[K_STEPS]), cpu)
+                     int(counters[codes.K_STEPS]), cpu)
 
 
 ENERGY_TOL = 1e-2  # relative energy-balance error above which a run is not integrated (shipped runs: <= 3e-4)
@@ -129,8 +100,9 @@ ENERGY_TOL = 1e-2  # relative energy-balance error above which a run is not inte
 def energy_balance_error(r: RunResult) -> float:
     """|E_end - E_start + dissipated - work in| relative to the largest energy flow."""
     e = r.energy
-    resid = e[E_END] - e[E_START] + e[E_DISS] - e[E_DRIVE] - e[E_BATH]
-    scale = max(abs(e[E_START]), abs(e[E_END]), abs(e[E_DRIVE]), abs(e[E_BATH]), e[E_DISS], 1e-300)
+    start, end, diss, drive, bath = e[[codes.E_START, codes.E_END, codes.E_DISS, codes.E_DRIVE, codes.E_BATH]]
+    resid = end - start + diss - drive - bath
+    scale = max(abs(start), abs(end), abs(drive), abs(bath), diss, 1e-300)
     return float(abs(resid) / scale)
 
 
@@ -142,19 +114,19 @@ def run_status(run: RunResult, H: np.ndarray, free: np.ndarray, p: dict[str, Any
     hmax = H[free].max() if free.any() else 0.0
     h1, h2 = run.hot[1], run.hot[2]
     stat = float(np.max(np.abs(h1 - h2)[free]) / hmax) if hmax > 0 else math.nan
-    hops = int(run.counters[K_HOP_EVENTS])
+    hops = int(run.counters[codes.K_HOP_EVENTS])
     flags = {
         "stationarity": stat,
-        "hops": hops, "hopped_pairs": int(run.counters[K_HOP_PAIRS]),
-        "first_hop_step": int(run.counters[K_FIRST_HOP]),
-        "stopped_at_step": int(run.counters[K_STOP_STEP]) if code != DONE else -1,
-        "kernel_status": STATUS_TEXT[code],
+        "hops": hops, "hopped_pairs": int(run.counters[codes.K_HOP_PAIRS]),
+        "first_hop_step": int(run.counters[codes.K_FIRST_HOP]),
+        "stopped_at_step": int(run.counters[codes.K_STOP_STEP]) if code != codes.DONE else -1,
+        "kernel_status": codes.STATUS_TEXT[code],
         "running_integral_linearity": _linearity(run.history),
     }
-    if code in (NAN, GROWTH, LEFT_BAR):
-        return "unstable", f"{STATUS_TEXT[code]}; stopped at step {run.steps}, sums kept", flags
-    if code in (ISOLATED, CONTACT):
-        return "defect", (f"{STATUS_TEXT[code]}: the fixed pair list is wrong; run stopped at step "
+    if code in (codes.NAN, codes.GROWTH, codes.LEFT_BAR):
+        return "unstable", f"{codes.STATUS_TEXT[code]}; stopped at step {run.steps}, sums kept", flags
+    if code in (codes.ISOLATED, codes.CONTACT):
+        return "defect", (f"{codes.STATUS_TEXT[code]}: the fixed pair list is wrong; run stopped at step "
                           f"{run.steps} (not rebuilt), sums kept"), flags
     if hops:
         return "defect", (f"{flags['hopped_pairs']} pairs left their root interval ({hops} hop events, first at "
@@ -177,7 +149,7 @@ def _linearity(history: np.ndarray) -> float:
     """Paper's F 8 check: max deviation of the running integral of total KE from its chord, relative."""
     if history.shape[0] < 3:
         return math.nan
-    t, e = history[:, H_T], history[:, H_KIN]
+    t, e = history[:, codes.H_T], history[:, codes.H_KIN]
     integ = np.concatenate([[0.0], np.cumsum(0.5 * (e[1:] + e[:-1]) * np.diff(t))])
     chord = integ[0] + (integ[-1] - integ[0]) * (t - t[0]) / (t[-1] - t[0])
     return float(np.max(np.abs(integ - chord)) / abs(integ[-1])) if integ[-1] != 0 else math.nan

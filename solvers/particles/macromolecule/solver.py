@@ -1,11 +1,4 @@
-"""The macromolecule solver (Arinchev): heat conduction as forced vibration of a particle lattice.
-
-Pieces (LAMMPS split): `lattice` (nodes, masses, fixed pair list), `force` (the seven-root pair style),
-`fixes` (frozen, kinematic drive, Langevin/absorbing faces), `kernel` (the one integrator: its pair pass
-and its step), `computes` (hops, checks, energies, hotness sums), `simulate` (runs the kernel; hotness,
-energy balance, status), `modal` (Hessian, frequencies, damping ratio), `setup` (A from f_top, delta
-from a damping ratio, dt), `probe` (the stability probe) and `elastic_modes`.  This module is the glue:
-parameters, what it supports, and sums turned into a Solution.
+"""The macromolecule solver: parameters, what it supports, and a run's sums turned into a Solution.
 
 Conventions: hotness H_j = (1/(t_end - t_start)) int KE_j dt; samples are H_j / max over FREE
 particles; the second normalisation (by the driven particle) is in the summary as *_by_driven.
