@@ -29,8 +29,8 @@ from pcverify.harness.catalogue import make_scene
 from pcverify.scene import Resolution
 from pcverify.solvers.particles.macromolecule import codes
 from pcverify.solvers.particles.macromolecule.setup import prepare
-from pcverify.solvers.particles.macromolecule.simulate import simulate
-from pcverify.solvers.particles.macromolecule.solver import Macromolecule, initial_velocities
+from pcverify.solvers.particles.macromolecule.simulate import run_setup
+from pcverify.solvers.particles.macromolecule.solver import Macromolecule
 from pcverify.solvers.protocol import effective_params
 
 GOLDEN = Path(__file__).parent / "golden" / "macromolecule"
@@ -60,9 +60,7 @@ def golden_run(name: str) -> dict[str, Any]:
     scene = make_scene(scene_name, **scene_params)
     p = effective_params(Macromolecule(), given)
     s = prepare(scene, Resolution(n).n, p)
-    run = simulate(s.lattice, s.model, s.fixes, s.delta, s.dt, steps * s.dt, steps // 3 * s.dt,
-                   2 * np.pi * p["drive_frequency"], v0=initial_velocities(s, p), seed=p["seed"],
-                   blowup_factor=p["blowup_factor"], contact_fraction=p["contact_fraction"], check_every=CHECK_EVERY)
+    run = run_setup(s, p | {"t_end": steps * s.dt, "t_start": steps // 3 * s.dt}, check_every=CHECK_EVERY)
     energy = dict(zip(("start", "end", "dissipated", "drive_work", "bath_work", "kinetic_end", "potential_end"),
                       run.energy[:7].tolist(), strict=True))
     counters = dict(zip(("steps", "hop_events", "hop_pairs", "first_hop", "status", "stop_step", "hot_steps",

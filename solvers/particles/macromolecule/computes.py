@@ -1,8 +1,5 @@
-"""Computes of the macromolecule kernel (LAMMPS' word for measurements): hop events, the state, blow-up and
-neighbourhood checks, the potential energy, hotness sums, the energy history and the run's final counters.
-
-Inlined into `kernel`'s step (or called from it, for the rare and the costly ones).
-"""
+"""Computes of the macromolecule kernel (LAMMPS' word for measurements), called from its step: hop events, the
+state and neighbourhood checks, the potential energy, hotness sums, the energy history, the final counters."""
 
 from __future__ import annotations
 
@@ -18,9 +15,7 @@ from .force import _GL_W, _GL_X, C_A, C_P, C_ROOTS, C_X0, C_X1, energy_x, pair_f
 @njit(inline="always")
 def reduced(px, py, pz, i, j, inv_a):
     """Reduced distance |x_j - x_i| / a."""
-    dx = px[j] - px[i]
-    dy = py[j] - py[i]
-    dz = pz[j] - pz[i]
+    dx, dy, dz = px[j] - px[i], py[j] - py[i], pz[j] - pz[i]
     return math.sqrt(dx * dx + dy * dy + dz * dz) * inv_a
 
 
@@ -48,28 +43,17 @@ def hops(px, py, pz, o, base, lo, hi, mask, a, out, ever, step, counters):
 
 
 @njit(inline="always")
-def reset_outputs(counters, energy):
-    """Counters and energies of a run before its first step (no hop yet, running)."""
-    for k in range(counters.shape[0]):
-        counters[k] = 0
-    counters[codes.K_FIRST_HOP] = -1
-    counters[codes.K_STATUS] = codes.RUNNING
-    energy[:] = 0.0
-
-
-@njit(inline="always")
-def state_check(pos, vm, vp, box_lo, box_hi):
-    """(sum of |v_n|^2, any NaN/inf, any particle outside the box) at t_n, v_n = (v_{n-1/2} + v_{n+1/2}) / 2."""
+def check(pos, vm, vp, box_lo, box_hi, half_m, supplied, blowup_factor, e_scale):
+    """(status, kinetic energy, NaN seen) at t_n from the state alone, v_n = (v_{n-1/2} + v_{n+1/2}) / 2:
+    NaN/inf, a particle outside the box, kinetic energy above blowup_factor times the energy supplied
+    (plus e_scale), else RUNNING."""
     px, py, pz = pos
     vmx, vmy, vmz = vm
     vpx, vpy, vpz = vp
     kin = 0.0
-    bad = False
-    left = False
+    bad = left = False
     for i in range(px.shape[0]):
-        ux = 0.5 * (vmx[i] + vpx[i])
-        uy = 0.5 * (vmy[i] + vpy[i])
-        uz = 0.5 * (vmz[i] + vpz[i])
+        ux, uy, uz = 0.5 * (vmx[i] + vpx[i]), 0.5 * (vmy[i] + vpy[i]), 0.5 * (vmz[i] + vpz[i])
         kin += ux * ux + uy * uy + uz * uz
         if not (math.isfinite(px[i]) and math.isfinite(py[i]) and math.isfinite(pz[i])
                 and math.isfinite(ux) and math.isfinite(uy) and math.isfinite(uz)):
@@ -77,19 +61,14 @@ def state_check(pos, vm, vp, box_lo, box_hi):
         if (px[i] < box_lo[0] or px[i] > box_hi[0] or py[i] < box_lo[1] or py[i] > box_hi[1]
                 or pz[i] < box_lo[2] or pz[i] > box_hi[2]):
             left = True
-    return kin, bad, left
-
-
-@njit(inline="always")
-def verdict(bad, left, kin, supplied, blowup_factor, e_scale):
-    """Status of a check from the state alone: NaN, left the bar, energy growth, else RUNNING."""
+    kin *= half_m
     if bad:
-        return codes.NAN
+        return codes.NAN, kin, bad
     if left:
-        return codes.LEFT_BAR
+        return codes.LEFT_BAR, kin, bad
     if kin > blowup_factor * (max(supplied, 0.0) + e_scale):
-        return codes.GROWTH
-    return codes.RUNNING
+        return codes.GROWTH, kin, bad
+    return codes.RUNNING, kin, bad
 
 
 @njit(cache=True)
@@ -98,8 +77,7 @@ def neighbourhood(px, py, pz, x_rest, kind, pi, pj, a, cutoff_rest, contact_frac
     n = px.shape[0]
     near = np.full(n, np.inf)
     for k in range(pi.shape[0]):
-        i = pi[k]
-        j = pj[k]
+        i, j = pi[k], pj[k]
         r = reduced(px, py, pz, i, j, 1.0)
         near[i] = min(near[i], r)
         near[j] = min(near[j], r)
@@ -109,25 +87,16 @@ def neighbourhood(px, py, pz, x_rest, kind, pi, pj, a, cutoff_rest, contact_frac
     # unlisted pairs: only possible when some particle moved more than the skin
     dmax2 = 0.0
     for i in range(n):
-        dx = px[i] - x_rest[i, 0]
-        dy = py[i] - x_rest[i, 1]
-        dz = pz[i] - x_rest[i, 2]
-        dmax2 = max(dmax2, dx * dx + dy * dy + dz * dz)
+        dmax2 = max(dmax2, (px[i] - x_rest[i, 0]) ** 2 + (py[i] - x_rest[i, 1]) ** 2 + (pz[i] - x_rest[i, 2]) ** 2)
     if 4.0 * dmax2 < skin * skin:
         return codes.RUNNING
     lim2 = (contact_fraction * a) ** 2
     cut2 = cutoff_rest * cutoff_rest
+    xr = x_rest
     for i in range(n):
         for j in range(i + 1, n):
-            rx = x_rest[j, 0] - x_rest[i, 0]
-            ry = x_rest[j, 1] - x_rest[i, 1]
-            rz = x_rest[j, 2] - x_rest[i, 2]
-            if rx * rx + ry * ry + rz * rz <= cut2:
-                continue
-            dx = px[j] - px[i]
-            dy = py[j] - py[i]
-            dz = pz[j] - pz[i]
-            if dx * dx + dy * dy + dz * dz < lim2:
+            rest2 = (xr[j, 0] - xr[i, 0]) ** 2 + (xr[j, 1] - xr[i, 1]) ** 2 + (xr[j, 2] - xr[i, 2]) ** 2
+            if rest2 > cut2 and (px[j] - px[i]) ** 2 + (py[j] - py[i]) ** 2 + (pz[j] - pz[i]) ** 2 < lim2:
                 return codes.CONTACT
     return codes.RUNNING
 
@@ -135,20 +104,14 @@ def neighbourhood(px, py, pz, x_rest, kind, pi, pj, a, cutoff_rest, contact_frac
 @njit(cache=True, boundscheck=False)
 def sum8(v):
     """Sum in 8 fixed partial sums (one SIMD register): deterministic, and not a serial chain."""
-    s0 = s1 = s2 = s3 = s4 = s5 = s6 = s7 = 0.0
+    s = np.zeros(8)
     m = v.shape[0] - v.shape[0] % 8
     for k in range(0, m, 8):
-        s0 += v[k]
-        s1 += v[k + 1]
-        s2 += v[k + 2]
-        s3 += v[k + 3]
-        s4 += v[k + 4]
-        s5 += v[k + 5]
-        s6 += v[k + 6]
-        s7 += v[k + 7]
+        for lane in range(8):
+            s[lane] += v[k + lane]
     for k in range(m, v.shape[0]):
-        s0 += v[k]
-    return ((s0 + s1) + (s2 + s3)) + ((s4 + s5) + (s6 + s7))
+        s[0] += v[k]
+    return ((s[0] + s[1]) + (s[2] + s[3])) + ((s[4] + s[5]) + (s[6] + s[7]))
 
 
 # Gauss-Legendre nodes of `force.energy_x` as symmetric pairs about the midpoint (node, weight): constant
@@ -248,9 +211,7 @@ def hot_sums(acc, vm, vp):
     vmx, vmy, vmz = vm
     vpx, vpy, vpz = vp
     for i in range(acc.shape[0]):
-        ux = vmx[i] + vpx[i]
-        uy = vmy[i] + vpy[i]
-        uz = vmz[i] + vpz[i]
+        ux, uy, uz = vmx[i] + vpx[i], vmy[i] + vpy[i], vmz[i] + vpz[i]
         acc[i] += ux * ux + uy * uy + uz * uz
 
 

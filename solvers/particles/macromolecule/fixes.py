@@ -46,11 +46,7 @@ class Fixes:
 def make_fixes(scene: Scene, lat: Lattice, p: dict[str, Any], omega_top: float | None = None) -> Fixes:
     """Map the scene's temperature constraints to fixes on the lattice."""
     N = lat.size
-    kind = np.zeros(N, dtype=np.int64)
-    amp = np.zeros((N, 3))
-    phase = np.zeros(N)
-    gamma = np.zeros(N)
-    kt = np.zeros(N)
+    kind, amp, phase, gamma, kt = np.zeros(N, dtype=np.int64), np.zeros((N, 3)), np.zeros(N), np.zeros(N), np.zeros(N)
     fx = Fixes(kind, amp, phase, gamma, kt)
     stroke = p["drive_amplitude"] * lat.a
     hot_sets: list[np.ndarray] = []
@@ -105,9 +101,7 @@ def make_fixes(scene: Scene, lat: Lattice, p: dict[str, Any], omega_top: float |
 @njit(inline="always")
 def group_force(kind, held, fx, fy, fz):
     """Sum of the forces on the group particles (in index order)."""
-    s0 = 0.0
-    s1 = 0.0
-    s2 = 0.0
+    s0 = s1 = s2 = 0.0
     for q in range(held.shape[0]):
         i = held[q]
         if kind[i] == GROUP:
@@ -119,10 +113,9 @@ def group_force(kind, held, fx, fy, fz):
 
 @njit(inline="always")
 def held_velocity(t_next, t_now, dt, kind, held, amp, phase, omega, vc, vx, vy, vz, start):
-    """Velocity of the held particles over [t_now, t_next] into vx, vy, vz (0 for frozen ones).
-
-    `start` is a constant: v_{-1/2} at the start divides the sine difference by dt and leaves out
-    the group's centre velocity (added after); a step multiplies by 1/dt and adds it."""
+    """Velocity of the held particles over [t_now, t_next] into vx, vy, vz (0 for frozen ones).  `start` (a
+    constant): v_{-1/2} divides the sine difference by dt, without the group's centre velocity (added after);
+    a step multiplies by 1/dt and adds it."""
     inv_dt = 1.0 / dt
     for q in range(held.shape[0]):
         i = held[q]
@@ -135,9 +128,7 @@ def held_velocity(t_next, t_now, dt, kind, held, amp, phase, omega, vc, vx, vy, 
                 ds = (math.sin(omega * t_next + phase[i]) - math.sin(omega * t_now + phase[i])) * inv_dt
             vx[i], vy[i], vz[i] = amp[i, 0] * ds, amp[i, 1] * ds, amp[i, 2] * ds
             if not start and kind[i] == GROUP:
-                vx[i] += vc[0]
-                vy[i] += vc[1]
-                vz[i] += vc[2]
+                vx[i], vy[i], vz[i] = vx[i] + vc[0], vy[i] + vc[1], vz[i] + vc[2]
 
 
 @njit(inline="always")
@@ -183,11 +174,10 @@ def start_velocity(v0, f, vm, kind, held, free, amp, phase, omega, dt, dtm, vc, 
     motion over [-dt, 0]; the group's centre velocity from the forces on the group)."""
     fx, fy, fz = f
     vmx, vmy, vmz = vm
+    h = 0.5 * dtm
     for q in range(free.shape[0]):
         i = free[q]
-        vmx[i] = v0[i, 0] - 0.5 * dtm * fx[i]
-        vmy[i] = v0[i, 1] - 0.5 * dtm * fy[i]
-        vmz[i] = v0[i, 2] - 0.5 * dtm * fz[i]
+        vmx[i], vmy[i], vmz[i] = v0[i, 0] - h * fx[i], v0[i, 1] - h * fy[i], v0[i, 2] - h * fz[i]
     held_velocity(0.0, -dt, dt, kind, held, amp, phase, omega, vc, vmx, vmy, vmz, True)
     if free_centre:
         s0, s1, s2 = group_force(kind, held, fx, fy, fz)
@@ -195,9 +185,7 @@ def start_velocity(v0, f, vm, kind, held, free, amp, phase, omega, dt, dtm, vc, 
         for q in range(held.shape[0]):
             i = held[q]
             if kind[i] == GROUP:
-                vmx[i] += vc[0]
-                vmy[i] += vc[1]
-                vmz[i] += vc[2]
+                vmx[i], vmy[i], vmz[i] = vmx[i] + vc[0], vmy[i] + vc[1], vmz[i] + vc[2]
 
 
 @njit(inline="always")
@@ -213,9 +201,7 @@ def drive_positions(t1, dt, moving, kind, x_rest, amp, phase, omega, vc, cpos, f
         w = math.sin(omega * t1 + phase[i])
         px[i], py[i], pz[i] = x_rest[i, 0] + amp[i, 0] * w, x_rest[i, 1] + amp[i, 1] * w, x_rest[i, 2] + amp[i, 2] * w
         if kind[i] == GROUP:
-            px[i] += cpos[0]
-            py[i] += cpos[1]
-            pz[i] += cpos[2]
+            px[i], py[i], pz[i] = px[i] + cpos[0], py[i] + cpos[1], pz[i] + cpos[2]
 
 
 @njit(inline="always")

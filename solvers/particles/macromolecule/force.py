@@ -19,9 +19,7 @@ from numba import njit
 
 STABLE = np.array([1.0, math.sqrt(2.0), math.sqrt(3.0), 2.0])
 
-# packed coefficient layout
-C_A, C_P, C_PINT, C_X0, C_X1, C_ROOTS = 0, 1, 2, 3, 4, 5
-N_COEFFS = C_ROOTS + 7
+C_A, C_P, C_PINT, C_X0, C_X1, C_ROOTS = 0, 1, 2, 3, 4, 5  # packed coefficient layout (C_ROOTS: 7 roots)
 
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(12)
 
@@ -55,15 +53,9 @@ class SevenRoot:
         return np.array([[0.0, u[0]], [u[0], u[1]], [u[1], u[2]], [u[2], np.inf]])
 
     def coeffs(self) -> np.ndarray:
-        """Packed float64 vector for the numba functions."""
-        c = np.zeros(N_COEFFS)
-        c[C_A] = self.A
-        c[C_P] = self.p
-        c[C_PINT] = float(self.p) if float(self.p).is_integer() and 0 <= self.p <= 64 else -1.0
-        c[C_X0] = 2.0 * self.s
-        c[C_X1] = 2.0
-        c[C_ROOTS:] = self.roots
-        return c
+        """Packed float64 vector for the numba functions (layout C_*; C_PINT: p if a small integer, else -1)."""
+        pint = float(self.p) if float(self.p).is_integer() and 0 <= self.p <= 64 else -1.0
+        return np.array([self.A, self.p, pint, 2.0 * self.s, 2.0, *self.roots], dtype=np.float64)
 
 
 @njit(inline="always")
@@ -72,10 +64,7 @@ def pair_force(x, ix, r0, r1, r2, r3, r4, r5, r6, amp_a, p, step_lo, inv_w, squa
     a depth-3 tree with A folded in (no pow; exact near the roots), the envelope ix^2 (ix = a/r) if `square`
     (p = 2) else x^-p, the STEP clamped.  step=False leaves the STEP out (for callers below its start)."""
     prod = (((x - r0) * (x - r1)) * ((x - r2) * (x - r3))) * (((x - r4) * (x - r5)) * ((x - r6) * amp_a))
-    if square:
-        env = ix * ix
-    else:
-        env = x ** (-p)
+    env = ix * ix if square else x ** (-p)
     if not step:
         return prod * env
     d = (x - step_lo) * inv_w
@@ -98,8 +87,7 @@ def force_slope_x(x: float, c: np.ndarray) -> tuple[float, float]:
     x1 = c[C_X1]
     if x >= x1:
         return 0.0, 0.0
-    prod = 1.0
-    dprod = 0.0
+    prod, dprod = 1.0, 0.0
     for i in range(7):
         t = x - c[C_ROOTS + i]
         dprod = dprod * t + prod
@@ -113,8 +101,7 @@ def force_slope_x(x: float, c: np.ndarray) -> tuple[float, float]:
     else:
         env = x ** (-c[C_P])
     denv = -c[C_P] * env / x
-    st = 1.0
-    dst = 0.0
+    st, dst = 1.0, 0.0
     x0 = c[C_X0]
     if x > x0:
         w = x1 - x0
@@ -122,16 +109,12 @@ def force_slope_x(x: float, c: np.ndarray) -> tuple[float, float]:
         st = 1.0 - d * d * (3.0 - 2.0 * d)
         dst = -6.0 * d * (1.0 - d) / w
     A = c[C_A]
-    f = A * env * prod * st
-    df = A * (denv * prod * st + env * dprod * st + env * prod * dst)
-    return f, df
+    return A * env * prod * st, A * (denv * prod * st + env * dprod * st + env * prod * dst)
 
 
 @njit(cache=True)
 def _gl(lo: float, hi: float, c: np.ndarray) -> float:
-    half = 0.5 * (hi - lo)
-    mid = 0.5 * (hi + lo)
-    s = 0.0
+    half, mid, s = 0.5 * (hi - lo), 0.5 * (hi + lo), 0.0
     for k in range(_GL_X.shape[0]):
         s += _GL_W[k] * force_slope_x(mid + half * _GL_X[k], c)[0]
     return s * half
@@ -147,9 +130,7 @@ def energy_x(x_from: float, x_to: float, c: np.ndarray) -> float:
     if x_to == x_from:
         return 0.0
     lo, hi, sign = (x_from, x_to, 1.0) if x_to > x_from else (x_to, x_from, -1.0)
-    x1 = c[C_X1]
-    if hi > x1:
-        hi = x1
+    hi = min(hi, c[C_X1])
     if lo >= hi:
         return 0.0
     x0 = c[C_X0]
@@ -170,8 +151,7 @@ def force_array(x: np.ndarray, c: np.ndarray) -> np.ndarray:
 @njit(cache=True)
 def force_slope_array(x: np.ndarray, c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """`force_slope_x` over reduced distances: (F, dF/dx)."""
-    f = np.empty(x.shape[0])
-    df = np.empty(x.shape[0])
+    f, df = np.empty(x.shape[0]), np.empty(x.shape[0])
     for i in range(x.shape[0]):
         f[i], df[i] = force_slope_x(x[i], c)
     return f, df

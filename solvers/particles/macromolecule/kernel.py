@@ -33,20 +33,8 @@ import llvmlite.binding as llvm
 import numpy as np
 from numba import njit
 
-from .codes import E_START, FREE, FROZEN, GROUP, K_HALF1, K_HALF2, K_HOT_STEPS, RUNNING
-from .computes import (
-    finish,
-    hops,
-    hot_sums,
-    neighbourhood,
-    potential_any,
-    potential_p2,
-    record,
-    reset_outputs,
-    state_check,
-    sum8,
-    verdict,
-)
+from .codes import E_START, FREE, FROZEN, GROUP, K_FIRST_HOP, K_HALF1, K_HALF2, K_HOT_STEPS, K_STATUS, RUNNING
+from .computes import check, finish, hops, hot_sums, neighbourhood, potential_any, potential_p2, record, sum8
 from .fixes import bath_kick, drive_positions, fix_work, held_kick, start_velocity
 from .force import C_A, C_P, C_ROOTS, C_X0, C_X1, pair_force
 
@@ -166,9 +154,7 @@ def pair_pass(pos, vel, lattice, rt, shape, delta, dt, qk, dk, out, ever, step, 
         if changed != 0:
             hops(px, py, pz, g_off[g], g_base[g], g_lo[g], g_hi[g], mask, a, out, ever, step, counters)
     for i in range(fx.shape[0]):
-        fx[i] = fix[i] + fjx[i]
-        fy[i] = fiy[i] + fjy[i]
-        fz[i] = fiz[i] + fjz[i]
+        fx[i], fy[i], fz[i] = fix[i] + fjx[i], fiy[i] + fjy[i], fiz[i] + fjz[i]
 
 
 @njit(cache=True)
@@ -192,10 +178,8 @@ def _run(state, lattice, fixes, params, out, square, potential):
     px, py, pz = pos
     rt = c[C_ROOTS:C_ROOTS + 7].copy()
     shape = (c[C_A], c[C_P], c[C_X0], 1.0 / (c[C_X1] - c[C_X0]))
-    held = np.flatnonzero(kind != FREE)
-    free = np.flatnonzero(kind == FREE)
-    bath = np.flatnonzero((kind == FREE) & (gamma > 0.0))
-    moving = np.flatnonzero((kind != FREE) & (kind != FROZEN))
+    held, free = np.flatnonzero(kind != FREE), np.flatnonzero(kind == FREE)
+    bath, moving = np.flatnonzero((kind == FREE) & (gamma > 0.0)), np.flatnonzero((kind != FREE) & (kind != FROZEN))
     group_mass = mass * np.sum(kind == GROUP)
     if group_mass == 0.0:
         free_centre = False
@@ -208,17 +192,15 @@ def _run(state, lattice, fixes, params, out, square, potential):
     lb0, lb1 = np.zeros((bath.shape[0], 3)), np.zeros((bath.shape[0], 3))
     vc, cpos = np.zeros(3), np.zeros(3)  # the red pair's centre: velocity, displacement
     hot1, hot2 = np.zeros(n), np.zeros(n)
-    reset_outputs(counters, energy)
-    n_mid = (n_start + n_end) // 2
-    half_m = 0.5 * mass
-    dtm = dt / mass
-
+    counters[:] = 0
+    counters[K_FIRST_HOP], counters[K_STATUS] = -1, RUNNING  # no hop yet, running
+    energy[:] = 0.0
+    n_mid, half_m, dtm = (n_start + n_end) // 2, 0.5 * mass, dt / mass
     vpx, vpy, vpz = vp
     for i in range(n):
         vpx[i], vpy[i], vpz[i] = v0[i, 0], v0[i, 1], v0[i, 2]
     w_drive = w_bath = 0.0  # work done by drives and baths so far
-    hrow = step = 0
-    status = RUNNING
+    hrow, step, status = 0, 0, RUNNING
     while True:
         # --- forces at t_n with damping from v_{n-1/2} (at the start: v0); dissipation over n-1 -> n into dk.
         # One call site for every pass, so that the pair loops are compiled once
@@ -234,9 +216,7 @@ def _run(state, lattice, fixes, params, out, square, potential):
         # --- kick: v_{n+1/2} from v_{n-1/2} and F_n over all particles (one contiguous, vectorised loop);
         # held and bath particles are then overwritten by their fixes
         for i in range(n):
-            vpx[i] = vmx[i] + dtm * fx[i]
-            vpy[i] = vmy[i] + dtm * fy[i]
-            vpz[i] = vmz[i] + dtm * fz[i]
+            vpx[i], vpy[i], vpz[i] = vmx[i] + dtm * fx[i], vmy[i] + dtm * fy[i], vmz[i] + dtm * fz[i]
         held_kick(t + dt, t, dt, kind, held, amp, phase, omega, mass, f, vm, vp, lh1, vc, group_mass, free_centre)
         bath_kick(dt, bath, gamma, kt, mass, f, vm, vp, lb1)
         if step == 0:
@@ -253,9 +233,8 @@ def _run(state, lattice, fixes, params, out, square, potential):
             break
         # --- checks at t_n (every check_every steps)
         if step % params.check_every == 0:
-            kin, bad, left = state_check(pos, vm, vp, params.box_lo, params.box_hi)
-            kin *= half_m
-            status = verdict(bad, left, kin, energy[E_START] + w_drive + w_bath, params.blowup_factor, params.e_scale)
+            status, kin, bad = check(pos, vm, vp, params.box_lo, params.box_hi, half_m, energy[E_START] + w_drive
+                                     + w_bath, params.blowup_factor, params.e_scale)
             if status == RUNNING:
                 status = neighbourhood(px, py, pz, x_rest, kind, lattice.pi, lattice.pj, lattice.a,
                                        params.cutoff_rest, params.contact_fraction, params.skin)
@@ -272,16 +251,13 @@ def _run(state, lattice, fixes, params, out, square, potential):
             hot_sums(hot1 if step < n_mid else hot2, vm, vp)
         # --- drift to t_{n+1}: all particles (frozen ones have v = 0), then the driven ones by their fix
         for i in range(n):
-            px[i] += dt * vpx[i]
-            py[i] += dt * vpy[i]
-            pz[i] += dt * vpz[i]
+            px[i], py[i], pz[i] = px[i] + dt * vpx[i], py[i] + dt * vpy[i], pz[i] + dt * vpz[i]
         drive_positions(t + dt, dt, moving, kind, x_rest, amp, phase, omega, vc, cpos, free_centre, pos)
         step += 1
 
     vmx, vmy, vmz = vm
     vpx, vpy, vpz = vp
-    e1 = 0.0
-    kin = 0.0
+    e1 = kin = 0.0
     for i in range(n):  # after the loop vm = v_{n-1/2}, vp = v_{n+1/2} (no swap on exit)
         x[i, 0], x[i, 1], x[i, 2] = px[i], py[i], pz[i]
         e1 += vmx[i] * vpx[i] + vmy[i] * vpy[i] + vmz[i] * vpz[i]

@@ -20,6 +20,7 @@ from .fixes import Fixes
 from .force import SevenRoot
 from .kernel import FixArrays, RunOutputs, RunParams, RunState, lattice_arrays, run_any, run_p2
 from .lattice import Lattice
+from .setup import Setup
 
 N_HISTORY = 400
 
@@ -92,6 +93,21 @@ def simulate(lat: Lattice, model: SevenRoot, fx: Fixes, delta: float, dt: float,
     steps = np.maximum(counters[[codes.K_HOT_STEPS, codes.K_HALF1, codes.K_HALF2]], 1) * dt
     return RunResult(out.hot / steps[:, None], out.energy, counters, out.history[:rows], out.ever, x, v, wall,
                      int(counters[codes.K_STEPS]), cpu)
+
+
+def initial_velocities(s: Setup, p: dict[str, Any]) -> np.ndarray | None:
+    """The seeded random initial velocities of the free particles (`perturbation` > 0), else None (rest)."""
+    if p["perturbation"] == 0:
+        return None
+    scale = p["perturbation"] * s.lattice.a * 2 * np.pi * s.f_top
+    return scale * np.random.default_rng(p["seed"]).standard_normal((s.lattice.size, 3))
+
+
+def run_setup(s: Setup, p: dict[str, Any], dt: float | None = None, **given: Any) -> RunResult:
+    """`simulate` a prepared run with the solver's parameters `p` (at its dt, or at `dt`)."""
+    return simulate(s.lattice, s.model, s.fixes, s.delta, dt or s.dt, p["t_end"], p["t_start"],
+                    2 * np.pi * p["drive_frequency"], v0=initial_velocities(s, p), seed=p["seed"],
+                    blowup_factor=p["blowup_factor"], contact_fraction=p["contact_fraction"], **given)
 
 
 ENERGY_TOL = 1e-2  # relative energy-balance error above which a run is not integrated (shipped runs: <= 3e-4)

@@ -23,7 +23,7 @@ from .force import SevenRoot
 from .lattice import Lattice
 from .probe import MacromoleculeProbe
 from .setup import DEFAULT_DAMPING_RATIO, Setup, prepare
-from .simulate import RunResult, energy_balance_error, run_status, simulate
+from .simulate import RunResult, energy_balance_error, run_setup, run_status
 
 BYTES_PER_PARTICLE = 3_000
 
@@ -79,14 +79,6 @@ PARAMETERS: tuple[Param, ...] = (
 )
 
 
-def initial_velocities(s: Setup, p: dict[str, Any]) -> np.ndarray | None:
-    """The seeded random initial velocities of the free particles (`perturbation` > 0), else None (rest)."""
-    if p["perturbation"] == 0:
-        return None
-    scale = p["perturbation"] * s.lattice.a * 2 * np.pi * s.f_top
-    return scale * np.random.default_rng(p["seed"]).standard_normal((s.lattice.size, 3))
-
-
 class Macromolecule:
     """Solver "macromolecule": relative hotness of the seven-root particle lattice."""
 
@@ -140,16 +132,12 @@ class Macromolecule:
         if "modes" in scene.physics:
             return self._modes(scene, n, p, t_wall)
         s = prepare(scene, n, p)
-        run = simulate(s.lattice, s.model, s.fixes, s.delta, s.dt, p["t_end"], p["t_start"],
-                       2 * np.pi * p["drive_frequency"], v0=initial_velocities(s, p), seed=p["seed"],
-                       blowup_factor=p["blowup_factor"], contact_fraction=p["contact_fraction"])
-        return self._heat(scene, n, p, s, run, t_wall, samples)
+        return self._heat(scene, n, p, s, run_setup(s, p), t_wall, samples)
 
     def _heat(self, scene: Scene, n: int, p: dict[str, Any], s: Setup, run: RunResult, t_wall: float,
               samples: dict[str, np.ndarray] | None) -> Solution:
         """The Solution of a heat run: relative hotness at the samples, status, summary and diagnostics."""
         lat, fx = s.lattice, s.fixes
-        w_drive = 2 * np.pi * p["drive_frequency"]
         H = run.hot[0]
         free = (fx.kind == codes.FREE) & (fx.gamma == 0.0)  # bath particles are held, not free
         rel = H / H[free].max() if H[free].max() > 0 else np.full_like(H, np.nan)
@@ -189,10 +177,7 @@ class Macromolecule:
             # held faces at both ends: the layer profile along z against Fourier's linear law
             summary.update(self._faces(lat, H, fx, diagnostics))
         if p["dt_check"]:
-            fine = simulate(lat, s.model, fx, s.delta, s.dt / 2, p["t_end"], p["t_start"], w_drive,
-                            v0=initial_velocities(s, p), seed=p["seed"], blowup_factor=p["blowup_factor"],
-                            contact_fraction=p["contact_fraction"])
-            Hf = fine.hot[0]
+            Hf = run_setup(s, p, s.dt / 2).hot[0]
             relf = Hf / Hf[free].max()
             summary["dt_sensitivity"] = float(np.max(np.abs(relf - rel)[free]))
             summary["dt_sensitivity_bulk_median"] = float(np.median(relf) - np.median(rel))
@@ -211,19 +196,15 @@ class Macromolecule:
     def _modes(self, scene: Scene, n: int, p: dict[str, Any], t_wall: float) -> Solution:
         """Eigenfrequencies of the seven-root lattice (shape p, s, unstable_fraction as given) clamped at z = 0,
         its stiffness scaled so that its uniaxial Young's modulus is the material's (elastic_modes)."""
-        t0 = time.perf_counter()
-        mat = scene.material
+        t0, mat = time.perf_counter(), scene.material
         m = macromolecule_modes(scene.box, n, mat.youngs_modulus, mat.density, scene.elasticity.modes,
                                 model=SevenRoot(1.0, p["p"], p["s"], p["unstable_fraction"]))
-        kernel = time.perf_counter() - t0
-        return Solution(scene=scene.name, solver=self.name, params=p,
-                        resolution={"n": n, "refine": 1, "h": scene.box.lattice_spacing(n),
-                                    "nodes": int(m["particles"])},
-                        samples={}, unknowns=3 * int(m["particles"]), wall_s=time.perf_counter() - t_wall,
-                        quantity="frequency (Hz)",
-                        summary={"frequencies_hz": m["frequencies_hz"], "nu_eff": m["nu_eff"],
-                                 "stiffness_A": m["A"], "kernel_s": kernel},
-                        work={"unknowns": 3 * int(m["particles"]), "kernel_s": kernel})
+        kernel, unknowns = time.perf_counter() - t0, 3 * int(m["particles"])
+        return Solution(scene=scene.name, solver=self.name, params=p, samples={}, unknowns=unknowns,
+                        resolution={"n": n, "refine": 1, "h": scene.box.lattice_spacing(n), "nodes": unknowns // 3},
+                        wall_s=time.perf_counter() - t_wall, quantity="frequency (Hz)",
+                        summary={"frequencies_hz": m["frequencies_hz"], "nu_eff": m["nu_eff"], "stiffness_A": m["A"],
+                                 "kernel_s": kernel}, work={"unknowns": unknowns, "kernel_s": kernel})
 
     @staticmethod
     def _constrained_values(rel: np.ndarray, fx: Fixes) -> np.ndarray:
@@ -246,11 +227,8 @@ class Macromolecule:
         interior = slice(1, nz - 1)
         slope, icpt = np.polyfit(z[interior], prof[interior], 1) if nz > 3 else (math.nan, math.nan)
         diagnostics["layer_profile"] = prof
-        return {
-            "interior_slope": float(slope),
-            "interior_intercept": float(icpt),
-            "fourier_rms_deviation": float(np.sqrt(np.mean((prof[interior] - (1 - z[interior])) ** 2))),
-            "interior_flatness": float(np.ptp(prof[interior])),
-        }
+        return {"interior_slope": float(slope), "interior_intercept": float(icpt),
+                "fourier_rms_deviation": float(np.sqrt(np.mean((prof[interior] - (1 - z[interior])) ** 2))),
+                "interior_flatness": float(np.ptp(prof[interior]))}
 
 
