@@ -66,7 +66,7 @@ def test_root_slopes(p: float, s: float, frac: float) -> None:
     m = SevenRoot(A=1.0, p=p, s=s, unstable_fraction=frac)
     c = m.coeffs()
     f_s, df_s = force_slope_array(STABLE.copy(), c)
-    f_u, df_u = force_slope_array(m.unstable, c)
+    f_u, df_u = force_slope_array(m.roots[1::2].copy(), c)
     assert np.all(np.abs(f_s) < 1e-14) and np.all(np.abs(f_u) < 1e-14)
     assert np.all(df_s[:3] > 0)
     assert np.all(df_u < 0)
@@ -78,7 +78,7 @@ def test_root_slopes(p: float, s: float, frac: float) -> None:
 
 
 def test_slope_matches_finite_difference() -> None:
-    """force_slope_x's analytic derivative equals a central difference of force_x (inside the STEP too)."""
+    """force_slope_x's analytic derivative equals a central difference of force_array (inside the STEP too)."""
     c = SevenRoot(A=3.0, p=2.5, s=0.8).coeffs()
     x = np.linspace(0.8, 1.99, 301)
     h = 1e-6
@@ -389,8 +389,8 @@ def _fresh_process() -> dict:
 def test_a_run_compiles_only_its_kernel_loads_it_from_the_cache_and_times_the_integration_alone() -> None:
     """In a fresh process a run at p = 2 compiles (or loads) run_p2 only, not the other envelope's kernel or
     potential.  The structures the kernel takes (named tuples) cache: a second fresh process loads run_p2
-    from numba's cache.  The kernel's clock starts after the load: the first run (loading) and the second (warm) of the same 0.3 s take
-    CPU times within 3x + 20 ms of each other, where the load alone costs 0.1-0.4 s."""
+    from numba's cache.  The kernel's clock starts after the load: the first run (loading) and the second
+    (warm) of the same 0.3 s take CPU times within 3x + 20 ms of each other (the load alone: 0.1-0.4 s)."""
     _fresh_process()  # the cache holds run_p2 from here on
     got = _fresh_process()
     assert got["compiled"] == {"run_p2": 1, "run_any": 0, "potential_any": 0}

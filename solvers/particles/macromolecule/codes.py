@@ -20,12 +20,7 @@ STATUS_TEXT = {
     CONTACT: "broken neighbourhood: two unlisted particles came closer than contact_fraction * a",
 }
 
-# energy output slots
-E_START, E_END, E_DISS, E_DRIVE, E_BATH, E_KIN_END, E_POT_END = range(7)
-N_ENERGY = 8
-# counter output slots
+E_START, E_END, E_DISS, E_DRIVE, E_BATH, E_KIN_END, E_POT_END = range(7)  # energy output slots
 K_STEPS, K_HOP_EVENTS, K_HOP_PAIRS, K_FIRST_HOP, K_STATUS, K_STOP_STEP, K_HOT_STEPS, K_HALF1, K_HALF2 = range(9)
-N_COUNTERS = 9
-# columns of the coarse energy history
-H_T, H_KIN, H_POT, H_DISS, H_DRIVE, H_BATH = range(6)
-N_HISTORY_COLUMNS = 6
+H_T, H_KIN, H_POT, H_DISS, H_DRIVE, H_BATH = range(6)  # columns of the coarse energy history
+N_ENERGY, N_COUNTERS, N_HISTORY_COLUMNS = 8, 9, 6  # sizes of the outputs (energy, counters, history rows)

@@ -44,9 +44,8 @@ def hops(px, py, pz, o, base, lo, hi, mask, a, out, ever, step, counters):
 
 @njit(inline="always")
 def check(pos, vm, vp, box_lo, box_hi, half_m, supplied, blowup_factor, e_scale):
-    """(status, kinetic energy, NaN seen) at t_n from the state alone, v_n = (v_{n-1/2} + v_{n+1/2}) / 2:
-    NaN/inf, a particle outside the box, kinetic energy above blowup_factor times the energy supplied
-    (plus e_scale), else RUNNING."""
+    """(status, kinetic energy, NaN seen) at t_n from the state alone: NaN/inf, a particle outside the box,
+    kinetic energy above blowup_factor times (the energy supplied plus e_scale), else RUNNING."""
     px, py, pz = pos
     vmx, vmy, vmz = vm
     vpx, vpy, vpz = vp
@@ -123,13 +122,10 @@ _STEP_END = 2.0  # where the STEP ends, in units of a (force.SevenRoot.coeffs: C
 
 @njit(inline="always")
 def _energy(px, py, pz, o, base, mask, r0s, rt, shape, a, es, square, in_step):
-    """Per-slot potential energy U(r) - U(r0) of one stencil group (over a), 12-point Gauss-Legendre.
-
-    The rule of `force.energy_x` (same nodes on [x0, x], the STEP's end 2a clamping both), vectorised
-    over the slots.  energy_x splits an interval at the STEP's start, where F'' jumps; here a group
-    integrates either below the start (in_step False: no STEP factor) or above it (in_step True: the
-    STEP without its clamps), both constants.  A slot whose interval is not on the group's side gets 0
-    and is counted; the caller evaluates those few with energy_x itself."""
+    """Per-slot potential energy U(r) - U(r0) of one stencil group (over a): `force.energy_x`'s rule (12-point
+    Gauss-Legendre on [x0, x], 2a clamping both) vectorised over the slots, either below the STEP's start
+    (in_step False) or above it (True: the STEP without its clamps).  A slot whose interval is not on the
+    group's side gets 0 and is counted; the caller evaluates those few with energy_x itself."""
     amp_a, p, step_lo, inv_w = shape
     inv_a = 1.0 / a
     r0, r1, r2, r3, r4, r5, r6 = rt[0], rt[1], rt[2], rt[3], rt[4], rt[5], rt[6]
@@ -174,8 +170,7 @@ def _potential(px, py, pz, lattice, c, es, square):
     shape = (c[C_A], c[C_P], c[C_X0], 1.0 / (c[C_X1] - c[C_X0]))
     inv_a = 1.0 / a
     for g in range(g_off.shape[0]):
-        o = g_off[g]
-        base = g_base[g]
+        o, base = g_off[g], g_base[g]
         if g_r0[g] * inv_a > c[C_X0]:
             beyond = _energy(px, py, pz, o, base, mask, r0s, rt, shape, a, es, square, True)
         else:
@@ -218,23 +213,14 @@ def hot_sums(acc, vm, vp):
 @njit(inline="always")
 def record(history, hrow, t, kin, pot, diss, w_drive, w_bath):
     """One row of the coarse energy history."""
-    history[hrow, codes.H_T] = t
-    history[hrow, codes.H_KIN] = kin
-    history[hrow, codes.H_POT] = pot
-    history[hrow, codes.H_DISS] = diss
-    history[hrow, codes.H_DRIVE] = w_drive
-    history[hrow, codes.H_BATH] = w_bath
+    history[hrow, codes.H_T], history[hrow, codes.H_KIN], history[hrow, codes.H_POT] = t, kin, pot
+    history[hrow, codes.H_DISS], history[hrow, codes.H_DRIVE], history[hrow, codes.H_BATH] = diss, w_drive, w_bath
 
 
 @njit(inline="always")
 def finish(counters, energy, step, status, e_end, diss, w_drive, w_bath, kin_end, pot_end):
     """Counters and energies of a run that stopped at `step` with `status` (RUNNING: completed)."""
-    counters[codes.K_STEPS] = step
-    counters[codes.K_STOP_STEP] = step
+    counters[codes.K_STEPS] = counters[codes.K_STOP_STEP] = step
     counters[codes.K_STATUS] = codes.DONE if status == codes.RUNNING else status
-    energy[codes.E_END] = e_end
-    energy[codes.E_DISS] = diss
-    energy[codes.E_DRIVE] = w_drive
-    energy[codes.E_BATH] = w_bath
-    energy[codes.E_KIN_END] = kin_end
-    energy[codes.E_POT_END] = pot_end
+    energy[codes.E_END], energy[codes.E_DISS], energy[codes.E_DRIVE] = e_end, diss, w_drive
+    energy[codes.E_BATH], energy[codes.E_KIN_END], energy[codes.E_POT_END] = w_bath, kin_end, pot_end

@@ -42,6 +42,10 @@ class Fixes:
         """Particles held in the modal problem (frozen or driven)."""
         return self.kind != FREE
 
+    def energy_scale(self, mass: float, omega: float) -> float:
+        """The drives' and baths' energy scale (J): 3/2 sum kT plus 1/2 m omega^2 sum amp^2 of the held particles."""
+        return 1.5 * self.kt.sum() + 0.5 * mass * omega**2 * float((self.amp[self.held] ** 2).sum())
+
 
 def make_fixes(scene: Scene, lat: Lattice, p: dict[str, Any], omega_top: float | None = None) -> Fixes:
     """Map the scene's temperature constraints to fixes on the lattice."""
@@ -63,8 +67,7 @@ def make_fixes(scene: Scene, lat: Lattice, p: dict[str, Any], omega_top: float |
                     amp[idx, "xyz".index(p["face_drive_direction"])] = stroke
                     phase[idx] = np.random.default_rng(p["seed"]).uniform(0, 2 * np.pi, len(idx))
                 else:
-                    w = 2 * np.pi * p["drive_frequency"]
-                    ke = 0.25 * lat.mass * (w * stroke) ** 2  # time-mean KE of the same drive
+                    ke = 0.25 * lat.mass * (2 * np.pi * p["drive_frequency"] * stroke) ** 2  # mean KE of the drive
                     gamma[idx] = p["face_gamma"] or 0.5 * omega_top
                     kt[idx] = 2.0 / 3.0 * ke
             elif p["far_face"] == "frozen":
@@ -81,11 +84,8 @@ def make_fixes(scene: Scene, lat: Lattice, p: dict[str, Any], omega_top: float |
             kind[members] = FROZEN
             continue
         m = int(lat.node_at(centre)[0])
-        below = lat.positions[m] - np.array([0.0, lat.a, 0.0])
-        sign = 1.0
-        if below[1] < -1e-9 * lat.a:
-            below, sign = lat.positions[m] + np.array([0.0, lat.a, 0.0]), -1.0
-        q = int(lat.node_at(below)[0])
+        sign = 1.0 if lat.positions[m, 1] - lat.a >= -1e-9 * lat.a else -1.0  # q below m, or above on the bottom
+        q = int(lat.node_at(lat.positions[m] - sign * np.array([0.0, lat.a, 0.0]))[0])
         side_m = np.setdiff1d(members, [q])
         mm, mq = lat.mass * len(side_m), lat.mass
         kind[side_m] = GROUP if p["drive_sharing"] == "free-centre" else PRESCRIBED

@@ -73,14 +73,6 @@ def pair_force(x, ix, r0, r1, r2, r3, r4, r5, r6, amp_a, p, step_lo, inv_w, squa
     return prod * env * (1.0 - d * d * (3.0 - 2.0 * d))
 
 
-@njit(inline="always")
-def force_x(x: float, c: np.ndarray) -> float:
-    """`pair_force` at reduced distance x with the packed coefficients."""
-    return pair_force(x, 1.0 / x, c[C_ROOTS], c[C_ROOTS + 1], c[C_ROOTS + 2], c[C_ROOTS + 3], c[C_ROOTS + 4],
-                      c[C_ROOTS + 5], c[C_ROOTS + 6], c[C_A], c[C_P], c[C_X0], 1.0 / (c[C_X1] - c[C_X0]),
-                      c[C_P] == 2.0)
-
-
 @njit(cache=True)
 def force_slope_x(x: float, c: np.ndarray) -> tuple[float, float]:
     """(F, dF/dx) at reduced distance x; dF/dr = (dF/dx) / a.  F equals `pair_force` to rounding."""
@@ -141,10 +133,13 @@ def energy_x(x_from: float, x_to: float, c: np.ndarray) -> float:
 
 @njit(cache=True)
 def force_array(x: np.ndarray, c: np.ndarray) -> np.ndarray:
-    """`force_x` over reduced distances."""
+    """`pair_force` (N) over reduced distances x, with the packed coefficients."""
     out = np.empty(x.shape[0])
+    inv_w = 1.0 / (c[C_X1] - c[C_X0])
     for i in range(x.shape[0]):
-        out[i] = force_x(x[i], c)
+        out[i] = pair_force(x[i], 1.0 / x[i], c[C_ROOTS], c[C_ROOTS + 1], c[C_ROOTS + 2], c[C_ROOTS + 3],
+                            c[C_ROOTS + 4], c[C_ROOTS + 5], c[C_ROOTS + 6], c[C_A], c[C_P], c[C_X0], inv_w,
+                            c[C_P] == 2.0)
     return out
 
 

@@ -1,18 +1,14 @@
 """The macromolecule integrator: one kernel, its inputs, its pair pass and its step with fixes and computes.
 
-Scheme: kick-drift velocity Verlet (v_n = (v_{n-1/2} + v_{n+1/2}) / 2; LAMMPS fix nve with pair damping at
-force time, as its dpd styles do):
-  v_{n+1/2} = v_{n-1/2} + dt (Fc(x_n) + Fd(x_n, v_{n-1/2}) + lambda_n) / m,   x_{n+1} = x_n + dt v_{n+1/2}.
-Fd = delta rdot e, the radial pair damping with the half-step velocity (DPD-VV's predictor): explicit, one
-force pass per step, stable for omega dt / 2 < sqrt(1 + zeta^2) - zeta for one mode (the exact limit:
-`modal.discrete_stability_limit`).  lambda_n = m (v_{n+1/2} - v_{n-1/2}) / dt - F_n is what a fix adds.
-
-Energy ledger (exact algebra): E_n = sum 1/2 m v_{n-1/2} . v_{n+1/2} + U(x_n) changes over a step by
-1/2 dt v_{n+1/2} . (Fd_n + Fd_{n+1} + lambda_n + lambda_{n+1}) (dissipation, fixes' work) plus the trapezoid
-error of the conservative work, the balance error: nil for a harmonic lattice (2e-7 with linearised forces),
-velocity Verlet's O(dt^2) error on the anharmonic force otherwise, in the nonlinear resonance of the bond
-below the red pair (n = 5, D = 0.02 a: 2.0e-3 of the drive work at safety 0.1, 5.0e-4 at 0.05; hence the
-default safety 0.05, where every shipped run closes to <= 8e-4).
+Kick-drift velocity Verlet (v_n = (v_{n-1/2} + v_{n+1/2}) / 2; LAMMPS fix nve with pair damping at force time):
+  v_{n+1/2} = v_{n-1/2} + dt (Fc(x_n) + Fd(x_n, v_{n-1/2}) + lambda_n) / m,   x_{n+1} = x_n + dt v_{n+1/2},
+Fd = delta rdot e the radial pair damping with the half-step velocity (DPD-VV's predictor): one force pass per
+step, stable for omega dt / 2 < sqrt(1 + zeta^2) - zeta for one mode (exact: `modal.discrete_stability_limit`);
+lambda_n = m (v_{n+1/2} - v_{n-1/2}) / dt - F_n is what a fix adds.  Energy ledger (exact algebra): E_n =
+sum 1/2 m v_{n-1/2} . v_{n+1/2} + U(x_n) changes by 1/2 dt v_{n+1/2} . (Fd_n + Fd_{n+1} + lambda_n +
+lambda_{n+1}) (dissipation, fixes' work) plus the trapezoid error of the conservative work, the balance error:
+nil for a harmonic lattice, velocity Verlet's O(dt^2) error on the anharmonic force otherwise (n = 5, D = 0.02
+a: 2.0e-3 of the drive work at safety 0.1, 5.0e-4 at 0.05, hence the default safety 0.05).
 
 Layout: x, y, z vectors; the fixed pair list as a lattice stencil (`stencil`: groups of equal index offset o
 and rest shell, each a contiguous loop over slots i -> (i, i + o), a 0/1 mask for non-pairs), so LLVM
@@ -43,25 +39,21 @@ from .force import C_A, C_P, C_ROOTS, C_X0, C_X1, pair_force
 llvm.set_option("", "-vectorize-memory-check-threshold=4096")
 
 
-# The kernel's five inputs (named tuples numba accepts; arrays C-contiguous, float64 / int64 / int8, so that
-# one compiled signature and its cache entry serve every run):
-# RunState: start positions and velocities (N, 3), overwritten with the final ones.
+# The kernel's five inputs (named tuples; arrays C-contiguous float64 / int64 / int8: one compiled signature and
+# cache entry serve every run).  RunState: start positions and velocities (N, 3), overwritten with the final ones.
+# LatticeArrays: rest positions, mass, spacing, the pairs (i < j), the stencil (per group: offset, first slot, root
+# interval [lo, hi) in units of a, rest distance; per slot: 0/1 mask, rest distance; each pair's slot).
+# FixArrays: fix kinds (codes), drive amplitudes (N, 3) and phases, Langevin friction and kT, the drive's angular
+# frequency, whether the red pair's centre moves freely, the seed.  RunParams: force coefficients, damping, dt,
+# steps, hotness window [n_start, n_end), check interval, blow-up rule (kinetic energy above blowup_factor times
+# the energy supplied plus e_scale), the bar's box, the neighbourhood check (contact fraction of a, largest rest
+# distance listed, skin).  RunOutputs: hot (3, N) sums of KE dt over the window and its halves, energy (codes.E_*),
+# counters (codes.K_*), history (codes.H_*), ever (P,): 1 for pairs that ever hopped.
 RunState = namedtuple("RunState", "x v")
-# LatticeArrays: rest positions, particle mass, spacing, the pairs (i < j) and the stencil: per group its
-# offset, first slot, root interval [lo, hi) in units of a and rest distance; per slot a 0/1 mask and the
-# rest distance; each pair's slot.
 LatticeArrays = namedtuple("LatticeArrays", "x_rest mass a pi pj g_off g_base g_lo g_hi g_r0 mask r0s slot")
-# FixArrays: per-particle fixes (codes.FREE ... GROUP), drive amplitudes (N, 3) and phases, Langevin
-# friction rate and kT, the drive's angular frequency, whether the red pair's centre moves freely, the seed.
 FixArrays = namedtuple("FixArrays", "kind amp phase gamma kt omega free_centre seed")
-# RunParams: force coefficients (force.SevenRoot.coeffs), radial damping, time step; steps to run and the
-# hotness window [n_start, n_end); check interval and blow-up rule (kinetic energy above blowup_factor
-# times the energy supplied, e_scale the drives' and baths' energy scale); the bar's neighbourhood box;
-# the neighbourhood check (contact fraction of a, largest listed rest distance, skin).
 RunParams = namedtuple("RunParams", "coeffs delta dt n_steps n_start n_end check_every blowup_factor e_scale box_lo "
                                     "box_hi contact_fraction cutoff_rest skin")
-# RunOutputs, filled by the kernel: hot (3, N) sums of KE dt over the window and its halves; energy
-# (codes.E_*); counters (codes.K_*); history (rows, codes.H_*); ever (P,) 1 for pairs that ever hopped.
 RunOutputs = namedtuple("RunOutputs", "hot energy counters history ever")
 
 

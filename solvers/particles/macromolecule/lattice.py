@@ -36,11 +36,6 @@ class Lattice:
     def size(self) -> int:
         return int(self.positions.shape[0])
 
-    def index(self, i: int, j: int, k: int) -> int:
-        """Node index of lattice coordinates (i, j, k)."""
-        _, ny, nz = self.shape
-        return (i * ny + j) * nz + k
-
     def node_at(self, points: np.ndarray) -> np.ndarray:
         """Indices of the nodes at `points` (k, 3); SceneError if a point is not a node."""
         pts = np.atleast_2d(np.asarray(points, dtype=float))

@@ -14,7 +14,6 @@ import numpy as np
 from pcverify.scene import Resolution, Scene
 from pcverify.solvers.protocol import ProbeRun, ProbeSetup, Solver, effective_params
 
-from . import codes
 from .modal import damping_matrix, free_dofs, hessian, linear_step_limit
 from .setup import prepare
 
@@ -64,9 +63,7 @@ class MacromoleculeProbe:
         disp = float(np.max(np.linalg.norm(x - lat.positions, axis=1)) / lat.a) if finite else math.inf
         outside = float(np.max(np.maximum(lat.positions.min(axis=0) - x, x - lat.positions.max(axis=0)))
                         / lat.a) if finite else math.inf
-        held = fx.kind != codes.FREE
-        e_scale = 1.5 * fx.kt.sum() + 0.5 * lat.mass * w**2 * float((fx.amp[held] ** 2).sum())
-        supplied = max(e["start"] + e["drive_work"] + e["bath_work"], 0.0) + e_scale
+        supplied = max(e["start"] + e["drive_work"] + e["bath_work"], 0.0) + fx.energy_scale(lat.mass, w)
         ke_ratio = float(e["kinetic_end"] / supplied) if finite else math.inf
         blown = (not finite) or outside > 1.0 or ke_ratio > p["blowup_factor"]
         m = sol.summary
@@ -86,8 +83,7 @@ class MacromoleculeProbe:
         key = (setup.context["scene_hash"], setup.context["n"], w, s.delta,
                tuple(p[k] for k in ("p", "s", "unstable_fraction", "pairs_at_2a")), tol)
         if key not in _LINEAR_LIMITS:
-            lat, fx = s.lattice, s.fixes
-            dofs = free_dofs(~fx.held)
+            lat, dofs = s.lattice, free_dofs(~s.fixes.held)
             K = hessian(lat.positions, lat.pairs, s.model, lat.a)[dofs][:, dofs].toarray() / lat.mass
             C = damping_matrix(lat.positions, lat.pairs, s.delta)[dofs][:, dofs].toarray() / lat.mass
             _LINEAR_LIMITS[key] = linear_step_limit(K, C, w, 0.05, 1.5, tol)

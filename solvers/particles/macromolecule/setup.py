@@ -79,7 +79,7 @@ def prepare(scene: Scene, n: int, p: dict[str, Any]) -> Setup:
                          f"{single:.6g} s, omega_max = {w_top:.6g} rad/s, zeta = {zeta:.3g}); allowed: dt <= limit")
     steps = p["t_end"] / dt
     window = (p["t_end"] - p["t_start"]) / dt
-    if window < MIN_WINDOW_STEPS:
+    if window < MIN_WINDOW_STEPS and p["dt_guard"]:
         raise SceneError(f"(t_end - t_start) / dt = {window:.3g} steps is out of range; allowed: at least "
                          f"{MIN_WINDOW_STEPS} steps in the averaging window (dt = {dt:.3g} s from omega_max = "
                          f"{w_top:.3g} rad/s); raise t_end or f_top")

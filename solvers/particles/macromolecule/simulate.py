@@ -54,19 +54,16 @@ def simulate(lat: Lattice, model: SevenRoot, fx: Fixes, delta: float, dt: float,
     The kernel is compiled or loaded from numba's cache before the clock starts: wall_s and cpu_s are
     the integration alone."""
     run = run_p2 if float(model.p) == 2.0 else run_any
-    N = lat.size
-    n_steps = int(round(t_end / dt))
+    N, n_steps = lat.size, int(round(t_end / dt))
     n_start = min(int(round(t_start / dt)), n_steps)
     x = lat.positions + fx.amp * np.sin(fx.phase)[:, None]
     if x0 is not None:
-        x[fx.kind == codes.FREE] = x0[fx.kind == codes.FREE]
+        x[~fx.held] = x0[~fx.held]
     v = np.zeros((N, 3)) if v0 is None else np.array(v0, dtype=float)
-    v[fx.kind != codes.FREE] = 0.0
-    ext = lat.positions.max(axis=0)
+    v[fx.held] = 0.0
     cutoff = lat.r0.max() * (1 + 1e-9)
     unlisted = 2.0 * lat.a * (1 + 1e-6) if cutoff < 1.999 * lat.a else math.sqrt(5.0) * lat.a
-    held = fx.kind != codes.FREE
-    e_scale = 1.5 * fx.kt.sum() + 0.5 * lat.mass * omega**2 * float((fx.amp[held] ** 2).sum())
+    e_scale = fx.energy_scale(lat.mass, omega)
     args = (
         RunState(x=x, v=v),
         lattice_arrays(lat.positions, lat.mass, lat.a, lat.pairs, lat.r0, lat.shell, model.basins()),
@@ -77,8 +74,8 @@ def simulate(lat: Lattice, model: SevenRoot, fx: Fixes, delta: float, dt: float,
         RunParams(coeffs=model.coeffs(), delta=float(delta), dt=float(dt), n_steps=n_steps, n_start=n_start,
                   n_end=n_steps, check_every=int(check_every or max(1, n_steps // N_HISTORY)),
                   blowup_factor=float(blowup_factor), e_scale=float(e_scale), box_lo=-lat.a * np.ones(3),
-                  box_hi=ext + lat.a, contact_fraction=float(contact_fraction), cutoff_rest=float(cutoff),
-                  skin=float(unlisted - contact_fraction * lat.a)),
+                  box_hi=lat.positions.max(axis=0) + lat.a, contact_fraction=float(contact_fraction),
+                  cutoff_rest=float(cutoff), skin=float(unlisted - contact_fraction * lat.a)),
         RunOutputs(hot=np.zeros((3, N)), energy=np.zeros(codes.N_ENERGY),
                    counters=np.zeros(codes.N_COUNTERS, dtype=np.int64),
                    history=np.full((N_HISTORY + 2, codes.N_HISTORY_COLUMNS), np.nan),
@@ -128,12 +125,10 @@ def run_status(run: RunResult, H: np.ndarray, free: np.ndarray, p: dict[str, Any
     diagnostic numbers."""
     code = run.status_code
     hmax = H[free].max() if free.any() else 0.0
-    h1, h2 = run.hot[1], run.hot[2]
-    stat = float(np.max(np.abs(h1 - h2)[free]) / hmax) if hmax > 0 else math.nan
+    stat = float(np.max(np.abs(run.hot[1] - run.hot[2])[free]) / hmax) if hmax > 0 else math.nan
     hops = int(run.counters[codes.K_HOP_EVENTS])
     flags = {
-        "stationarity": stat,
-        "hops": hops, "hopped_pairs": int(run.counters[codes.K_HOP_PAIRS]),
+        "stationarity": stat, "hops": hops, "hopped_pairs": int(run.counters[codes.K_HOP_PAIRS]),
         "first_hop_step": int(run.counters[codes.K_FIRST_HOP]),
         "stopped_at_step": int(run.counters[codes.K_STOP_STEP]) if code != codes.DONE else -1,
         "kernel_status": codes.STATUS_TEXT[code],

@@ -74,8 +74,9 @@ PARAMETERS: tuple[Param, ...] = (
     Param("max_steps", 20_000_000, "", "largest number of time steps a run may take (t_end / dt)", low=1, high=1e10,
           kind=int),
     Param("dt_check", False, "", "rerun at dt/2 and report the change in relative hotness", kind=bool),
-    Param("dt_guard", True, "", "refuse a dt above the stability limit of the linearised scheme; false runs it and "
-          "lets the run's checks report a blow-up (the stability probe's runs)", kind=bool),
+    Param("dt_guard", True, "", "refuse a dt above the stability limit of the linearised scheme (or leaving fewer than "
+          "100 steps in the averaging window); false runs it, its checks report a blow-up (the stability probe)",
+          kind=bool),
 )
 
 
@@ -91,9 +92,8 @@ class Macromolecule:
         return MacromoleculeProbe(self)
 
     def estimate(self, scene: Scene, resolution: Resolution, **params: Any) -> WorkEstimate:
-        """Unknowns (3 per particle), time steps (t_end / dt; dt = safety * 2 / omega_top with omega_top the
-        target 2 pi f_top when no dt is given) and memory (about 3 kB per particle: state, pair list, the
-        sparse Hessian of the set-up) of the run, before anything is built."""
+        """Unknowns (3 per particle), time steps (t_end / dt; dt = safety * 2 / (2 pi f_top) when no dt is given)
+        and memory (about 3 kB per particle: state, pair list, the set-up's sparse Hessian), before any build."""
         p = effective_params(self, params)
         particles = math.prod(scene.box.lattice_shape(resolution.n))
         if "modes" in scene.physics:
@@ -176,17 +176,16 @@ class Macromolecule:
         if {c.face for c in scene.constraints if isinstance(c, FaceTemperature)} == {"z0", "zL"}:
             # held faces at both ends: the layer profile along z against Fourier's linear law
             summary.update(self._faces(lat, H, fx, diagnostics))
+        work = {"pair_steps": len(lat.pairs) * run.steps, "time_steps": run.steps, "unknowns": 3 * lat.size}
         if p["dt_check"]:
             Hf = run_setup(s, p, s.dt / 2).hot[0]
             relf = Hf / Hf[free].max()
             summary["dt_sensitivity"] = float(np.max(np.abs(relf - rel)[free]))
             summary["dt_sensitivity_bulk_median"] = float(np.median(relf) - np.median(rel))
-        nodes = scene.sample_sets(n) if samples is None else samples
-        out = {k: {"points": np.asarray(v, float), "values": rel[lat.node_at(v)]} for k, v in nodes.items()}
-        work = {"pair_steps": len(lat.pairs) * run.steps, "time_steps": run.steps, "unknowns": 3 * lat.size}
-        if p["dt_check"]:
             work["pair_steps"] += len(lat.pairs) * 2 * run.steps
             work["time_steps"] += 2 * run.steps
+        nodes = scene.sample_sets(n) if samples is None else samples
+        out = {k: {"points": np.asarray(v, float), "values": rel[lat.node_at(v)]} for k, v in nodes.items()}
         return Solution(scene=scene.name, solver=self.name, params=p, samples=out,
                         resolution={"n": n, "refine": 1, "h": lat.a, "nodes": lat.size},
                         unknowns=3 * lat.size, wall_s=time.perf_counter() - t_wall, status=status, reason=reason,
