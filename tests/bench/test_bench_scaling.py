@@ -4,8 +4,8 @@ Lattices n = 4, 16, 41, 70 of the family n x n x (3n-2): N = 160, 11 776, 203 40
 free (no fix), the fixed pair list as the kernel's stencil (16 offset groups; the list of a vibrating lattice
 never changes), one thread.  Each case runs the kernel through `simulate` from random displacements of
 0.003a rms, damped (delta = 0.02 m omega), at dt = 0.1 / omega (safety 0.05; omega a Gershgorin bound on
-the lattice's top frequency), checks only at the start, twice: `steps` and 2 `steps` (about 1e7 and 2e7 pair-steps,
-at least 2 and 4 steps).  extra_info: particles, pairs, unknowns, ns_per_pair_step (the marginal cost of a
+the lattice's top frequency), checks only at the start, twice: `steps` and 2 `steps` (about 2e7 and 4e7 pair-steps,
+at least 10 and 20 steps).  extra_info: particles, pairs, unknowns, ns_per_pair_step (the marginal cost of a
 step: the difference of the two runs' CPU times over the difference of their pair-steps, so the fixed costs
 of a run (allocation, the potential energy at start and end) drop out), run_ns_per_pair_step (the whole
 longer run over its pair-steps), bytes_per_particle (the kernel's inputs and its slot arrays) and
@@ -58,7 +58,7 @@ def test_bench_kernel_step(benchmark, n: int) -> None:
     rng = np.random.default_rng(n)
     dx = 0.003 * lat.a * rng.standard_normal(lat.positions.shape)
     x0 = lat.positions + dx - dx.mean(axis=0)
-    steps = max(2, round(1e7 / pairs))
+    steps = max(10, round(2e7 / pairs))
     free_run(lat, x0, 2, delta, dt)  # compile or load outside the timing
     short, long = free_run(lat, x0, steps, delta, dt), free_run(lat, x0, 2 * steps, delta, dt)
     benchmark.pedantic(free_run, args=(lat, x0, steps, delta, dt), rounds=3, iterations=1)
