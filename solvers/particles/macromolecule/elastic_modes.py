@@ -1,11 +1,7 @@
-"""The macromolecule lattice scaled to a material, for comparing its eigenfrequencies with MCA's.
-
-The seven-root lattice (solvers.particles.lattice / seven_root / modal, default shape p = 2, s = 0.9,
-unstable roots at the midpoints) has a free stiffness scale A.  "Scaled to the same material" here
-means: masses rho V / N, and A chosen so that the lattice's uniaxial Young's modulus, measured by the same
-test as bar-compression (supports on z0 and zL, the force-free 3-2-1 set, reaction on zL over W H), is
-the material's E.  The lattice's own Poisson's ratio is whatever its central forces give (reported).
-Then K phi = omega^2 M phi with the clamped face z0 held gives the frequencies.
+"""The macromolecule lattice scaled to a material, for comparing its eigenfrequencies with MCA's: masses
+rho V / N, and A such that the lattice's uniaxial Young's modulus in the bar-compression test (supports on z0
+and zL, the force-free 3-2-1 set, reaction on zL over W H) is the material's E; its Poisson's ratio is what its
+central forces give (reported).  K phi = omega^2 M phi with the face z0 clamped gives the frequencies.
 """
 
 from __future__ import annotations

@@ -1,12 +1,8 @@
-"""The particle lattice of the macromolecule model: nodes, masses and the fixed pair list.
-
-Nodes are `Box.lattice_points` (x slowest, z fastest), spacing a = W/(n-1), each of
-mass rho V / N.  The pair list holds every pair with rest distance r0 <= 2a (to a relative 1e-9):
-shells a, sqrt2 a, sqrt3 a and, by default, 2a.  Pairs at exactly 2a carry neither force nor
-stiffness at rest (the STEP ends there), but they are kept ("keep") because the paper's model
-makes every pair closer than 2a interact: a 2a pair that is compressed feels the (repulsive)
-force, and it carries the radial damping delta * rdot like every listed pair.  "drop" removes
-them (26 instead of 32 neighbours, ~20 % fewer pair evaluations) for comparison.
+"""The particle lattice of the macromolecule model: nodes (`Box.lattice_points`, x slowest, z fastest; spacing
+a = W/(n-1)), masses rho V / N and the fixed pair list: every pair with rest distance r0 <= 2a (shells a, sqrt2 a,
+sqrt3 a, 2a).  Pairs at exactly 2a carry no force or stiffness at rest but are kept ("keep"): the paper makes
+every pair closer than 2a interact, so a compressed 2a pair feels the repulsion, and every listed pair carries
+the radial damping.  "drop" removes them (26 instead of 32 neighbours) for comparison.
 """
 
 from __future__ import annotations
@@ -39,11 +35,6 @@ class Lattice:
     @property
     def size(self) -> int:
         return int(self.positions.shape[0])
-
-    def index(self, i: int, j: int, k: int) -> int:
-        """Node index of lattice coordinates (i, j, k)."""
-        _, ny, nz = self.shape
-        return (i * ny + j) * nz + k
 
     def node_at(self, points: np.ndarray) -> np.ndarray:
         """Indices of the nodes at `points` (k, 3); SceneError if a point is not a node."""

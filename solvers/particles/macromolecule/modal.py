@@ -1,14 +1,9 @@
-"""Modal analysis of the macromolecule lattice: analytic Hessian, frequencies, damping ratio.
+"""Modal analysis of the macromolecule lattice: analytic Hessian, frequencies, damping ratio, step limits.
 
-For a pair (i, j) with separation d = x_j - x_i, r = |d|, e = d/r, the force on i is F(r) e
-(F > 0 attraction).  Its derivative with respect to x_j is B = F'(r) e e^T + F(r)/r (I - e e^T),
-so the Hessian of the potential gets +B on the (i,i) and (j,j) blocks and -B on (i,j), (j,i).
-At rest every pair sits on a root (F = 0), leaving only the F' term; the geometric term is kept
-so the Hessian is right at any configuration (tested against finite differences).
-Radial pair damping delta * rdot gives the damping matrix with B = delta e e^T.
-
-Held particles (frozen, driven) are removed from the eigenproblem.  The stiffness A scales the
-Hessian linearly, so A = A0 (f_top / f0)^2 hits a target top frequency exactly.
+A pair (i, j), d = x_j - x_i, e = d/r, contributes B = F'(r) e e^T + F(r)/r (I - e e^T) (+B on the (i,i) and
+(j,j) blocks, -B on (i,j), (j,i)); at rest F = 0 leaves the F' term, the geometric one keeps the Hessian right
+anywhere.  Radial damping delta rdot gives B = delta e e^T.  Held particles are removed from the eigenproblem;
+A scales the Hessian linearly, so A = A0 (f_top / f0)^2 hits a target top frequency exactly.
 """
 
 from __future__ import annotations
@@ -24,6 +19,7 @@ from pcverify.scene import SceneError
 from .force import SevenRoot, force_slope_array
 
 DENSE_MAX = 1500  # free DOFs up to which dense eigensolvers are used
+Basis = tuple[np.ndarray, np.ndarray, str]  # undamped frequencies, mass-normalised shapes, how they were found
 
 
 def _assemble(positions: np.ndarray, pairs: np.ndarray, blocks: np.ndarray) -> sp.csr_matrix:
@@ -62,8 +58,7 @@ def free_dofs(free: np.ndarray) -> np.ndarray:
     return (3 * idx[:, None] + np.arange(3)[None]).ravel()
 
 
-def linear_step_limit(K: np.ndarray, C: np.ndarray, omega_max: float, lo: float, hi: float,
-                      tol: float) -> float:
+def linear_step_limit(K: np.ndarray, C: np.ndarray, omega_max: float, lo: float, hi: float, tol: float) -> float:
     """dt omega_max / 2 at which the spectral radius of the one-step amplification matrix of the
     leapfrog scheme with lagged damping crosses 1; K and C are the free-DOF stiffness and damping
     over the mass (dense).  Bisection on [lo, hi] to `tol`."""
@@ -82,10 +77,8 @@ def step_radius(K: np.ndarray, C: np.ndarray, dt: float) -> float:
 
 
 def top_modes(K: sp.csr_matrix, mass: float, dofs: np.ndarray, k: int | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Highest angular frequencies (rad/s, ascending) and mass-normalised shapes of the held lattice.
-
-    k=None: all modes (dense).  Dense eigh up to DENSE_MAX DOFs, else sparse eigsh (largest k).
-    """
+    """Highest angular frequencies (rad/s, ascending) and mass-normalised shapes of the held lattice: all
+    (k=None) or the top k; dense eigh up to DENSE_MAX DOFs, else sparse eigsh."""
     Kf = K[dofs][:, dofs]
     nd = len(dofs)
     if nd <= DENSE_MAX or (k is not None and k >= nd - 1):
@@ -95,37 +88,23 @@ def top_modes(K: sp.csr_matrix, mass: float, dofs: np.ndarray, k: int | None = N
     else:
         v0 = np.random.default_rng(0).standard_normal(nd)  # ARPACK's own start vector depends on earlier calls
         lam, vec = spla.eigsh(Kf.tocsc(), k=k or 24, which="LA", tol=1e-12, v0=v0)
-        order = np.argsort(lam)
-        lam, vec = lam[order], vec[:, order]
+        lam, vec = lam[np.argsort(lam)], vec[:, np.argsort(lam)]
     omega = np.sqrt(np.clip(lam, 0.0, None) / mass)
     return omega, vec / np.sqrt(mass)
 
 
-def top_frequency(K: sp.csr_matrix, mass: float, dofs: np.ndarray) -> float:
-    """Highest natural angular frequency (rad/s)."""
-    return float(top_modes(K, mass, dofs, k=1)[0][-1])
-
-
-def modal_basis(
-    K: sp.csr_matrix, mass: float, dofs: np.ndarray, subspace: int = 48
-) -> tuple[np.ndarray, np.ndarray, str]:
+def modal_basis(K: sp.csr_matrix, mass: float, dofs: np.ndarray, subspace: int = 48) -> Basis:
     """Undamped basis for the damped top-mode problem: all modes if few DOFs, else the top `subspace`."""
     k = None if len(dofs) <= subspace else subspace
     omega, phi = top_modes(K, mass, dofs, k=k)
     return omega, phi, "exact" if k is None else f"top-{len(omega)}-mode subspace"
 
 
-def damped_top_mode(
-    basis: tuple[np.ndarray, np.ndarray, str], C: sp.csr_matrix, dofs: np.ndarray
-) -> tuple[float, float, str]:
-    """Damping ratio and natural frequency |lambda| of the top mode of M x'' + C x' + K x = 0.
-
-    Solved in state space on the modal basis of `modal_basis`: exact when it holds all modes,
-    else in the subspace of the highest undamped modes (the ones C couples the top mode to
-    most).  The top mode is the underdamped eigenvalue of largest |lambda|;
-    zeta = -Re(lambda)/|lambda|.  When no mode oscillates (heavy damping) the damping ratio is 1 (critical,
-    the bound of every overdamped mode) and the method says so.  Returns (zeta, |lambda|, method).
-    """
+def damped_top_mode(basis: Basis, C: sp.csr_matrix, dofs: np.ndarray) -> tuple[float, float, str]:
+    """(zeta, |lambda|, method) of the top mode of M x'' + C x' + K x = 0: in state space on the basis of
+    `modal_basis` (exact with all modes, else the subspace of the highest ones, which C couples the top mode
+    to most); the top mode is the underdamped eigenvalue of largest |lambda|, zeta = -Re(lambda)/|lambda|;
+    when no mode oscillates zeta = 1 (critical, the bound of every overdamped mode) and the method says so."""
     omega, phi, method = basis
     Cr = phi.T @ (C[dofs][:, dofs] @ phi)
     zeta, modulus = _damped_top(omega, Cr)
@@ -146,9 +125,7 @@ def _damped_top(omega: np.ndarray, Cr: np.ndarray) -> tuple[float, float]:
     return float(-top.real / abs(top)), float(abs(top))
 
 
-def delta_for_damping_ratio(
-    basis: tuple[np.ndarray, np.ndarray, str], C1: sp.csr_matrix, dofs: np.ndarray, zeta: float
-) -> float:
+def delta_for_damping_ratio(basis: Basis, C1: sp.csr_matrix, dofs: np.ndarray, zeta: float) -> float:
     """Pair damping delta (N s/m) giving the top mode the damping ratio `zeta`; C1 is C at delta=1.
 
     First-order start phi^T C1 phi / (2 omega) for the top mode, then secant on delta.
@@ -168,17 +145,11 @@ def delta_for_damping_ratio(
     return float(d1)
 
 
-def discrete_stability_limit(basis: tuple[np.ndarray, np.ndarray, str], C: sp.csr_matrix, dofs: np.ndarray,
-                             tol: float = 1e-9) -> float:
-    """Largest omega_max dt / 2 for which the linearised one-step scheme is stable (spectral radius <= 1).
-
-    The kernel's kick-drift step with lagged damping is, for free particles of a linear lattice,
-    x_{n+1} = (2 - dt C - dt^2 K) x_n - (1 - dt C) x_{n-1} (mass-scaled).  In the modal basis of
-    `modal_basis` (exact when it holds all modes, else its top-mode subspace) K is diag(omega^2)
-    and C is phi^T C phi, full when the damping is not proportional.  Bisection on h = omega_max
-    dt / 2 in (0, 1].  For one mode this is sqrt(1 + zeta^2) - zeta; with non-proportional damping
-    a lower but more damped mode can become unstable first (the 16-particle lattice: see the tests).
-    """
+def discrete_stability_limit(basis: Basis, C: sp.csr_matrix, dofs: np.ndarray, tol: float = 1e-9) -> float:
+    """Largest omega_max dt / 2 at which the linearised step x_{n+1} = (2 - dt C - dt^2 K) x_n - (1 - dt C)
+    x_{n-1} (mass-scaled) is stable, in the basis of `modal_basis` (K = diag(omega^2), C = phi^T C phi, full
+    when the damping is not proportional).  One mode: sqrt(1 + zeta^2) - zeta; non-proportional damping can
+    make a lower, more damped mode unstable first (the 16-particle lattice: see the tests)."""
     omega, phi, _ = basis
     elastic = omega > 1e-6 * omega.max()  # rigid-body modes (free lattices): undamped, marginal, never limit dt
     omega, phi = omega[elastic], phi[:, elastic]

@@ -11,18 +11,10 @@ import numpy as np
 
 from pcverify.scene import Scene, SceneError
 
+from . import modal
 from .fixes import Fixes, make_fixes
 from .force import SevenRoot
 from .lattice import Lattice, build_lattice
-from .modal import (
-    damped_top_mode,
-    damping_matrix,
-    delta_for_damping_ratio,
-    discrete_stability_limit,
-    free_dofs,
-    hessian,
-    modal_basis,
-)
 
 DEFAULT_DAMPING_RATIO = 0.01
 MIN_WINDOW_STEPS = 100  # hotness is a time average: fewer steps cannot make one
@@ -52,9 +44,9 @@ def prepare(scene: Scene, n: int, p: dict[str, Any]) -> Setup:
     """Lattice, fixes, A, delta and zeta, dt for effective solver parameters `p` (no integration)."""
     lat = build_lattice(scene.box, n, scene.material.density, p["pairs_at_2a"])
     fx = make_fixes(scene, lat, p, omega_top=1.0)
-    dofs = free_dofs(~fx.held)
-    K0 = hessian(lat.positions, lat.pairs, SevenRoot(1.0, p["p"], p["s"], p["unstable_fraction"]), lat.a)
-    omega0, phi, method = modal_basis(K0, lat.mass, dofs)  # at A = 1; K = A K0 has the same shapes
+    dofs = modal.free_dofs(~fx.held)
+    K0 = modal.hessian(lat.positions, lat.pairs, SevenRoot(1.0, p["p"], p["s"], p["unstable_fraction"]), lat.a)
+    omega0, phi, method = modal.modal_basis(K0, lat.mass, dofs)  # at A = 1; K = A K0 has the same shapes
     w0 = float(omega0[-1])
     A = p["stiffness"] if p["stiffness"] is not None else (2 * np.pi * p["f_top"] / w0) ** 2
     w_top = w0 * math.sqrt(A)
@@ -64,30 +56,30 @@ def prepare(scene: Scene, n: int, p: dict[str, Any]) -> Setup:
     model = SevenRoot(A, p["p"], p["s"], p["unstable_fraction"])
     fx = make_fixes(scene, lat, p, omega_top=w_top)
     basis = (omega0 * math.sqrt(A), phi, method)
-    C1 = damping_matrix(lat.positions, lat.pairs, 1.0)
+    C1 = modal.damping_matrix(lat.positions, lat.pairs, 1.0)
     if p["delta"] is not None and p["damping_ratio"] is not None:
         raise SceneError("delta and damping_ratio are exclusive; give one (damping_ratio defaults to "
                          f"{DEFAULT_DAMPING_RATIO})")
     if p["delta"] is not None:
         in_force, delta = "delta", p["delta"]
-        zeta, _, method = damped_top_mode(basis, C1 * delta, dofs)
+        zeta, _, method = modal.damped_top_mode(basis, C1 * delta, dofs)
     else:
         in_force = "damping_ratio"
         zeta = DEFAULT_DAMPING_RATIO if p["damping_ratio"] is None else p["damping_ratio"]
-        delta = delta_for_damping_ratio(basis, C1, dofs, zeta)
+        delta = modal.delta_for_damping_ratio(basis, C1, dofs, zeta)
         method = basis[2]
     single = 2.0 * (math.sqrt(1 + zeta**2) - zeta) / w_top
-    limit = 2.0 * discrete_stability_limit(basis, C1 * delta, dofs) / w_top if delta > 0 else 2.0 / w_top
+    limit = 2.0 * modal.discrete_stability_limit(basis, C1 * delta, dofs) / w_top if delta > 0 else 2.0 / w_top
     dt = p["dt"] if p["dt"] is not None else p["safety"] * 2.0 / w_top
     if p["dt"] is None and dt > limit:  # heavy damping: the damped limit is below safety * 2 / omega_max
         dt = p["safety"] * limit
-    if dt > limit:
+    if dt > limit and p["dt_guard"]:
         raise SceneError(f"dt={dt:.6g} s is above the stability limit {limit:.6g} s of the linearised scheme "
                          f"(spectral radius 1; single-mode estimate 2 (sqrt(1+zeta^2) - zeta) / omega_max = "
                          f"{single:.6g} s, omega_max = {w_top:.6g} rad/s, zeta = {zeta:.3g}); allowed: dt <= limit")
     steps = p["t_end"] / dt
     window = (p["t_end"] - p["t_start"]) / dt
-    if window < MIN_WINDOW_STEPS:
+    if window < MIN_WINDOW_STEPS and p["dt_guard"]:
         raise SceneError(f"(t_end - t_start) / dt = {window:.3g} steps is out of range; allowed: at least "
                          f"{MIN_WINDOW_STEPS} steps in the averaging window (dt = {dt:.3g} s from omega_max = "
                          f"{w_top:.3g} rad/s); raise t_end or f_top")

@@ -1,10 +1,8 @@
 """Run a prepared macromolecule lattice and measure it: hotness, energy balance, hops, status.
 
-`simulate` looks a time-stepping kernel up in `kernels.KERNELS` (fast, fastmath or the plain
-reference; the same scheme, equal to rounding), runs it from rest and turns its sums into
-per-particle hotness (the time-mean kinetic energy over the window and its two halves).  `run_status`
-classifies a run: unstable (NaN, energy growth, a particle left the bar), defect (broken
-neighbourhood, pairs hopped to another root), non-stationary (the halves disagree) or ok.
+`simulate` runs the kernel from rest (or a given state) and turns its sums into per-particle hotness (the
+time-mean kinetic energy over the window and its two halves).  `run_status` classifies a run: unstable
+(NaN, energy growth, left the bar), defect (broken neighbourhood, hops), failed, non-stationary or ok.
 """
 
 from __future__ import annotations
@@ -17,40 +15,12 @@ from typing import Any
 import numba
 import numpy as np
 
-from . import kernels
-from .codes import (
-    CONTACT,
-    DONE,
-    E_BATH,
-    E_DISS,
-    E_DRIVE,
-    E_END,
-    E_START,
-    FREE,
-    GROWTH,
-    H_KIN,
-    H_T,
-    ISOLATED,
-    K_FIRST_HOP,
-    K_HALF1,
-    K_HALF2,
-    K_HOP_EVENTS,
-    K_HOP_PAIRS,
-    K_HOT_STEPS,
-    K_STATUS,
-    K_STEPS,
-    K_STOP_STEP,
-    LEFT_BAR,
-    N_COUNTERS,
-    N_ENERGY,
-    N_HISTORY_COLUMNS,
-    NAN,
-    STATUS_TEXT,
-)
+from . import codes
 from .fixes import Fixes
 from .force import SevenRoot
-from .kernel_state import FixArrays, RunOutputs, RunParams, RunState, lattice_arrays
+from .kernel import FixArrays, RunOutputs, RunParams, RunState, lattice_arrays, run_any, run_p2
 from .lattice import Lattice
+from .setup import Setup
 
 N_HISTORY = 400
 
@@ -64,38 +34,38 @@ class RunResult:
     counters: np.ndarray
     history: np.ndarray
     ever: np.ndarray
-    x: np.ndarray
+    x: np.ndarray  # final positions
+    v: np.ndarray  # final velocities
     wall_s: float
     steps: int
-    cpu_s: float = math.nan  # CPU seconds of this process inside the kernel (robust on a shared machine)
+    cpu_s: float  # CPU seconds of this process inside the kernel (robust on a shared machine)
 
     @property
     def status_code(self) -> int:
-        return int(self.counters[K_STATUS])
+        return int(self.counters[codes.K_STATUS])
 
 
 def simulate(lat: Lattice, model: SevenRoot, fx: Fixes, delta: float, dt: float, t_end: float, t_start: float = 0.0,
              omega: float = 0.0, v0: np.ndarray | None = None, seed: int = 0, blowup_factor: float = 10.0,
-             contact_fraction: float = 0.5, check_every: int | None = None, kernel: str = "fast") -> RunResult:
-    """Run the kernel `kernel` of `kernels.KERNELS` ("fast", the default, "fastmath" or "reference") from
-    rest (or from velocities v0) and return averaged hotness and diagnostics.
+             contact_fraction: float = 0.5, check_every: int | None = None, x0: np.ndarray | None = None) -> RunResult:
+    """Run the kernel from rest (or from positions x0 and velocities v0; held particles start on their fix)
+    and return averaged hotness and diagnostics.
 
     The kernel is compiled or loaded from numba's cache before the clock starts: wall_s and cpu_s are
     the integration alone."""
-    run = kernels.select(kernel, model)
-    N = lat.size
-    n_steps = int(round(t_end / dt))
+    run = run_p2 if float(model.p) == 2.0 else run_any
+    N, n_steps = lat.size, int(round(t_end / dt))
     n_start = min(int(round(t_start / dt)), n_steps)
     x = lat.positions + fx.amp * np.sin(fx.phase)[:, None]
+    if x0 is not None:
+        x[~fx.held] = x0[~fx.held]
     v = np.zeros((N, 3)) if v0 is None else np.array(v0, dtype=float)
-    v[fx.kind != FREE] = 0.0
-    ext = lat.positions.max(axis=0)
+    v[fx.held] = 0.0
     cutoff = lat.r0.max() * (1 + 1e-9)
     unlisted = 2.0 * lat.a * (1 + 1e-6) if cutoff < 1.999 * lat.a else math.sqrt(5.0) * lat.a
-    held = fx.kind != FREE
-    e_scale = 1.5 * fx.kt.sum() + 0.5 * lat.mass * omega**2 * float((fx.amp[held] ** 2).sum())
+    e_scale = fx.energy_scale(lat.mass, omega)
     args = (
-        RunState(x=x, v0=v),
+        RunState(x=x, v=v),
         lattice_arrays(lat.positions, lat.mass, lat.a, lat.pairs, lat.r0, lat.shell, model.basins()),
         FixArrays(kind=np.ascontiguousarray(fx.kind, dtype=np.int64), amp=np.ascontiguousarray(fx.amp, dtype=float),
                   phase=np.ascontiguousarray(fx.phase, dtype=float), gamma=np.ascontiguousarray(fx.gamma, dtype=float),
@@ -104,10 +74,11 @@ def simulate(lat: Lattice, model: SevenRoot, fx: Fixes, delta: float, dt: float,
         RunParams(coeffs=model.coeffs(), delta=float(delta), dt=float(dt), n_steps=n_steps, n_start=n_start,
                   n_end=n_steps, check_every=int(check_every or max(1, n_steps // N_HISTORY)),
                   blowup_factor=float(blowup_factor), e_scale=float(e_scale), box_lo=-lat.a * np.ones(3),
-                  box_hi=ext + lat.a, contact_fraction=float(contact_fraction), cutoff_rest=float(cutoff),
-                  skin=float(unlisted - contact_fraction * lat.a)),
-        RunOutputs(hot=np.zeros((3, N)), energy=np.zeros(N_ENERGY), counters=np.zeros(N_COUNTERS, dtype=np.int64),
-                   history=np.full((N_HISTORY + 2, N_HISTORY_COLUMNS), np.nan),
+                  box_hi=lat.positions.max(axis=0) + lat.a, contact_fraction=float(contact_fraction),
+                  cutoff_rest=float(cutoff), skin=float(unlisted - contact_fraction * lat.a)),
+        RunOutputs(hot=np.zeros((3, N)), energy=np.zeros(codes.N_ENERGY),
+                   counters=np.zeros(codes.N_COUNTERS, dtype=np.int64),
+                   history=np.full((N_HISTORY + 2, codes.N_HISTORY_COLUMNS), np.nan),
                    ever=np.zeros(len(lat.pairs), dtype=np.int8)),
     )
     compiled = run.compile(tuple(numba.typeof(a) for a in args))  # compile or load from the cache: not timed
@@ -116,9 +87,24 @@ def simulate(lat: Lattice, model: SevenRoot, fx: Fixes, delta: float, dt: float,
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     out = args[-1]
     counters = out.counters
-    steps = np.maximum(counters[[K_HOT_STEPS, K_HALF1, K_HALF2]], 1) * dt
-    return RunResult(out.hot / steps[:, None], out.energy, counters, out.history[:rows], out.ever, x, wall,
-                     int(counters[K_STEPS]), cpu)
+    steps = np.maximum(counters[[codes.K_HOT_STEPS, codes.K_HALF1, codes.K_HALF2]], 1) * dt
+    return RunResult(out.hot / steps[:, None], out.energy, counters, out.history[:rows], out.ever, x, v, wall,
+                     int(counters[codes.K_STEPS]), cpu)
+
+
+def initial_velocities(s: Setup, p: dict[str, Any]) -> np.ndarray | None:
+    """The seeded random initial velocities of the free particles (`perturbation` > 0), else None (rest)."""
+    if p["perturbation"] == 0:
+        return None
+    scale = p["perturbation"] * s.lattice.a * 2 * np.pi * s.f_top
+    return scale * np.random.default_rng(p["seed"]).standard_normal((s.lattice.size, 3))
+
+
+def run_setup(s: Setup, p: dict[str, Any], dt: float | None = None, **given: Any) -> RunResult:
+    """`simulate` a prepared run with the solver's parameters `p` (at its dt, or at `dt`)."""
+    return simulate(s.lattice, s.model, s.fixes, s.delta, dt or s.dt, p["t_end"], p["t_start"],
+                    2 * np.pi * p["drive_frequency"], v0=initial_velocities(s, p), seed=p["seed"],
+                    blowup_factor=p["blowup_factor"], contact_fraction=p["contact_fraction"], **given)
 
 
 ENERGY_TOL = 1e-2  # relative energy-balance error above which a run is not integrated (shipped runs: <= 3e-4)
@@ -127,8 +113,9 @@ ENERGY_TOL = 1e-2  # relative energy-balance error above which a run is not inte
 def energy_balance_error(r: RunResult) -> float:
     """|E_end - E_start + dissipated - work in| relative to the largest energy flow."""
     e = r.energy
-    resid = e[E_END] - e[E_START] + e[E_DISS] - e[E_DRIVE] - e[E_BATH]
-    scale = max(abs(e[E_START]), abs(e[E_END]), abs(e[E_DRIVE]), abs(e[E_BATH]), e[E_DISS], 1e-300)
+    start, end, diss, drive, bath = e[[codes.E_START, codes.E_END, codes.E_DISS, codes.E_DRIVE, codes.E_BATH]]
+    resid = end - start + diss - drive - bath
+    scale = max(abs(start), abs(end), abs(drive), abs(bath), diss, 1e-300)
     return float(abs(resid) / scale)
 
 
@@ -138,21 +125,19 @@ def run_status(run: RunResult, H: np.ndarray, free: np.ndarray, p: dict[str, Any
     diagnostic numbers."""
     code = run.status_code
     hmax = H[free].max() if free.any() else 0.0
-    h1, h2 = run.hot[1], run.hot[2]
-    stat = float(np.max(np.abs(h1 - h2)[free]) / hmax) if hmax > 0 else math.nan
-    hops = int(run.counters[K_HOP_EVENTS])
+    stat = float(np.max(np.abs(run.hot[1] - run.hot[2])[free]) / hmax) if hmax > 0 else math.nan
+    hops = int(run.counters[codes.K_HOP_EVENTS])
     flags = {
-        "stationarity": stat,
-        "hops": hops, "hopped_pairs": int(run.counters[K_HOP_PAIRS]),
-        "first_hop_step": int(run.counters[K_FIRST_HOP]),
-        "stopped_at_step": int(run.counters[K_STOP_STEP]) if code != DONE else -1,
-        "kernel_status": STATUS_TEXT[code],
+        "stationarity": stat, "hops": hops, "hopped_pairs": int(run.counters[codes.K_HOP_PAIRS]),
+        "first_hop_step": int(run.counters[codes.K_FIRST_HOP]),
+        "stopped_at_step": int(run.counters[codes.K_STOP_STEP]) if code != codes.DONE else -1,
+        "kernel_status": codes.STATUS_TEXT[code],
         "running_integral_linearity": _linearity(run.history),
     }
-    if code in (NAN, GROWTH, LEFT_BAR):
-        return "unstable", f"{STATUS_TEXT[code]}; stopped at step {run.steps}, sums kept", flags
-    if code in (ISOLATED, CONTACT):
-        return "defect", (f"{STATUS_TEXT[code]}: the fixed pair list is wrong; run stopped at step "
+    if code in (codes.NAN, codes.GROWTH, codes.LEFT_BAR):
+        return "unstable", f"{codes.STATUS_TEXT[code]}; stopped at step {run.steps}, sums kept", flags
+    if code in (codes.ISOLATED, codes.CONTACT):
+        return "defect", (f"{codes.STATUS_TEXT[code]}: the fixed pair list is wrong; run stopped at step "
                           f"{run.steps} (not rebuilt), sums kept"), flags
     if hops:
         return "defect", (f"{flags['hopped_pairs']} pairs left their root interval ({hops} hop events, first at "
@@ -175,7 +160,7 @@ def _linearity(history: np.ndarray) -> float:
     """Paper's F 8 check: max deviation of the running integral of total KE from its chord, relative."""
     if history.shape[0] < 3:
         return math.nan
-    t, e = history[:, H_T], history[:, H_KIN]
+    t, e = history[:, codes.H_T], history[:, codes.H_KIN]
     integ = np.concatenate([[0.0], np.cumsum(0.5 * (e[1:] + e[:-1]) * np.diff(t))])
     chord = integ[0] + (integ[-1] - integ[0]) * (t - t[0]) / (t[-1] - t[0])
     return float(np.max(np.abs(integ - chord)) / abs(integ[-1])) if integ[-1] != 0 else math.nan

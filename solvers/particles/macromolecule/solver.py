@@ -1,13 +1,4 @@
-"""The macromolecule solver (Arinchev): heat conduction as forced vibration of a particle lattice.
-
-Pieces (LAMMPS split): `lattice` (nodes, masses, fixed pair list), `force` (the seven-root pair style),
-`fixes` (frozen, kinematic drive, Langevin/absorbing faces), the time-stepping kernels, `simulate`
-(computes: hotness, energy balance, hops, neighbourhood; the run's status), `modal` (Hessian,
-frequencies, damping ratio), `setup` (A from f_top, delta from a damping ratio, dt) and `probe` (the
-stability probe).  This module is the glue: parameters, what it supports, and sums turned into a
-Solution.  kernel = "ensemble" runs the large-N ensemble kernel instead (`large_n.heat`), and
-`solve_batch` integrates K parameter sets of one scene in one call of it, each Solution the one its
-own solve gives.
+"""The macromolecule solver: parameters, what it supports, and a run's sums turned into a Solution.
 
 Conventions: hotness H_j = (1/(t_end - t_start)) int KE_j dt; samples are H_j / max over FREE
 particles; the second normalisation (by the driven particle) is in the summary as *_by_driven.
@@ -29,12 +20,10 @@ from . import codes
 from .elastic_modes import macromolecule_modes
 from .fixes import Fixes
 from .force import SevenRoot
-from .kernels import KERNELS
-from .large_n.heat import ENSEMBLE, require_ensemble, run_heat, shared_key
 from .lattice import Lattice
 from .probe import MacromoleculeProbe
 from .setup import DEFAULT_DAMPING_RATIO, Setup, prepare
-from .simulate import RunResult, energy_balance_error, run_status, simulate
+from .simulate import RunResult, energy_balance_error, run_setup, run_status
 
 BYTES_PER_PARTICLE = 3_000
 
@@ -58,20 +47,13 @@ PARAMETERS: tuple[Param, ...] = (
     Param("t_start", 0.0, "s", "start of the averaging window", low=0.0, high=1e5),
     Param("safety", 0.05, "", "dt = safety * 2 / omega_max; default 0.05, not 0.1: at 0.1 the driven lattice's "
           "energy balance misses 1e-3 from n = 4 on (2.0-3.1e-3, velocity Verlet's dt^2 error on the anharmonic "
-          "force; kernel_reference.py), at 0.05 it closes to <= 8e-4 for n = 2..11", low=0.0, high=1.0, low_open=True),
+          "force; kernel.py), at 0.05 it closes to <= 8e-4 for n = 2..11", low=0.0, high=1.0, low_open=True),
     Param("dt", None, "s", "time step (overrides safety; must be below the stability limit)", low=0.0, high=1.0,
           low_open=True, optional=True),
     Param("pairs_at_2a", "keep", "", "keep or drop the pairs resting at exactly 2a", choices=("keep", "drop"),
           kind=str),
     Param("face_drive_direction", "y", "", "bar-heat-faces, hot_face=driven: direction of the face drive (z: "
           "normal to the face, longitudinal)", choices=("x", "y", "z"), kind=str),
-    Param("kernel", "fast", "", "time-stepping kernel from the table kernels.KERNELS: fast (kernel_fast.py), "
-          "fastmath (the same compiled with FMA and approximate reciprocals) or the plain reference "
-          "(kernel_reference.py); the same scheme, equal to rounding; or ensemble: the large-N ensemble kernel "
-          "(large_n/heat.py: K parameter sets per call in solve_batch; driven or symmetric drives and 0 K "
-          "faces only, defects and instability seen at checks every n_steps / 400; no energy accounts, so its runs "
-          "cannot pass the energy-balance check and are never ok)",
-          choices=(*KERNELS, ENSEMBLE), kind=str),
     Param("hot_face", "langevin", "", "bar-heat-faces: z=0 face thermostatted or kinematically driven",
           choices=("langevin", "driven"), kind=str),
     Param("far_face", "absorbing", "", "bar-heat-faces: z=L face viscous (0 K bath) or frozen",
@@ -92,15 +74,10 @@ PARAMETERS: tuple[Param, ...] = (
     Param("max_steps", 20_000_000, "", "largest number of time steps a run may take (t_end / dt)", low=1, high=1e10,
           kind=int),
     Param("dt_check", False, "", "rerun at dt/2 and report the change in relative hotness", kind=bool),
+    Param("dt_guard", True, "", "refuse a dt above the stability limit of the linearised scheme (or leaving fewer than "
+          "100 steps in the averaging window); false runs it, its checks report a blow-up (the stability probe)",
+          kind=bool),
 )
-
-
-def initial_velocities(s: Setup, p: dict[str, Any]) -> np.ndarray | None:
-    """The seeded random initial velocities of the free particles (`perturbation` > 0), else None (rest)."""
-    if p["perturbation"] == 0:
-        return None
-    scale = p["perturbation"] * s.lattice.a * 2 * np.pi * s.f_top
-    return scale * np.random.default_rng(p["seed"]).standard_normal((s.lattice.size, 3))
 
 
 class Macromolecule:
@@ -115,9 +92,8 @@ class Macromolecule:
         return MacromoleculeProbe(self)
 
     def estimate(self, scene: Scene, resolution: Resolution, **params: Any) -> WorkEstimate:
-        """Unknowns (3 per particle), time steps (t_end / dt; dt = safety * 2 / omega_top with omega_top the
-        target 2 pi f_top when no dt is given) and memory (about 3 kB per particle: state, pair list, the
-        sparse Hessian of the set-up) of the run, before anything is built."""
+        """Unknowns (3 per particle), time steps (t_end / dt; dt = safety * 2 / (2 pi f_top) when no dt is given)
+        and memory (about 3 kB per particle: state, pair list, the set-up's sparse Hessian), before any build."""
         p = effective_params(self, params)
         particles = math.prod(scene.box.lattice_shape(resolution.n))
         if "modes" in scene.physics:
@@ -156,54 +132,12 @@ class Macromolecule:
         if "modes" in scene.physics:
             return self._modes(scene, n, p, t_wall)
         s = prepare(scene, n, p)
-        if p["kernel"] == ENSEMBLE:
-            if p["perturbation"] > 0:
-                raise SceneError(f"perturbation={p['perturbation']:g} is not allowed with kernel=ensemble; allowed: "
-                                 "0, or another kernel")
-            run = run_heat(scene, [s], [p])[0]
-        else:
-            run = simulate(s.lattice, s.model, s.fixes, s.delta, s.dt, p["t_end"], p["t_start"],
-                           2 * np.pi * p["drive_frequency"], v0=initial_velocities(s, p), seed=p["seed"],
-                           blowup_factor=p["blowup_factor"], contact_fraction=p["contact_fraction"],
-                           kernel=p["kernel"])
-        return self._heat(scene, n, p, s, run, t_wall, samples)
-
-    def solve_batch(self, scene: Scene, resolution: Resolution, param_sets: list[dict[str, Any]],
-                    samples: dict[str, np.ndarray] | None = None) -> list[Solution | Exception]:
-        """One entry per parameter set: the Solution its own `solve` gives (bit for bit, but for the timings),
-        or the SceneError it would raise.  Sets with kernel = "ensemble" that share everything but the
-        per-replica parameters (`large_n.heat.PER_REPLICA`; dt given explicitly when f_top differs) are
-        integrated as replicas of one ensemble kernel call; any other set is solved alone."""
-        out: list[Solution | Exception | None] = [None] * len(param_sets)
-        groups: dict[tuple, list[tuple[int, dict[str, Any], Setup, float]]] = {}
-        for i, params in enumerate(param_sets):
-            t0 = time.perf_counter()
-            try:
-                p = effective_params(self, params)
-                s = None
-                if (p["kernel"] == ENSEMBLE and self.supports(scene)[0] and "modes" not in scene.physics
-                        and resolution.refine == 1):
-                    s = prepare(scene, resolution.n, p)
-                if s is None:
-                    out[i] = self.solve(scene, resolution, samples=samples, **params)
-                else:
-                    require_ensemble(s, p)  # the SceneError `solve` would raise, without preparing the run again
-                    groups.setdefault((shared_key(p), s.dt), []).append((i, p, s, time.perf_counter() - t0))
-            except (SceneError, ValueError, ArithmeticError) as exc:
-                out[i] = exc
-        for members in groups.values():
-            t0 = time.perf_counter()
-            runs = run_heat(scene, [m[2] for m in members], [m[1] for m in members])
-            share = (time.perf_counter() - t0) / len(members)
-            for (i, p, s, setup_s), run in zip(members, runs, strict=True):
-                out[i] = self._heat(scene, resolution.n, p, s, run, time.perf_counter() - setup_s - share, samples)
-        return [o for o in out if o is not None]
+        return self._heat(scene, n, p, s, run_setup(s, p), t_wall, samples)
 
     def _heat(self, scene: Scene, n: int, p: dict[str, Any], s: Setup, run: RunResult, t_wall: float,
               samples: dict[str, np.ndarray] | None) -> Solution:
         """The Solution of a heat run: relative hotness at the samples, status, summary and diagnostics."""
         lat, fx = s.lattice, s.fixes
-        w_drive = 2 * np.pi * p["drive_frequency"]
         H = run.hot[0]
         free = (fx.kind == codes.FREE) & (fx.gamma == 0.0)  # bath particles are held, not free
         rel = H / H[free].max() if H[free].max() > 0 else np.full_like(H, np.nan)
@@ -229,7 +163,9 @@ class Macromolecule:
         )
         diagnostics: dict[str, Any] = {
             "energy": {k: float(run.energy[i]) for k, i in (("start", codes.E_START), ("end", codes.E_END),
-                       ("dissipated", codes.E_DISS), ("drive_work", codes.E_DRIVE), ("bath_work", codes.E_BATH))},
+                       ("dissipated", codes.E_DISS), ("drive_work", codes.E_DRIVE), ("bath_work", codes.E_BATH),
+                       ("kinetic_end", codes.E_KIN_END))},
+            "positions_end": run.x,
             "history": {"columns": ["t", "kinetic", "potential", "dissipated", "drive_work", "bath_work"],
                         "rows": run.history},
             "hopped_pairs_by_shell": np.bincount(lat.shell[run.ever == 1], minlength=4),
@@ -240,20 +176,16 @@ class Macromolecule:
         if {c.face for c in scene.constraints if isinstance(c, FaceTemperature)} == {"z0", "zL"}:
             # held faces at both ends: the layer profile along z against Fourier's linear law
             summary.update(self._faces(lat, H, fx, diagnostics))
+        work = {"pair_steps": len(lat.pairs) * run.steps, "time_steps": run.steps, "unknowns": 3 * lat.size}
         if p["dt_check"]:
-            fine = simulate(lat, s.model, fx, s.delta, s.dt / 2, p["t_end"], p["t_start"], w_drive,
-                            v0=initial_velocities(s, p), seed=p["seed"], blowup_factor=p["blowup_factor"],
-                            contact_fraction=p["contact_fraction"], kernel=p["kernel"])
-            Hf = fine.hot[0]
+            Hf = run_setup(s, p, s.dt / 2).hot[0]
             relf = Hf / Hf[free].max()
             summary["dt_sensitivity"] = float(np.max(np.abs(relf - rel)[free]))
             summary["dt_sensitivity_bulk_median"] = float(np.median(relf) - np.median(rel))
-        nodes = scene.sample_sets(n) if samples is None else samples
-        out = {k: {"points": np.asarray(v, float), "values": rel[lat.node_at(v)]} for k, v in nodes.items()}
-        work = {"pair_steps": len(lat.pairs) * run.steps, "time_steps": run.steps, "unknowns": 3 * lat.size}
-        if p["dt_check"]:
             work["pair_steps"] += len(lat.pairs) * 2 * run.steps
             work["time_steps"] += 2 * run.steps
+        nodes = scene.sample_sets(n) if samples is None else samples
+        out = {k: {"points": np.asarray(v, float), "values": rel[lat.node_at(v)]} for k, v in nodes.items()}
         return Solution(scene=scene.name, solver=self.name, params=p, samples=out,
                         resolution={"n": n, "refine": 1, "h": lat.a, "nodes": lat.size},
                         unknowns=3 * lat.size, wall_s=time.perf_counter() - t_wall, status=status, reason=reason,
@@ -263,19 +195,15 @@ class Macromolecule:
     def _modes(self, scene: Scene, n: int, p: dict[str, Any], t_wall: float) -> Solution:
         """Eigenfrequencies of the seven-root lattice (shape p, s, unstable_fraction as given) clamped at z = 0,
         its stiffness scaled so that its uniaxial Young's modulus is the material's (elastic_modes)."""
-        t0 = time.perf_counter()
-        mat = scene.material
+        t0, mat = time.perf_counter(), scene.material
         m = macromolecule_modes(scene.box, n, mat.youngs_modulus, mat.density, scene.elasticity.modes,
                                 model=SevenRoot(1.0, p["p"], p["s"], p["unstable_fraction"]))
-        kernel = time.perf_counter() - t0
-        return Solution(scene=scene.name, solver=self.name, params=p,
-                        resolution={"n": n, "refine": 1, "h": scene.box.lattice_spacing(n),
-                                    "nodes": int(m["particles"])},
-                        samples={}, unknowns=3 * int(m["particles"]), wall_s=time.perf_counter() - t_wall,
-                        quantity="frequency (Hz)",
-                        summary={"frequencies_hz": m["frequencies_hz"], "nu_eff": m["nu_eff"],
-                                 "stiffness_A": m["A"], "kernel_s": kernel},
-                        work={"unknowns": 3 * int(m["particles"]), "kernel_s": kernel})
+        kernel, unknowns = time.perf_counter() - t0, 3 * int(m["particles"])
+        return Solution(scene=scene.name, solver=self.name, params=p, samples={}, unknowns=unknowns,
+                        resolution={"n": n, "refine": 1, "h": scene.box.lattice_spacing(n), "nodes": unknowns // 3},
+                        wall_s=time.perf_counter() - t_wall, quantity="frequency (Hz)",
+                        summary={"frequencies_hz": m["frequencies_hz"], "nu_eff": m["nu_eff"], "stiffness_A": m["A"],
+                                 "kernel_s": kernel}, work={"unknowns": unknowns, "kernel_s": kernel})
 
     @staticmethod
     def _constrained_values(rel: np.ndarray, fx: Fixes) -> np.ndarray:
@@ -298,11 +226,8 @@ class Macromolecule:
         interior = slice(1, nz - 1)
         slope, icpt = np.polyfit(z[interior], prof[interior], 1) if nz > 3 else (math.nan, math.nan)
         diagnostics["layer_profile"] = prof
-        return {
-            "interior_slope": float(slope),
-            "interior_intercept": float(icpt),
-            "fourier_rms_deviation": float(np.sqrt(np.mean((prof[interior] - (1 - z[interior])) ** 2))),
-            "interior_flatness": float(np.ptp(prof[interior])),
-        }
+        return {"interior_slope": float(slope), "interior_intercept": float(icpt),
+                "fourier_rms_deviation": float(np.sqrt(np.mean((prof[interior] - (1 - z[interior])) ** 2))),
+                "interior_flatness": float(np.ptp(prof[interior]))}
 
 

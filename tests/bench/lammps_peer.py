@@ -1,5 +1,6 @@
-"""LAMMPS as a peer of the macromolecule kernel: the same lattice, the seven-root force as a tabulated
-pair style, velocity Verlet (fix nve), radial damping through pair dpd/ext/tstat at T = 0.
+"""LAMMPS as a peer of the macromolecule kernel (a test helper of test_bench_lammps.py): the same lattice,
+the seven-root force as a tabulated pair style, velocity Verlet (fix nve), radial damping through pair
+dpd/ext/tstat at T = 0.
 
 Mapping (LAMMPS units si):
 - pair_style table linear NTAB with a file of F(r) on [r_lo, 2a] (keyword R: exact abscissae).
@@ -10,7 +11,8 @@ Mapping (LAMMPS units si):
 - damping: dpd/ext/tstat with gamma_par = delta, gamma_perp = 0, exponents 0 (weight 1 inside
   its cutoff) and temperature 0 (no random force): F_i = delta ((v_j - v_i).e) e for r < r_cut,
   the kernel's radial damping.  LAMMPS evaluates it with the velocities at force time, v_{n+1/2},
-  as `kernel.advance_p2` does; both integrate the same scheme, so trajectories differ only by the
+  as our kernel does (its kick-drift form damps with v_{n-1/2}, the velocity of the previous drift: the same
+  trajectory); both integrate the same scheme, so trajectories differ only by the
   table error (and round-off).
 - all particles free, non-periodic box, neighbour skin as given; one MPI rank, serial styles.
 
@@ -32,8 +34,7 @@ from typing import Any
 import numpy as np
 
 from pcverify.scene import SceneError
-
-from ..force import SevenRoot, energy_x, force_array
+from pcverify.solvers.particles.macromolecule.force import SevenRoot, energy_x, force_array
 
 KEYWORD = "SEVENROOT"
 
