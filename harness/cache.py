@@ -67,16 +67,16 @@ class CacheWriteError(OSError):
 
 
 def folder_problem(root: Path) -> str:
-    """Why `root` cannot be the cache folder ("" if it is one, or can be made): it, or a folder above it, is
-    a file."""
+    """Why `root` cannot be the cache folder ("" if it is one, or can be made): it, or a folder above it, is a
+    file, or it cannot be examined."""
     for path in (root, *root.parents):
         try:
             if path.is_dir():
                 return ""
             if path.exists():
-                return f"{path} is a file" if path == root else f"{path}, a folder above it, is a file"
+                return "it is a file" if path == root else f"{path}, a folder above it, is a file"
         except OSError as exc:  # a name too long, a loop of symlinks
-            return f"{path} cannot be examined ({exc.strerror or type(exc).__name__})"
+            return f"it cannot be examined ({exc.strerror or type(exc).__name__})"
     return ""
 
 
@@ -98,8 +98,8 @@ class Cache:
         self.root = Path(root)
         problem = folder_problem(self.root)
         if problem:
-            raise SceneError(f"cache folder {self.root} is not a folder: {problem}; allowed: a folder, or a path "
-                             "where one can be made (--cache DIR; default OUT/cache)")
+            raise SceneError(f"cache folder {self.root} cannot be used: {problem}; allowed: a folder, or a path where "
+                             "one can be made (--cache DIR; default OUT/cache)")
         self.locks: set[str] = set()  # keys this process holds
         self._told: dict[str, float] = {}  # when this process last said it waits for a key's lock
 

@@ -217,7 +217,8 @@ def test_a_cache_folder_that_is_a_file_is_one_error_line(work, capsys, where) ->
         code, out, err = _run(argv, capsys)
     lines = err.strip().splitlines()
     assert code == 2 and len(lines) == 1 and lines[0].startswith("pcverify: error: cache folder"), err
-    assert "is a file" in lines[0] and "allowed: a folder" in lines[0]
+    name = "fresh/cache" if where == "OUT/cache a file" else "afile"
+    assert f"cache folder {name} cannot be used: it is a file; allowed: a folder" in lines[0]
     assert (work / "afile").read_text() == "not a folder\n"
     tally("caches and report folders", "rejected")
 
