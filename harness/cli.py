@@ -443,8 +443,11 @@ def report_sources(out: Path) -> dict[str, str | None]:
             continue  # moved or deleted since: the report stays as it is
         if declared != folder.name:
             warn(f"{where}, which declares study {declared!r}, not {folder.name!r}; not loaded, skipped")
-        elif folder.name in shipped and Path(source).resolve() != Path(shipped[folder.name]).resolve():
-            warn(f"{where} for the shipped study {folder.name!r}; the shipped file is used, not that one")
+        elif folder.name in shipped:
+            if Path(source).resolve() != Path(shipped[folder.name]).resolve():
+                warn(f"{where} for the shipped study {folder.name!r}; the shipped file is used, not that one")
+            else:
+                sources[shipped[folder.name]] = manifest.get("command")
         else:
             sources[source] = manifest.get("command")
     return sources
