@@ -8,13 +8,13 @@ file in its place is a one-line error, not a study that waits forever.
 
 A cell being computed holds a lock file (`<key>.lock`: its holder's pid, host and `since`, the time it was
 taken): another process running the same cell waits for the entry instead of computing it twice, saying
-every minute which lock it waits for, who holds it and for how long.  A lock is taken over when its holder
-has died on this host, and, with a warning, when it is stale: older than STALE_LOCK_S (two hours, twice
-the default cell time limit of one hour, so a cell still within its limit is never taken from its
-holder), whatever its pid (pids are reused: a week-old lock may name a live, unrelated process) or host
-(a process on another host cannot be asked whether it still runs).  Takeovers are decided one at a time
-under the folder's `.takeover.guard`, so two processes that both found a dead holder cannot both remove a
-lock (the second would remove the first's new one) and both compute the cell.
+(after 10 s, then every minute) which lock it waits for, who holds it and for how long.  A lock is taken
+over when its holder has died on this host, and, with a warning, when it is stale: older than STALE_LOCK_S
+(two hours, twice the default cell time limit of one hour, so a cell still within its limit is never taken
+from its holder), whatever its pid (pids are reused: a week-old lock may name a live, unrelated process) or
+host (a process on another host cannot be asked whether it still runs).  Takeovers are decided one at a
+time under the folder's `.takeover.guard`, so two processes that both found a dead holder cannot both
+remove a lock (the second would remove the first's new one) and both compute the cell.
 """
 
 from __future__ import annotations
@@ -36,7 +36,8 @@ from pcverify.solvers.protocol import STATUSES
 
 CELL_TIME_LIMIT_S = 3600.0  # the default time limit of one cell
 STALE_LOCK_S = 2 * CELL_TIME_LIMIT_S  # a lock older than this is taken over, whoever it names
-WAIT_NOTICE_S = 60.0  # how often a process waiting for another's lock says so
+WAIT_FIRST_NOTICE_S = 10.0  # a wait this long is said (a shorter one is another process finishing the cell)
+WAIT_NOTICE_S = 60.0  # then again this often
 
 # the fields every cell result has (identity and status), with their types: an entry without them is corrupt
 RESULT_FIELDS: dict[str, type | tuple[type, ...]] = {"status": str, "group": str, "scene": str, "solver": str,
@@ -101,7 +102,7 @@ class Cache:
             raise SceneError(f"cache folder {self.root} cannot be used: {problem}; allowed: a folder, or a path where "
                              "one can be made (--cache DIR; default OUT/cache)")
         self.locks: set[str] = set()  # keys this process holds
-        self._told: dict[str, float] = {}  # when this process last said it waits for a key's lock
+        self._told: dict[str, float] = {}  # when this process next says it waits for a key's lock
 
     def path(self, key: str) -> Path:
         return self.root / f"{key}.json"
@@ -203,11 +204,13 @@ class Cache:
         return (f"cell lock {self._lock_path(key)} is held by {who} for {_age(lock['age'])} (taken over {when}once "
                 f"it is older than {_age(STALE_LOCK_S)}: twice the default cell time limit)")
 
-    def tell_waiting(self, key: str, every: float = WAIT_NOTICE_S) -> None:
-        """Say on stderr which lock this process waits for (at most once per `every` seconds per key)."""
+    def tell_waiting(self, key: str) -> None:
+        """Called while this process waits for `key`'s lock: once the wait has lasted WAIT_FIRST_NOTICE_S, say on
+        stderr which lock, whose and how old, and again every WAIT_NOTICE_S."""
         now = time.monotonic()
-        if now - self._told.get(key, -every) >= every:
-            self._told[key] = now
+        next_notice = self._told.setdefault(key, now + WAIT_FIRST_NOTICE_S)
+        if now >= next_notice:
+            self._told[key] = now + WAIT_NOTICE_S
             tqdm.write(f"pcverify: waiting for another process: {self.describe_lock(key)}", file=sys.stderr)
 
     def try_lock(self, key: str) -> bool:

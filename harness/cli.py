@@ -428,7 +428,7 @@ def report_sources(out: Path) -> dict[str, str | None]:
     (a manifest must not make `report` load and run another study file into a study's folder, or replace a
     shipped study): any other is skipped with a warning."""
     shipped = {name: str(path) for name, path in study_files().items()}
-    sources: dict[str, str | None] = dict.fromkeys(shipped.values())
+    sources: dict[str, str | None] = dict.fromkeys(sorted(shipped.values()))
     for folder, manifest in manifests(out, quiet=True):  # the manifest's name is its folder's (checked there)
         source = manifest.get("study_file")
         if not source:
@@ -484,7 +484,7 @@ def cmd_report(args: argparse.Namespace) -> int:
             write_study_report(study, results, out, run_command, extra=extra)
             missing = sum(r["status"] == "missing" for r in results)
             rebuilt.append({"study": study.name, "study_file": source, "cells_cached": len(results) - missing,
-                            "cells_missing": missing, "calibrations_not_rebuilt": lost})
+                            "cells_missing": missing} | ({"calibrations_not_rebuilt": lost} if lost else {}))
     index = write_index(out)
     if args.json:
         print(json.dumps({"index": str(index), "studies": rebuilt}))
@@ -493,7 +493,7 @@ def cmd_report(args: argparse.Namespace) -> int:
             lost = (f"; {r['cells_missing']} cells missing or corrupt in the cache: their claims fail, rerun the study"
                     if r["cells_missing"] else "")
             lost += "".join(f"; {why}: calibration not rebuilt, its claims fail, rerun the study"
-                            for why in r["calibrations_not_rebuilt"])
+                            for why in r.get("calibrations_not_rebuilt", []))
             print(f"{r['study']}: rebuilt from {r['cells_cached']} cached cells{lost}")
         print(f"report: {index}")
     return 0

@@ -34,6 +34,7 @@ from pathlib import Path
 import pytest
 from red_team import COMMAND, ENV, TALLY, cli, popen, tally
 
+from pcverify.harness import cache as cache_module
 from pcverify.harness.cache import cell_key
 from pcverify.harness.cli import main
 from pcverify.harness.execution import cell_identity
@@ -244,7 +245,7 @@ def test_a_week_old_lock_is_taken_over_with_a_warning(work, capsys, holder) -> N
     tally("caches and report folders", "accepted")
 
 
-def test_waiting_for_a_live_lock_says_whose_and_how_old(work, capsys) -> None:
+def test_waiting_for_a_live_lock_says_whose_and_how_old(work, capsys, monkeypatch) -> None:
     """A young lock of a process on another host is waited for (it may be computing the cell), and the study says
     so: the lock file, its holder's pid and host, its age.  When the holder lets go, the study computes the cell.
     Before: the progress bar said 'waiting for another process' and nothing else."""
@@ -252,6 +253,7 @@ def test_waiting_for_a_live_lock_says_whose_and_how_old(work, capsys) -> None:
     cache = work / "out" / "cache"
     (cache / f"{key}.json").unlink()
     lock = _write_lock(cache, key, 4243, "elsewhere", time.time() - 90)
+    monkeypatch.setattr(cache_module, "WAIT_FIRST_NOTICE_S", 1.0)  # (10 s in use: a short wait is not worth a line)
     release = threading.Timer(3.0, lock.unlink)
     release.start()
     try:
@@ -525,9 +527,10 @@ def test_a_benchmark_regression_is_one_line_naming_it(work) -> None:
     and the allowed limit, exit 1.  Before: a PerformanceRegression traceback."""
     (work / "bench").mkdir()
     (work / "bench" / "test_tiny.py").write_text(BENCHMARK)
-    first = cli("bench", "--tests", "bench", "--storage", "saved", cwd=work, env=ENV | {"TINY_DELAY": "0.001"})
+    env = {k: v for k, v in ENV.items() if not k.startswith("PYTEST_")}  # not an xdist worker: timing stays on
+    first = cli("bench", "--tests", "bench", "--storage", "saved", cwd=work, env=env | {"TINY_DELAY": "0.001"})
     assert first.returncode == 0, first.stderr[-1500:]
-    second = cli("bench", "--tests", "bench", "--storage", "saved", cwd=work, env=ENV | {"TINY_DELAY": "0.02"})
+    second = cli("bench", "--tests", "bench", "--storage", "saved", cwd=work, env=env | {"TINY_DELAY": "0.02"})
     lines = second.stderr.strip().splitlines()
     assert second.returncode == 1 and "Traceback" not in second.stderr, second.stderr[-1500:]
     assert lines[-1].startswith("pcverify: benchmark regression against 0001_"), lines[-1]
