@@ -2,25 +2,42 @@
 
 Writes are atomic (a temporary file named for its writer, fsync, rename), so an interrupted study never
 leaves a half-written entry, and temporary files whose writer has died are removed.  An entry that fails
-to parse, whose stored key or checksum does not match, or whose result lacks the fields every result
-has, is reported as corrupt and recomputed.  A cell being computed holds a lock file (`<key>.lock`, its
-holder's pid and host): another process running the same cell waits for the entry instead of computing
-it twice, and a lock whose holder has died on this host is taken over.  Takeovers are decided one at a time
-under the folder's `.takeover.guard`, so two processes that both found a dead holder cannot both remove a lock
-(the second would remove the first's new one) and both compute the cell.
+to parse (nested too deeply included), whose stored key or checksum does not match, or whose result lacks
+the fields every result has, is reported as corrupt and recomputed.  The cache folder must be a folder: a
+file in its place is a one-line error, not a study that waits forever.
+
+A cell being computed holds a lock file (`<key>.lock`: its holder's pid, host and `since`, the time it was
+taken): another process running the same cell waits for the entry instead of computing it twice, saying
+(after 10 s, then every minute) which lock it waits for, who holds it and for how long.  A lock is taken
+over when its holder has died on this host, and, with a warning, when it is stale: older than STALE_LOCK_S
+(two hours, twice the default cell time limit of one hour, so a cell still within its limit is never taken
+from its holder), whatever its pid (pids are reused: a week-old lock may name a live, unrelated process) or
+host (a process on another host cannot be asked whether it still runs).  Takeovers are decided one at a
+time under the folder's `.takeover.guard`, so two processes that both found a dead holder cannot both
+remove a lock (the second would remove the first's new one) and both compute the cell.
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
+import math
 import os
+import sys
 import time
 from pathlib import Path
 from typing import Any
 
-from pcverify.harness.files import HOST, atomic_write, discard, exclusive, process_alive, remove_stray_files
+from tqdm import tqdm
+
+from pcverify.harness.files import HOST, atomic_write, discard, exclusive, parse_json, process_alive, remove_stray_files
+from pcverify.scene import SceneError
 from pcverify.solvers.protocol import STATUSES
+
+CELL_TIME_LIMIT_S = 3600.0  # the default time limit of one cell
+STALE_LOCK_S = 2 * CELL_TIME_LIMIT_S  # a lock older than this is taken over, whoever it names
+WAIT_FIRST_NOTICE_S = 10.0  # a wait this long is said (a shorter one is another process finishing the cell)
+WAIT_NOTICE_S = 60.0  # then again this often
 
 # the fields every cell result has (identity and status), with their types: an entry without them is corrupt
 RESULT_FIELDS: dict[str, type | tuple[type, ...]] = {"status": str, "group": str, "scene": str, "solver": str,
@@ -50,12 +67,42 @@ class CacheWriteError(OSError):
     """An entry could not be written (read-only or full folder): the entries written before are intact."""
 
 
+def folder_problem(root: Path) -> str:
+    """Why `root` cannot be the cache folder ("" if it is one, or can be made): it, or a folder above it, is a
+    file, or it cannot be examined."""
+    for path in (root, *root.parents):
+        try:
+            if path.is_dir():
+                return ""
+            if path.exists():
+                return "it is a file" if path == root else f"{path}, a folder above it, is a file"
+        except OSError as exc:  # a name too long, a loop of symlinks
+            return f"it cannot be examined ({exc.strerror or type(exc).__name__})"
+    return ""
+
+
+def _age(seconds: float) -> str:
+    """A duration for people: 45 s, 12 min, 3.0 h, 7.0 days."""
+    if seconds < 120:
+        return f"{seconds:.0f} s"
+    if seconds < 7200:
+        return f"{seconds / 60:.0f} min"
+    return f"{seconds / 3600:.1f} h" if seconds < 172800 else f"{seconds / 86400:.1f} days"
+
+
 class Cache:
     """A folder of `<key>.json` entries and the `<key>.lock` files of cells being computed."""
 
     def __init__(self, root: str | os.PathLike) -> None:
+        """A cache in the folder `root` (made when the first entry is stored); SceneError (one line) if `root`
+        or a folder above it is a file."""
         self.root = Path(root)
+        problem = folder_problem(self.root)
+        if problem:
+            raise SceneError(f"cache folder {self.root} cannot be used: {problem}; allowed: a folder, or a path where "
+                             "one can be made (--cache DIR; default OUT/cache)")
         self.locks: set[str] = set()  # keys this process holds
+        self._told: dict[str, float] = {}  # when this process next says it waits for a key's lock
 
     def path(self, key: str) -> Path:
         return self.root / f"{key}.json"
@@ -66,13 +113,20 @@ class Cache:
         if not path.exists():
             return None, "miss"
         try:
-            doc = json.loads(path.read_text())
+            text = path.read_text()
+        except (OSError, UnicodeDecodeError) as exc:
+            return None, f"corrupt: {type(exc).__name__}"
+        try:
+            doc = parse_json(text)
+        except ValueError as exc:
+            return None, f"corrupt: not valid JSON ({' '.join(str(exc).split())[:80]})"
+        try:
             body = json.dumps(doc["result"], sort_keys=True)
             if doc.get("key") != key:
                 return None, "corrupt: stored key does not match"
             if doc.get("sha256") != hashlib.sha256(body.encode()).hexdigest():
                 return None, "corrupt: checksum mismatch"
-        except (OSError, ValueError, KeyError, TypeError) as exc:
+        except (OSError, ValueError, KeyError, TypeError, RecursionError) as exc:
             return None, f"corrupt: {type(exc).__name__}"
         problem = schema_problem(doc["result"])
         if problem:
@@ -96,26 +150,73 @@ class Cache:
     def _lock_path(self, key: str) -> Path:
         return self.root / f"{key}.lock"
 
-    def holder(self, key: str) -> tuple[int, str] | None:
-        """(pid, host) of the live process that holds `key`'s lock, or None (no lock, or its holder died)."""
+    def lock_state(self, key: str) -> tuple[str, dict[str, Any]]:
+        """(state, lock) of `key`'s lock: state 'free' (no lock), 'held' (by a live process, or being written
+        right now), 'dead' (its holder died on this host), 'stale' (older than STALE_LOCK_S, whatever it
+        names) or 'garbage' (unreadable, and not being written: left behind); lock holds `pid`, `host` and
+        `age` (seconds) where known."""
+        path = self._lock_path(key)
         try:
-            doc = json.loads(self._lock_path(key).read_text())
-            pid, host = int(doc["pid"]), str(doc["host"])
+            text = path.read_text()
+            written = path.stat().st_mtime
         except FileNotFoundError:
-            return None
-        except (OSError, ValueError, KeyError, TypeError):
-            return (0, "?") if self._young(key) else None  # being written right now, or garbage left behind
-        return (pid, host) if process_alive(pid, host) else None
-
-    def _young(self, key: str, seconds: float = 10.0) -> bool:
-        try:
-            return time.time() - self._lock_path(key).stat().st_mtime < seconds
+            return "free", {}
         except OSError:
-            return False
+            text, written = "", self._mtime(path)
+        now = time.time()
+        try:
+            doc = parse_json(text)
+            pid, host = int(doc["pid"]), str(doc["host"])
+            since = float(doc.get("since", written))
+            if not 0 < pid < 2**31:
+                raise ValueError("not a process id")
+        except (ValueError, KeyError, TypeError, AttributeError, OverflowError):
+            return ("held" if now - written < 10.0 else "garbage"), {"age": now - written}
+        # a `since` in the future (or not a number) does not keep a lock young
+        age = max(now - since if math.isfinite(since) else 0.0, now - written)
+        lock = {"pid": pid, "host": host, "age": age}
+        if host == HOST and not process_alive(pid, host):
+            return "dead", lock
+        return ("stale" if age > STALE_LOCK_S else "held"), lock
+
+    @staticmethod
+    def _mtime(path: Path) -> float:
+        try:
+            return path.stat().st_mtime
+        except OSError:
+            return 0.0
+
+    def holder(self, key: str) -> tuple[int, str] | None:
+        """(pid, host) of the live process that holds `key`'s lock ((0, "?") for a lock being written), or None:
+        no lock, or one that may be taken over (its holder died, it is stale, or it is garbage)."""
+        state, lock = self.lock_state(key)
+        if state != "held":
+            return None
+        return lock.get("pid", 0), lock.get("host", "?")
+
+    def describe_lock(self, key: str) -> str:
+        """The lock of `key` in words: file, holder (pid, host) and age, and when it would be taken over."""
+        state, lock = self.lock_state(key)
+        if state == "free":
+            return f"cell lock {self._lock_path(key)} is free"
+        who = f"pid {lock['pid']} on host {lock['host']}" if "pid" in lock else "a holder not named in it"
+        when = "when its holder dies, or " if lock.get("host") == HOST else ""
+        return (f"cell lock {self._lock_path(key)} is held by {who} for {_age(lock['age'])} (taken over {when}once "
+                f"it is older than {_age(STALE_LOCK_S)}: twice the default cell time limit)")
+
+    def tell_waiting(self, key: str) -> None:
+        """Called while this process waits for `key`'s lock: once the wait has lasted WAIT_FIRST_NOTICE_S, say on
+        stderr which lock, whose and how old, and again every WAIT_NOTICE_S."""
+        now = time.monotonic()
+        next_notice = self._told.setdefault(key, now + WAIT_FIRST_NOTICE_S)
+        if now >= next_notice:
+            self._told[key] = now + WAIT_NOTICE_S
+            tqdm.write(f"pcverify: waiting for another process: {self.describe_lock(key)}", file=sys.stderr)
 
     def try_lock(self, key: str) -> bool:
-        """Take `key`'s lock (True), or find it held by a live process (False).  A dead holder's lock is
-        taken over.  Without a writable folder there is nothing to share: True."""
+        """Take `key`'s lock (True), or find it held by a live process (False).  A dead holder's, a stale or a
+        garbage lock is taken over (a stale one with a warning); one that cannot be removed is CacheWriteError.
+        Without a writable folder there is nothing to share: True."""
         if key in self.locks:
             return True
         path = self._lock_path(key)
@@ -130,17 +231,25 @@ class Cache:
                 continue
             except OSError:
                 return True
+            self.locks.add(key)  # before writing it: an interrupt from here on still removes it
             with os.fdopen(fd, "w") as fh:
                 json.dump({"pid": os.getpid(), "host": HOST, "since": time.time()}, fh)
-            self.locks.add(key)
             return True
+        if self.holder(key) is None:
+            raise CacheWriteError(f"cannot take over cell lock {path} (it is not held by a live process, and it "
+                                  "cannot be removed): remove it by hand, then rerun")
         return False
 
     def _remove_if_dead(self, key: str) -> None:
-        """Remove `key`'s lock if its holder has died, deciding again under the takeover guard: the dead
-        holder seen before may have been replaced by a live one since."""
+        """Remove `key`'s lock if it may be taken over, deciding again under the takeover guard: the dead or
+        stale holder seen before may have been replaced by a live one since."""
         with exclusive(self.root / ".takeover.guard", timeout=60.0):
-            if self._lock_path(key).exists() and self.holder(key) is None:
+            state, lock = self.lock_state(key)
+            if state in ("dead", "stale", "garbage"):
+                if state == "stale":
+                    tqdm.write(f"pcverify: warning: cell lock {self._lock_path(key)} of pid {lock['pid']} on host "
+                               f"{lock['host']} is {_age(lock['age'])} old, older than {_age(STALE_LOCK_S)} (twice "
+                               "the default cell time limit): stale, taken over", file=sys.stderr)
                 discard(str(self._lock_path(key)))
 
     def unlock(self, key: str) -> None:

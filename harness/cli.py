@@ -6,20 +6,31 @@ allowed range, with exit code 2; never a traceback (unless --debug).
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
+from pcverify.harness.interrupt import exit_on_sigterm_at_start_up
+
+# the imports below take seconds: as the command (not imported by a test), a SIGTERM meanwhile is the one
+# "terminated" line and exit 143, never a silent death
+if __name__ == "__main__" or Path(sys.argv[0] if sys.argv else "").name == "pcverify":
+    exit_on_sigterm_at_start_up()
+
 import argparse
 import contextlib
 import dataclasses
+import itertools
 import json
+import re
 import signal
-import sys
 import tempfile
 import threading
 import time
 from collections.abc import Iterator
-from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pandas as pd
 from tqdm import tqdm
 
 from pcverify import __version__
@@ -28,11 +39,12 @@ from pcverify.harness.calibration import NotCached, calibration_section, run_cal
 from pcverify.harness.catalogue import entries as scene_entries
 from pcverify.harness.catalogue import get_spec, make_scene
 from pcverify.harness.execution import cached_results, cell_identity, execute, plan, run_cell
-from pcverify.harness.interrupt import received, remember_sigint
+from pcverify.harness.files import read_json
+from pcverify.harness.interrupt import TERMINATED, check_interrupted, received, remember_sigint, sigterm_interrupts
 from pcverify.harness.limits import check_work
-from pcverify.harness.report import manifests, study_verdicts, warn, write_index, write_study_report
+from pcverify.harness.report import benchmark_problem, manifests, study_verdicts, warn, write_index, write_study_report
 from pcverify.harness.reproduce import claim_groups, select_groups
-from pcverify.harness.study import MAX_CELLS, Cell, load_study, study_files
+from pcverify.harness.study import MAX_CELLS, Cell, declared_name, load_study, study_files
 from pcverify.scene import Param, Resolution, SceneError, shown
 from pcverify.solvers.protocol import skipped
 from pcverify.solvers.registry import SolverUnavailable, get_solver
@@ -383,17 +395,72 @@ def cmd_verdict(args: argparse.Namespace) -> int:
     return 0 if all(r["verdict"] == "pass" for r in records) else 1
 
 
+CALIBRATION_TABLES = ("summary", "parameters", "trace", "noise", "validation")  # a calibration's tables: ID-NAME
+
+
+def calibration_not_rebuilt(study: Any, cal: Any, why: str) -> tuple[dict[str, Any], dict[str, pd.DataFrame]]:
+    """The section of a calibration that `report` cannot replay from the cache (`why`: the cell it lacks): its
+    title says so, and every table of it that a claim reads holds only rows that lost that cell, so each such
+    claim fails naming it; a report never drops a calibration, or its claims, in silence."""
+    lost = f"{why} (calibration {cal.id} not rebuilt: rerun the study)"
+    names = {f"{cal.id}-{t}" for t in CALIBRATION_TABLES}
+    rows: dict[str, list[dict[str, Any]]] = {f"{cal.id}-not-rebuilt": [{"solver": cal.solver, "missing": lost}]}
+    for claim in study.claims:
+        reads = [(claim.table, claim.select, claim.metric)]
+        if claim.against or claim.against_table:
+            reads.append((claim.against_table or claim.table, claim.against, claim.against_metric or claim.metric))
+        for table, select, metric in reads:
+            if table not in names:
+                continue
+            keys = list(select)
+            for combo in itertools.product(*[v if isinstance(v, list) else [v] for v in select.values()]):
+                rows.setdefault(table, []).append({**dict(zip(keys, combo, strict=True)), metric: np.nan,
+                                                   **({claim.per: np.nan} if claim.per else {}),
+                                                   "solver": cal.solver, "missing": lost})
+    title = (f"Calibration {cal.id} ({cal.solver}): {cal.title}. NOT REBUILT: {why}; its claims fail. Rerun the "
+             "study to compute the missing cells")
+    return {"id": cal.id, "title": title, "figures": []}, {name: pd.DataFrame(r) for name, r in rows.items()}
+
+
+def report_sources(out: Path) -> dict[str, str | None]:
+    """The study files `report` rebuilds, with the command that ran each: the shipped ones, and the file each
+    manifest under `out` names, only where that file declares the study named by the manifest and its folder
+    (a manifest must not make `report` load and run another study file into a study's folder, or replace a
+    shipped study): any other is skipped with a warning."""
+    shipped = {name: str(path) for name, path in study_files().items()}
+    sources: dict[str, str | None] = dict.fromkeys(sorted(shipped.values()))
+    for folder, manifest in manifests(out, quiet=True):  # the manifest's name is its folder's (checked there)
+        source = manifest.get("study_file")
+        if not source:
+            continue
+        where = f"{folder / 'manifest.json'} names study file {source}"
+        try:
+            declared = declared_name(Path(source)) if Path(source).is_file() else None
+        except (SceneError, OSError, ValueError) as exc:
+            warn(f"{where}, which does not load ({exc}); skipped")
+            continue
+        if declared is None:
+            continue  # moved or deleted since: the report stays as it is
+        if declared != folder.name:
+            warn(f"{where}, which declares study {declared!r}, not {folder.name!r}; not loaded, skipped")
+        elif folder.name in shipped:
+            if Path(source).resolve() != Path(shipped[folder.name]).resolve():
+                warn(f"{where} for the shipped study {folder.name!r}; the shipped file is used, not that one")
+            else:
+                sources[shipped[folder.name]] = manifest.get("command")
+        else:
+            sources[source] = manifest.get("command")
+    return sources
+
+
 def cmd_report(args: argparse.Namespace) -> int:
-    """`pcverify report`: rebuild every study's tables from the cache, then index.html."""
+    """`pcverify report`: rebuild every study's tables from the cache, then index.html.  A cell missing from the
+    cache is named and its claims fail; so is a calibration that cannot be replayed from the cache."""
     out = Path(args.out)
     cache = Cache(out / "cache")
-    sources: dict[str, str | None] = dict.fromkeys(str(p) for p in sorted(study_files().values()))
-    shipped = set(sources)
-    for _, manifest in manifests(out, quiet=True):  # user study files, with the command that ran them
-        if manifest.get("study_file") and Path(manifest["study_file"]).is_file():
-            sources[manifest["study_file"]] = manifest.get("command")
+    shipped = {str(p) for p in study_files().values()}
     rebuilt = []
-    for source, run_command in sources.items():
+    for source, run_command in report_sources(out).items():
         try:
             study = load_study(source)
         except (SceneError, SolverUnavailable, OSError) as exc:
@@ -405,17 +472,19 @@ def cmd_report(args: argparse.Namespace) -> int:
         reported = (out / study.name / "manifest.json").exists()
         if not reported and all(r["status"] == "missing" for r in results):
             results = []  # never run here: nothing to rebuild (a study reported before is rebuilt, missing cells named)
-        extra = []
-        for cal in study.calibrations:  # the same search through the cached cells; a missing one: left out
+        extra, lost = [], []
+        for cal in study.calibrations:  # the same search through the cached cells
             try:
                 extra.append(calibration_section(run_calibration(study, cal, cache, compute=False), out / study.name))
-            except NotCached:
-                continue
+            except NotCached as exc:
+                if reported or results or extra:  # run here before: the report says it is not rebuilt
+                    extra.append(calibration_not_rebuilt(study, cal, str(exc)))
+                    lost.append(str(exc))
         if results or extra:
             write_study_report(study, results, out, run_command, extra=extra)
             missing = sum(r["status"] == "missing" for r in results)
             rebuilt.append({"study": study.name, "study_file": source, "cells_cached": len(results) - missing,
-                            "cells_missing": missing})
+                            "cells_missing": missing} | ({"calibrations_not_rebuilt": lost} if lost else {}))
     index = write_index(out)
     if args.json:
         print(json.dumps({"index": str(index), "studies": rebuilt}))
@@ -423,25 +492,81 @@ def cmd_report(args: argparse.Namespace) -> int:
         for r in rebuilt:
             lost = (f"; {r['cells_missing']} cells missing or corrupt in the cache: their claims fail, rerun the study"
                     if r["cells_missing"] else "")
+            lost += "".join(f"; {why}: calibration not rebuilt, its claims fail, rerun the study"
+                            for why in r.get("calibrations_not_rebuilt", []))
             print(f"{r['study']}: rebuilt from {r['cells_cached']} cached cells{lost}")
         print(f"report: {index}")
     return 0
 
 
+def bench_baseline(storage: Path) -> Path | None:
+    """The newest saved benchmark run under `storage` (by run number) that is a pytest-benchmark save: the run
+    `bench` compares with.  A file that is not (unreadable, invalid or too deeply nested JSON, another form) is
+    skipped with a warning."""
+    for file in sorted(storage.glob("*/*.json"), key=lambda f: (f.name, f.parent), reverse=True):
+        doc, why = read_json(file)
+        problem = why or benchmark_problem(doc)
+        if problem:
+            warn(f"{file} {problem}; not compared with")
+            continue
+        return file
+    return None
+
+
+REGRESSION = re.compile(r"Field '(\w+)' has failed (\w+): ([-+0-9.eE]+) > ([-+0-9.eE]+)")
+
+
+def regression_line(regressions: list[tuple[str, str]], baseline: Path) -> str:
+    """pytest-benchmark's regressions (benchmark, failed check) as one line: each benchmark, its field and by
+    how much it regressed against the allowed limit, and the saved run compared with."""
+    parts = []
+    for name, check in regressions or [("(unnamed)", "performance has regressed")]:
+        found = REGRESSION.search(check)
+        if found and found[2].startswith("Percentage"):
+            parts.append(f"{name.split(' (')[0]} {found[1]} +{float(found[3]):.1f} % (allowed: at most "
+                         f"+{float(found[4]):g} %)")
+        else:
+            parts.append(f"{name.split(' (')[0]} {' '.join(check.split())}")
+    return f"pcverify: benchmark regression against {baseline.name}: {'; '.join(parts)}"
+
+
+class BenchmarkRegressions:
+    """A pytest plugin that keeps pytest-benchmark's session, to read its regressions for the one-line message."""
+
+    config: Any = None
+
+    def pytest_configure(self, config: Any) -> None:
+        self.config = config
+
+    def found(self) -> list[tuple[str, str]]:
+        session = getattr(self.config, "_benchmarksession", None)
+        return [(str(name), str(check)) for name, check in getattr(session, "performance_regressions", None) or []]
+
+
 def cmd_bench(args: argparse.Namespace) -> int:
-    """Run tests/bench with pytest-benchmark, save under --storage, compare with the previous saved run."""
+    """Run tests/bench with pytest-benchmark, save under --storage, compare with the previous saved run.  A
+    regression is one line naming each benchmark and by how much it regressed, exit 1."""
     import pytest  # optional dependency (the test extra): only `pcverify bench` needs it
+    from pytest_benchmark.session import PerformanceRegression  # the same optional dependency
 
     storage = Path(args.storage).resolve()
-    previous = sorted(storage.glob("*/*.json"))
+    baseline = bench_baseline(storage)
     argv = [args.tests, "--benchmark-enable", "--benchmark-only", f"--benchmark-storage=file://{storage}",
             "--benchmark-autosave", "-p", "no:cacheprovider"]
-    if previous:
-        argv += ["--benchmark-compare", f"--benchmark-compare-fail=mean:{args.fail_percent:g}%"]
-        print(f"comparing with {previous[-1].name}; failing on a mean regression beyond {args.fail_percent:g}%")
+    if baseline is not None:
+        argv += [f"--benchmark-compare={baseline}", f"--benchmark-compare-fail=mean:{args.fail_percent:g}%"]
+        print(f"comparing with {baseline.name}; failing on a mean regression beyond {args.fail_percent:g}%")
     else:
         print(f"no previous benchmark run under {storage}: this run becomes the baseline")
-    return int(pytest.main(argv))
+    plugin = BenchmarkRegressions()
+    try:
+        code = int(pytest.main(argv, plugins=[plugin]))
+    except PerformanceRegression:
+        sys.stdout.flush()
+        print(regression_line(plugin.found(), baseline), file=sys.stderr)
+        return 1
+    check_interrupted()  # pytest turns a SIGTERM into its own exit code: stop like every other command
+    return code
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -540,7 +665,8 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 0
     try:
-        return args.func(args)
+        with sigterm_interrupts():  # SIGTERM anywhere in a command: KeyboardInterrupt, the "terminated" line below
+            return args.func(args)
     except (SceneError, CliError, SolverUnavailable, FileNotFoundError) as exc:
         if args.debug:
             raise
@@ -556,7 +682,7 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         if received() == signal.SIGTERM:
             print("\npcverify: terminated (finished cells are kept in the cache)", file=sys.stderr)
-            return 128 + signal.SIGTERM
+            return TERMINATED
         print("\npcverify: interrupted (finished cells are kept in the cache)", file=sys.stderr)
         return 130
 

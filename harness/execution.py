@@ -306,6 +306,7 @@ def _wait_for(cache: Cache, key: str, poll: float = 0.5) -> dict[str, Any] | Non
             if entry is not None:
                 return entry
         check_interrupted()
+        cache.tell_waiting(key)  # which lock, its holder and its age, once a minute
         time.sleep(poll)
 
 

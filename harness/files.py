@@ -8,6 +8,9 @@ temporary file; a write that fails (a full disk, a read-only folder, an exceptio
 its temporary file and leaves the target as it was.  `remove_stray_files` removes the temporary files of
 writers that died (SIGKILL, power loss) before they could.
 
+`parse_json` reads JSON that anyone may have written: a document nested too deeply for the parser (100 000
+nested lists) is invalid JSON like any other, never a RecursionError.
+
 `exclusive` serialises a short critical section (rebuilding index.html) between processes: a lock file
 held with flock(2), which the kernel releases when its holder dies, so a killed process cannot hold it.
 """
@@ -96,6 +99,14 @@ def remove_stray_files(folder: Path, pattern: str = ".*.tmp") -> int:
     return removed
 
 
+def parse_json(text: str | bytes) -> object:
+    """`json.loads`, with a document nested too deeply for the parser refused as invalid (ValueError)."""
+    try:
+        return json.loads(text)
+    except RecursionError:
+        raise ValueError("nested too deeply to be read") from None
+
+
 def read_json(path: Path) -> tuple[object, str]:
     """(document, "") or (None, why it cannot be read): a missing, unreadable, empty or invalid file."""
     try:
@@ -105,7 +116,7 @@ def read_json(path: Path) -> tuple[object, str]:
     if not text.strip():
         return None, "is empty"
     try:
-        return json.loads(text), ""
+        return parse_json(text), ""
     except ValueError as exc:
         return None, f"is not valid JSON ({str(exc)[:80]})"
 

@@ -6,6 +6,12 @@ would run on to the end.  While a study runs, SIGINT and SIGTERM therefore also 
 remember which signal came), and the runner checks it after every finished cell: it stores that cell,
 then stops with KeyboardInterrupt.  A worker process watches the study's process and exits when it is
 gone (killed with SIGKILL, say), instead of computing on for minutes.
+
+SIGTERM is handled for the whole life of the command, not only while cells run: from the first line of
+the command line module (`exit_on_sigterm_at_start_up`: nothing is written yet, so it says so and exits
+143 at once), then around every command (`sigterm_interrupts`: KeyboardInterrupt, so locks are released
+and every file is written whole or not at all).  A process started with SIGINT ignored (`cmd &` from sh)
+keeps ignoring Ctrl-C, but still stops cleanly on SIGTERM.
 """
 
 from __future__ import annotations
@@ -17,32 +23,70 @@ import threading
 import time
 from collections.abc import Iterator
 
+TERMINATED = 128 + signal.SIGTERM  # the exit code of a command stopped by SIGTERM
+
 INTERRUPTED = threading.Event()
 STUDY_PID = "PCVERIFY_STUDY_PID"
 _RECEIVED: list[int] = []  # the signal that interrupted the study
 _WATCHING: list[int] = []  # the study pid a worker's watchdog follows
 
 
+def _interrupt(signum, frame):  # noqa: ARG001 - the signal-handler signature
+    """Remember the signal and stop the main thread with KeyboardInterrupt."""
+    _RECEIVED.append(signum)
+    INTERRUPTED.set()
+    raise KeyboardInterrupt
+
+
+def _exit_at_start_up(signum, frame):  # noqa: ARG001 - the signal-handler signature
+    os.write(2, b"pcverify: terminated (during start-up: nothing was written)\n")
+    os._exit(TERMINATED)
+
+
+def _ours(handler: object) -> bool:
+    """Whether SIGTERM's current handler may be replaced: the default action, or one of this module's."""
+    return handler in (signal.SIG_DFL, _interrupt, _exit_at_start_up)
+
+
+def exit_on_sigterm_at_start_up() -> None:
+    """Until a command runs: SIGTERM prints the one "terminated" line and exits 143 (the imports of the
+    command line take seconds, and nothing has been written yet).  Only in the main thread, and only over
+    the default action."""
+    if threading.current_thread() is threading.main_thread() and _ours(signal.getsignal(signal.SIGTERM)):
+        signal.signal(signal.SIGTERM, _exit_at_start_up)
+
+
+@contextlib.contextmanager
+def sigterm_interrupts() -> Iterator[None]:
+    """Within the block (a whole command), SIGTERM raises KeyboardInterrupt and is remembered (`received`), so
+    the command stops cleanly wherever it is: start-up, plugin imports, writing a report.  A SIGTERM handler
+    installed by someone else (a test runner) is left alone."""
+    INTERRUPTED.clear()
+    _RECEIVED.clear()
+    if threading.current_thread() is not threading.main_thread() or not _ours(signal.getsignal(signal.SIGTERM)):
+        yield
+        return
+    previous = signal.signal(signal.SIGTERM, _interrupt)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous if previous is not _exit_at_start_up else signal.SIG_DFL)
+        INTERRUPTED.clear()
+
+
 @contextlib.contextmanager
 def remember_sigint() -> Iterator[None]:
-    """Within the block, SIGINT and SIGTERM raise KeyboardInterrupt and are remembered in INTERRUPTED."""
+    """Within the block, SIGINT and SIGTERM raise KeyboardInterrupt and are remembered in INTERRUPTED.  SIGINT
+    only where it has Python's default handler: ignored (a background job of sh) or handled by someone else (a
+    test runner), it is left alone; SIGTERM still stops the study unless someone else handles it."""
     INTERRUPTED.clear()
     _RECEIVED.clear()
     os.environ[STUDY_PID] = str(os.getpid())  # inherited by the worker processes started from here on
-    if threading.current_thread() is not threading.main_thread() or \
-            signal.getsignal(signal.SIGINT) is not signal.default_int_handler:
-        try:
-            yield  # SIGINT ignored or handled by someone else (e.g. a test runner): leave it alone
-        finally:
-            INTERRUPTED.clear()
-        return
-
-    def handler(signum, frame):  # noqa: ARG001 - the signal-handler signature
-        _RECEIVED.append(signum)
-        INTERRUPTED.set()
-        raise KeyboardInterrupt
-
-    previous = {sig: signal.signal(sig, handler) for sig in (signal.SIGINT, signal.SIGTERM)}
+    signals = []
+    if threading.current_thread() is threading.main_thread():
+        signals = [sig for sig, ours in ((signal.SIGINT, signal.getsignal(signal.SIGINT) is signal.default_int_handler),
+                                         (signal.SIGTERM, _ours(signal.getsignal(signal.SIGTERM)))) if ours]
+    previous = {sig: signal.signal(sig, _interrupt) for sig in signals}
     try:
         yield
     finally:

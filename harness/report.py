@@ -234,7 +234,7 @@ def _is_number(x: Any) -> bool:
     return isinstance(x, (int, float)) and not isinstance(x, bool) and np.isfinite(x)
 
 
-def _benchmark_problem(doc: Any) -> str:
+def benchmark_problem(doc: Any) -> str:
     """Why `doc` is not a pytest-benchmark save ("" if it is)."""
     if not isinstance(doc, dict):
         return "is not a JSON object"
@@ -255,7 +255,7 @@ def benchmark_runs(storage: Path) -> pd.DataFrame:
     rows = []
     for k, file in enumerate(sorted(storage.glob("*/*.json"))):
         doc, why = read_json(file)
-        problem = why or _benchmark_problem(doc)
+        problem = why or benchmark_problem(doc)
         if problem:
             warn(f"{file} {problem}; skipped")
             continue

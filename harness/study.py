@@ -21,7 +21,13 @@ from pcverify.harness.analyses import ANALYSES
 from pcverify.harness.calibspec import Calibration, parse_calibrations
 from pcverify.harness.catalogue import make_scene, register_scene, spec_from_table
 from pcverify.harness.plugins import load_plugins
-from pcverify.harness.studyfile import check_study_document, read_study_document, solver_params_of, values_of
+from pcverify.harness.studyfile import (
+    check_study_document,
+    read_study_document,
+    safe_name,
+    solver_params_of,
+    values_of,
+)
 from pcverify.harness.tasks import SOLVE, CellTask
 from pcverify.harness.verdict import Claim, parse_claims
 from pcverify.scene import Scene, SceneError
@@ -96,6 +102,7 @@ def load_study(name_or_path: str, allow_large: bool = False) -> Study:
     refused unless `allow_large` (counted before anything is built)."""
     path = study_path(name_or_path)
     doc = read_study_document(path)
+    name = study_name(doc, path)
     count = cell_count(doc, path)
     if count > MAX_CELLS and not allow_large:
         raise SceneError(f"study file {path.name} has {count} cells; allowed: at most {MAX_CELLS} without "
@@ -110,8 +117,23 @@ def load_study(name_or_path: str, allow_large: bool = False) -> Study:
     calibrations = parse_calibrations(doc["calibration"], f"study file {path.name}") if "calibration" in doc else []
     require_solvers(sorted({c.solver for g in groups for c in g.cells} | {c.solver for c in calibrations}),
                     f"study file {path.name}")
-    return Study(doc.get("name", path.stem), doc.get("title", path.stem), groups, claims, plugins, path.resolve(),
+    return Study(name, doc.get("title", path.stem), groups, claims, plugins, path.resolve(),
                  calibrations)
+
+
+def study_name(doc: dict[str, Any], path: Path) -> str:
+    """The name of the study in `doc` (read from `path`): its `name`, else the file's name without .toml.  It
+    names the study's report folder, so it must be a safe folder name (SceneError naming the allowed length
+    and characters otherwise)."""
+    if "name" in doc:
+        return safe_name(doc["name"], "name", f"study file {path.name}")
+    return safe_name(path.stem, "name", f"study file {path.name}, which sets no name (so its name is its file name)")
+
+
+def declared_name(path: Path) -> str:
+    """The study name a study file declares, read without importing its plugins or building anything
+    (SceneError if the file cannot be read or its name is not valid)."""
+    return study_name(read_study_document(path), path)
 
 
 def require_solvers(names: list[str], where: str) -> None:
