@@ -470,8 +470,10 @@ def cmd_report(args: argparse.Namespace) -> int:
             continue
         results = cached_results(study, cache)
         reported = (out / study.name / "manifest.json").exists()
-        if not reported and all(r["status"] == "missing" for r in results):
-            results = []  # never run here: nothing to rebuild (a study reported before is rebuilt, missing cells named)
+        if not reported and any(r["status"] == "missing" for r in results):
+            # not reported here and not whole in the cache (at most a cell another study shares): nothing to rebuild.
+            # A study reported before is rebuilt, its missing cells named; a whole one whose folder went, too.
+            results = []
         extra, lost = [], []
         for cal in study.calibrations:  # the same search through the cached cells
             try:

@@ -44,6 +44,9 @@ def read_study_document(path: Path) -> dict[str, Any]:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise SceneError(f"study file {path}: not valid TOML ({' '.join(str(exc).split())})") from None
+    except RecursionError:
+        raise SceneError(f"study file {path}: nested too deeply to be read; allowed: a study file of [[group]], "
+                         "[[claim]] and [[scene]] tables") from None
 
 
 def safe_name(value: Any, what: str, where: str) -> str:

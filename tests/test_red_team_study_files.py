@@ -41,6 +41,7 @@ REFUSED = [
     ("probe unknown", BASE + 'analysis = "stability"\nprobe = "sweep"\n', "probe='sweep' is unknown"),
     ("figures entry unknown", BASE + 'figures = ["render-4d"]\n', "figures entry 'render-4d' is unknown"),
     ("unknown solver", BASE.replace('"skfem"', '"skfme"'), "solver='skfme' is unknown"),
+    ("a value nested 100 000 deep", BASE + "v = " + "[" * 100_000 + "]" * 100_000 + "\n", "nested too deeply"),
 ]
 
 
