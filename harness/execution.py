@@ -155,9 +155,13 @@ def compute_cell(cell: Cell, raise_scene_errors: bool = False) -> dict[str, Any]
     resolution = Resolution(cell.n, cell.refine)
     try:
         cell.task.check(solver, dict(cell.solver_params))
-    except (SceneError, KeyboardInterrupt):
+    except KeyboardInterrupt:
         raise
     except BaseException as exc:  # noqa: BLE001 - as in cell_identity
+        if isinstance(exc, SceneError):
+            if raise_scene_errors:
+                raise
+            return base | {"status": "failed", "reason": str(exc)}
         return base | {"status": "failed", "reason": _checks_raised(cell, exc)}
     try:
         with threadpool_limits(limits=1, user_api="blas"):  # results must not depend on --jobs
