@@ -170,9 +170,13 @@ class _Named:
 
 
 def named(solver: Solver, name: str) -> Solver:
-    """`solver` under the name the user gave it (a registry name, an entry point's or "module:Class"), so that
-    messages and results never carry the name a class gives itself (a module:Class calling itself "skfem")."""
-    return solver if getattr(solver, "name", None) == name else _Named(solver, name)  # type: ignore[return-value]
+    """`solver` as seen by its cell: under `name`, the name the user gave it (a registry name or "module:Class"),
+    when the name the class gives itself is another registered solver's (a module:Class calling itself
+    "skfem"), so that no message of its cell borrows that solver's name; otherwise the solver itself."""
+    own = getattr(solver, "name", None)
+    if own == name or own not in entries():
+        return solver
+    return _Named(solver, name)  # type: ignore[return-value]
 
 
 def _instance(cls: type, what: str) -> Solver:

@@ -113,6 +113,12 @@ class Mutator(Base):
 class Impostor(Base):
     name = "skfem"
 
+    def solve(self, scene, resolution, samples=None, **params):
+        out = super().solve(scene, resolution)
+        if resolution.n == 3:
+            out.summary["bulk_median"] = "0.5"  # a number as text: refused at the boundary
+        return out
+
 
 class BadInit(Base):
     def __init__(self):
@@ -361,15 +367,19 @@ def test_a_solver_that_changes_its_scene_fails_and_skfem_still_sees_the_study_sc
 
 def test_a_solver_calling_itself_skfem_is_reported_under_its_own_name(plugins, tmp_path, capsys) -> None:
     """Impostor (name = "skfem", its Solution says solver="skfem"): `run --json` said solver "skfem"; now it
-    is "pv_hostile:Impostor", in the text output too, and a study's report has no skfem row."""
-    code, out = _run_json(capsys, "--solver", "pv_hostile:Impostor")
-    assert code == 0 and out["solver"] == "pv_hostile:Impostor"
-    assert main(["run", "bar-heat-faces", "--solver", "pv_hostile:Impostor"]) == 0
+    is "pv_hostile:Impostor", in the text output too; a study's tables have no skfem row, and the boundary's
+    refusal of its n=3 output names pv_hostile:Impostor, not skfem."""
+    assert main(["run", "bar-heat-faces", "--n", "2", "--solver", "pv_hostile:Impostor", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["solver"] == "pv_hostile:Impostor"
+    assert main(["run", "bar-heat-faces", "--n", "2", "--solver", "pv_hostile:Impostor"]) == 0
     assert "solver   pv_hostile:Impostor " in capsys.readouterr().out
     assert main(["study", str(_study(plugins, "pv_hostile:Impostor")), "--out", str(tmp_path), "--json"]) == 0
     capsys.readouterr()
     for table in (tmp_path / "pv").glob("*.csv"):
         assert set(pd.read_csv(table)["solver"]) == {"pv_hostile:Impostor"}, table.name
+    reason = _cells(tmp_path).loc[("pv_hostile:Impostor", 3), "reason"]
+    assert reason.startswith("solver 'pv_hostile:Impostor' returned summary['bulk_median'] = '0.5'"), reason
+    assert "skfem" not in reason
     tally(OTHERS, "rejected")
 
 
