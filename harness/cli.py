@@ -38,13 +38,14 @@ from pcverify.harness.cache import Cache
 from pcverify.harness.calibration import NotCached, calibration_section, run_calibration
 from pcverify.harness.catalogue import entries as scene_entries
 from pcverify.harness.catalogue import get_spec, make_scene
-from pcverify.harness.execution import cached_results, cell_identity, execute, plan, run_cell
+from pcverify.harness.execution import cached_results, cell_identity, cell_time_limit, execute, plan, run_cell
 from pcverify.harness.files import read_json
 from pcverify.harness.interrupt import TERMINATED, check_interrupted, received, remember_sigint, sigterm_interrupts
-from pcverify.harness.limits import check_work
+from pcverify.harness.limits import DEFAULT_TIME_LIMIT, MAX_TIME_LIMIT, check_work
 from pcverify.harness.report import benchmark_problem, manifests, study_verdicts, warn, write_index, write_study_report
 from pcverify.harness.reproduce import claim_groups, select_groups
 from pcverify.harness.study import MAX_CELLS, Cell, declared_name, load_study, study_files
+from pcverify.harness.workers import describe_exception, output_to_stderr
 from pcverify.scene import Param, Resolution, SceneError, shown
 from pcverify.solvers.protocol import skipped
 from pcverify.solvers.registry import SolverUnavailable, get_solver
@@ -110,6 +111,22 @@ def int_in(name: str, low: int, high: int):
             shown = text if len(text) <= 40 else text[:37] + "..."
             shown = shown if shown.strip() and shown.isprintable() else repr(shown)
             raise argparse.ArgumentTypeError(f"{name}={shown} is not valid; allowed: integer in [{low}, {high}]")
+        return value
+
+    return convert
+
+
+def seconds_in(name: str, low: float, high: float):
+    """argparse type: a number of seconds in (low, high], else a one-line error naming it and the range."""
+
+    def convert(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            value = None
+        if value is None or not low < value <= high:
+            raise argparse.ArgumentTypeError(f"{name}={shown(text)} is not valid; allowed: seconds in "
+                                             f"({low:g}, {high:g}]")
         return value
 
     return convert
@@ -232,21 +249,29 @@ def working(label: str, enabled: bool = True) -> Iterator[None]:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    """`pcverify run`: one cell through the study's cell path (`execution.run_cell`: BLAS on one thread, the
-    boundary checks, the compare step), so it prints the numbers a study stores for that cell, errors
-    against the reference included.  Exit 1 when the cell failed."""
-    spec = get_spec(args.scene)
-    resolution = Resolution(args.n, args.refine)
-    solver = get_solver(args.solver)
-    scene_vals, solver_vals = split_settings(args.set or [], spec.parameters, solver.parameters)
-    scene = make_scene(args.scene, **scene_vals)
-    cell = Cell("run", scene, tuple(sorted(scene_vals.items())), args.solver, resolution.n, resolution.refine,
-                tuple(sorted(solver_vals.items())))
-    _, skip = cell_identity(cell)  # the parameters check: a bad value is one error line
-    if skip is None:
-        check_work(solver, scene, resolution, solver_vals, args.allow_large)
-    with working(f"{solver.name} on {scene.name} n={resolution.n} refine={resolution.refine}", not args.json):
-        result = run_cell(cell, raise_scene_errors=True)
+    """`pcverify run`: one cell through the study's cell path (`execution.run_cell`: a worker process with the
+    time limit, BLAS on one thread, the boundary checks, the compare step), so it prints the numbers a study
+    stores for that cell, errors against the reference included.  Exit 1 when the cell failed.  What the
+    solver prints goes to stderr; the result's `solver` is the name given to --solver."""
+    with output_to_stderr():
+        spec = get_spec(args.scene)
+        resolution = Resolution(args.n, args.refine)
+        solver = get_solver(args.solver)
+        try:
+            scene_vals, solver_vals = split_settings(args.set or [], spec.parameters, solver.parameters)
+        except (SceneError, CliError, KeyboardInterrupt):
+            raise
+        except BaseException as exc:  # noqa: BLE001 - a plugin's own Param: one line, never a traceback
+            raise CliError(f"--set: the parameters of solver {args.solver!r} raised {describe_exception(exc)}"
+                           ) from None
+        scene = make_scene(args.scene, **scene_vals)
+        cell = Cell("run", scene, tuple(sorted(scene_vals.items())), args.solver, resolution.n, resolution.refine,
+                    tuple(sorted(solver_vals.items())))
+        _, skip = cell_identity(cell)  # the parameters check: a bad value is one error line
+        if skip is None:
+            check_work(solver, scene, resolution, solver_vals, args.allow_large, label=args.solver)
+        with working(f"{args.solver} on {scene.name} n={resolution.n} refine={resolution.refine}", not args.json):
+            result = run_cell(cell, raise_scene_errors=True, time_limit=args.time_limit)
     # every key of a solution, also for a skipped or failed cell (a public interface: keys are never dropped)
     out = skipped(scene, solver, resolution, "").to_dict() | result
     out["scene_params"] = scene.param_dict
@@ -257,7 +282,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         print(json.dumps(out))
         return code
     print(f"scene    {scene.name}  {scene.param_dict}")
-    print(f"solver   {solver.name}  {out['params']}")
+    print(f"solver   {args.solver}  {out['params']}")
     print(f"grid     n={resolution.n} refine={resolution.refine} unknowns={out['unknowns']}  "
           f"wall {out['wall_s']:.3f} s")
     print(f"status   {out['status']}{'  (' + out['reason'] + ')' if out['reason'] else ''}")
@@ -275,9 +300,10 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 def cmd_study(args: argparse.Namespace) -> int:
     """`pcverify study NAME`: run (or dry-run) one study, or all shipped ones for `default`."""
-    with remember_sigint():
+    with remember_sigint(), cell_time_limit(args.time_limit):
         names = sorted(study_files()) if args.name == "default" else [args.name]
-        studies = [load_study(n, args.allow_large) for n in names]  # validate all before running any
+        with output_to_stderr():  # a plugin's prints, on import or in any cell, never reach stdout
+            studies = [load_study(n, args.allow_large) for n in names]  # validate all before running any
         studies = selected_groups(studies, args.name, args.group)
         out = Path(args.out)
         cache = Cache(args.cache or out / "cache")
@@ -285,7 +311,8 @@ def cmd_study(args: argparse.Namespace) -> int:
         summary = []
         for study in studies:
             if args.dry_run:
-                rows = plan(study, cache, rerun)
+                with output_to_stderr():
+                    rows = plan(study, cache, rerun)
                 summary.append({"study": study.name, "cells": rows})
                 for r in [] if args.json else rows:
                     print(f"{r['state']:<8} {r['key']}  {r['cell']}" + (f"  ({r['reason']})" if r["reason"] else ""))
@@ -296,12 +323,14 @@ def cmd_study(args: argparse.Namespace) -> int:
                 continue
             t0 = time.perf_counter()
             shown_bar = not args.json and any(g.cells for g in study.groups)  # a calibration-only study: no bar
-            results, counts = execute(study, cache, jobs=args.jobs, progress=shown_bar, scheduler=args.scheduler,
-                                      rerun=rerun, allow_large=args.allow_large)
+            with output_to_stderr():
+                results, counts = execute(study, cache, jobs=args.jobs, progress=shown_bar,
+                                          scheduler=args.scheduler, rerun=rerun, allow_large=args.allow_large)
             extra = []
             for cal in study.calibrations:
-                outcome = run_calibration(study, cal, cache, jobs=args.jobs, rerun=rerun, allow_large=args.allow_large,
-                                          progress=not args.json)
+                with output_to_stderr():
+                    outcome = run_calibration(study, cal, cache, jobs=args.jobs, rerun=rerun,
+                                              allow_large=args.allow_large, progress=not args.json)
                 extra.append(calibration_section(outcome, out / study.name))
                 counts["calibration_runs"] = counts.get("calibration_runs", 0) + outcome.runs
                 counts["calibration_cached"] = counts.get("calibration_cached", 0) + outcome.hits
@@ -334,6 +363,8 @@ def selected_groups(studies: list[Any], name: str, groups: list[str] | None) -> 
     return [select_groups(studies[0], groups)]
 
 
+TIME_LIMIT_HELP = (f"kill a computed cell after SECONDS, failing it with that reason (default {DEFAULT_TIME_LIMIT:g}: "
+                   "six times the ten minutes the work limits allow a cell)")
 GATE_STATES = ("fail", "inconclusive", "not-applicable")  # what --strict refuses: anything not verified
 
 
@@ -360,8 +391,9 @@ def cmd_verdict(args: argparse.Namespace) -> int:
     """`pcverify verdict STUDY CLAIM [--case CASE]`: run the groups (or calibration) the claim reads, through
     the cache like a study, judge the claim and print each verdict's value, target, error, uncertainty and
     tolerance.  Exit 1 unless every verdict printed is a pass."""
-    with remember_sigint():
-        study = load_study(args.study, args.allow_large)
+    with remember_sigint(), cell_time_limit(args.time_limit):
+        with output_to_stderr():
+            study = load_study(args.study, args.allow_large)
         claims = {c.id: c for c in study.claims}
         if args.claim not in claims:
             raise CliError(f"claim={shown(args.claim)} is unknown in study {study.name}; allowed: one of "
@@ -371,10 +403,12 @@ def cmd_verdict(args: argparse.Namespace) -> int:
         cache = Cache(args.cache or Path(args.out) / "cache")
         with tempfile.TemporaryDirectory(prefix="pcverify-verdict-") as tmp:
             shown_bar = not args.json and any(g.cells for g in part.groups)
-            results, _ = execute(part, cache, jobs=args.jobs, progress=shown_bar, allow_large=args.allow_large)
-            extra = [calibration_section(run_calibration(part, cal, cache, jobs=args.jobs, allow_large=args.allow_large,
-                                                         progress=not args.json), Path(tmp) / study.name)
-                     for cal in part.calibrations]
+            with output_to_stderr():
+                results, _ = execute(part, cache, jobs=args.jobs, progress=shown_bar, allow_large=args.allow_large)
+                extra = [calibration_section(run_calibration(part, cal, cache, jobs=args.jobs,
+                                                             allow_large=args.allow_large, progress=not args.json),
+                                             Path(tmp) / study.name)
+                         for cal in part.calibrations]
             write_study_report(part, results, Path(tmp), extra=extra)
             records = study_verdicts(Path(tmp), study.name)
     cases = [r["case"] for r in records]
@@ -603,6 +637,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="grid refinement factor of continuum solvers (default 1)")
     p.add_argument("--set", action="append", metavar="KEY=VALUE", help="scene or solver parameter (repeatable)")
     p.add_argument("--allow-large", action="store_true", help="run a solve beyond the work and memory limits")
+    p.add_argument("--time-limit", type=seconds_in("time-limit", 0, MAX_TIME_LIMIT), default=DEFAULT_TIME_LIMIT,
+                   metavar="SECONDS", help=TIME_LIMIT_HELP)
     p.add_argument("--json", action="store_true", help="one JSON object on stdout")
     p.set_defaults(func=cmd_run)
 
@@ -618,6 +654,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="hand the cells to a Dask cluster (e.g. tcp://host:8786; needs pcverify[dask])")
     p.add_argument("--allow-large", action="store_true", help=f"run a study of more than {MAX_CELLS} cells, or cells "
                    "beyond the work and memory limits")
+    p.add_argument("--time-limit", type=seconds_in("time-limit", 0, MAX_TIME_LIMIT), default=DEFAULT_TIME_LIMIT,
+                   metavar="SECONDS", help=TIME_LIMIT_HELP)
     p.add_argument("--rerun", nargs="*", default=None, metavar="SOLVER",
                    help="recompute cached cells: all of them, or those of the named solvers (put it last)")
     p.add_argument("--json", action="store_true", help="print a JSON summary per study with its verdicts (the records "
@@ -639,6 +677,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--cache", default=None, help="cache folder (default OUT/cache)")
     p.add_argument("--jobs", type=int_in("jobs", 1, 256), default=1, help="parallel cells on local cores (default 1)")
     p.add_argument("--allow-large", action="store_true", help="run cells beyond the work and memory limits")
+    p.add_argument("--time-limit", type=seconds_in("time-limit", 0, MAX_TIME_LIMIT), default=DEFAULT_TIME_LIMIT,
+                   metavar="SECONDS", help=TIME_LIMIT_HELP)
     p.add_argument("--json", action="store_true", help="print the verdict records as JSON")
     p.set_defaults(func=cmd_verdict)
 

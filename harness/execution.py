@@ -1,24 +1,32 @@
 """Running a study's cells: one path for every cell, the cache in front of it, local or Dask workers.
 
 Every cell is identified by a content hash of its scene, solver, code fingerprint, resolution, task and
-parameters; a cached result is read back, not recomputed.  Cells run in parallel on joblib workers or
-on a Dask cluster (`--scheduler`), and each finished cell is stored at once, so an interrupted study
-loses nothing.  Cells whose wall times a report compares (timing, work-precision) run last, serially in
-this process, after a warm-up solve per solver.
+parameters; a cached result is read back, not recomputed.  Every cell that is computed runs in a worker
+process (`workers`) that the study's process kills when the cell runs past its time limit, and a cell that
+ends its worker (os._exit, a signal) is that cell's failed status: one process per --jobs, or a Dask
+cluster (`--scheduler`).  Each finished cell is stored at once, so an interrupted study loses nothing.
+Cells whose wall times a report compares (timing, work-precision) run last, one at a time in one worker
+process, after a warm-up solve per solver in that same process.
+
+A cell's identity (group, scene, solver, resolution, parameters) comes from the cell, never from what the
+solver returns, and each solve gets its own copy of the scene: a solver that changes it fails its cell.
 """
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
+import copy
+import os
 import re
 import sys
 import threading
 import time
-import warnings
 from collections import Counter
 from collections.abc import Iterator
 from typing import Any
 
-from joblib import Parallel, delayed
+import numpy as np
 from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
@@ -27,12 +35,13 @@ from pcverify.harness import compare
 from pcverify.harness.boundary import Inadmissible
 from pcverify.harness.cache import Cache, cell_key
 from pcverify.harness.interrupt import check_interrupted, ignore_sigint_in_worker
-from pcverify.harness.limits import check_work
+from pcverify.harness.limits import DEFAULT_TIME_LIMIT, EstimateError, check_work
 from pcverify.harness.plugins import load_plugins
 from pcverify.harness.study import Cell, Study
 from pcverify.harness.tasks import SolveTask
-from pcverify.scene import Resolution, SceneError, shown
-from pcverify.solvers.registry import SolverUnavailable, get_solver
+from pcverify.harness.workers import Outcome, describe_exception, pool
+from pcverify.scene import Resolution, Scene, SceneError, shown
+from pcverify.solvers.registry import SolverUnavailable, get_solver, named, snapshot
 
 try:  # optional dependency: pip install 'pcverify[dask]'
     from distributed import Client, as_completed
@@ -42,10 +51,28 @@ except ImportError:  # --scheduler then says how to install it
 SCHEDULER_ADDRESS = re.compile(r"^(tcp|tls|ws|wss|ucx)://[A-Za-z0-9._\-\[\]:]+:[0-9]{1,5}$|^inproc://[\w./\-]+$")
 
 
+_TIME_LIMIT: contextvars.ContextVar[float] = contextvars.ContextVar("pcverify_time_limit", default=DEFAULT_TIME_LIMIT)
+_SCENE_ERROR = "pcverify-scene-error"  # a worker's reply that is a SceneError for the command line to report
+
+
+@contextlib.contextmanager
+def cell_time_limit(seconds: float | None) -> Iterator[None]:
+    """Within the block, a computed cell is killed after `seconds` (None: DEFAULT_TIME_LIMIT): for every
+    `execute` and `run_cell` that is not given its own limit, e.g. those a calibration starts."""
+    token = _TIME_LIMIT.set(DEFAULT_TIME_LIMIT if seconds is None else float(seconds))
+    try:
+        yield
+    finally:
+        _TIME_LIMIT.reset(token)
+
+
 def cell_identity(cell: Cell) -> tuple[dict[str, Any], str | None]:
-    """(key payload, skip reason or None) of a cell.  The payload holds the scene's content hash, the
-    solver's name and code fingerprint (and the task's), the resolution, the task, the parameters and the
-    fingerprint of the compare step (its errors are part of the result)."""
+    """(key payload, reason the cell will not be solved or None) of a cell.  The payload holds the scene's
+    content hash, the solver's name and code fingerprint (and the task's), the resolution, the task, the
+    parameters and the fingerprint of the compare step (its errors are part of the result).  A cell is not
+    solved when it is skipped (the solver is unavailable, or does not support the scene) or when the solver's
+    own `supports` or parameter check raised (the cell then fails with that reason); a SceneError of the
+    parameter check (a bad value) propagates.  The solver sees a copy of the scene."""
     payload: dict[str, Any] = {"scene": cell.scene.content_hash(), "solver": cell.solver, "n": cell.n,
                                "refine": cell.refine, "task": cell.task.name}
     if cell.serial:
@@ -55,64 +82,171 @@ def cell_identity(cell: Cell) -> tuple[dict[str, Any], str | None]:
         solver = get_solver(cell.solver)
     except SolverUnavailable as exc:
         return payload | {"unavailable": True, "params": dict(cell.solver_params)}, str(exc)
-    ok, reason = cell.task.supports(solver, cell.scene)
+    ok, reason, broken = _supported(cell, named(solver, cell.solver), copy.deepcopy(cell.scene))
+    if broken:
+        return payload | {"params": dict(cell.solver_params), "broken": True}, broken
     if not ok:  # skipped with the reason; its parameters may not even be the solver's
         return payload | {"params": dict(cell.solver_params), "skipped": True}, reason
-    params = cell.task.check(solver, dict(cell.solver_params))
+    try:
+        params = cell.task.check(named(solver, cell.solver), dict(cell.solver_params))
+    except (SceneError, KeyboardInterrupt):
+        raise
+    except BaseException as exc:  # noqa: BLE001 - a plugin's own parameter check: its cell fails, never a traceback
+        return payload | {"params": dict(cell.solver_params), "broken": True}, _checks_raised(cell, exc)
     return payload | {"params": params, "code": code_fingerprint(solver),
                       "task_code": module_fingerprint(type(cell.task).__module__),
                       "compare": module_fingerprint(compare.__name__)}, None
 
 
-def run_cell(cell: Cell, raise_scene_errors: bool = False) -> dict[str, Any]:
-    """Run one cell through its task and return its JSON-ready result (skips and failures are results too).
+def _supported(cell: Cell, solver: Any, scene: Scene) -> tuple[bool, str, str | None]:
+    """(supported, reason, why the check itself failed or None): a `supports` that raises or answers
+    something other than (True or False, text) fails the cell."""
+    try:
+        answer = cell.task.supports(solver, scene)
+        ok, reason = answer
+    except KeyboardInterrupt:
+        raise
+    except BaseException as exc:  # noqa: BLE001 - whatever a plugin's supports raises is its cell's failure
+        return False, "", f"solver {cell.solver!r}: supports(scene) raised {describe_exception(exc)}"
+    if not isinstance(ok, (bool, np.bool_)) or not isinstance(reason, str):
+        return False, "", (f"solver {cell.solver!r}: supports(scene) returned {shown(answer)}; allowed: (True or "
+                           "False, a reason text)")
+    return bool(ok), reason, None
 
-    BLAS runs on one thread (results must not depend on --jobs or the machine); the solver's output passes
-    the boundary checks (`boundary`), then is compared with the scene's reference once (`compare`: the
-    result's `errors`).  Whatever the solve raises, or an output the checks refuse, is the cell's failed
-    status with the reason; with `raise_scene_errors` a SceneError (the solver refusing its input) propagates
-    instead, for the command line to report as bad input."""
-    base = {"group": cell.group, "scene": cell.scene.name, "solver": cell.solver, "n": cell.n,
+
+def _checks_raised(cell: Cell, exc: BaseException) -> str:
+    return f"solver {cell.solver!r}: checking its parameters raised {describe_exception(exc)}"
+
+
+def _base(cell: Cell) -> dict[str, Any]:
+    """The identity fields of a cell's result: the cell's, whatever the solver says of itself."""
+    return {"group": cell.group, "scene": cell.scene.name, "solver": cell.solver, "n": cell.n,
             "refine": cell.refine, "scene_params": dict(cell.scene_params), "solver_params": dict(cell.solver_params)}
+
+
+def _failed(cell: Cell, reason: str, **extra: Any) -> dict[str, Any]:
+    return _base(cell) | {"status": "failed", "reason": reason} | extra
+
+
+def compute_cell(cell: Cell, raise_scene_errors: bool = False) -> dict[str, Any]:
+    """Compute one cell in this process through its task and return its JSON-ready result (skips and failures
+    are results too): the body of a worker's task (`run_cell`) and of a Dask task.
+
+    The solver works on its own copy of the scene, whose content hash is checked again after the solve (a
+    solver that changed it fails the cell).  BLAS runs on one thread (results must not depend on --jobs or
+    the machine); the solver's output passes the boundary checks (`boundary`), then is compared with the
+    scene's reference once (`compare`: the result's `errors`).  Whatever the solver raises (SystemExit
+    included), or an output the checks refuse, is the cell's failed status with the reason; with
+    `raise_scene_errors` a SceneError (the solver refusing its input) propagates instead, for the command line
+    to report as bad input.  The identity fields are the cell's own, never those the solver returned."""
+    base = _base(cell)
+    scene = copy.deepcopy(cell.scene)
+    before = scene.content_hash()
     try:
         load_plugins(cell.plugins)
-        solver = get_solver(cell.solver)
+        solver = named(get_solver(cell.solver), cell.solver)
     except SolverUnavailable as exc:
         return base | {"status": "skipped", "reason": str(exc)}
-    ok, reason = cell.task.supports(solver, cell.scene)
+    ok, reason, broken = _supported(cell, solver, scene)
+    if broken:
+        return base | {"status": "failed", "reason": broken}
     if not ok:
         return base | {"status": "skipped", "reason": reason}
     resolution = Resolution(cell.n, cell.refine)
     try:
+        cell.task.check(solver, dict(cell.solver_params))
+    except KeyboardInterrupt:
+        raise
+    except BaseException as exc:  # noqa: BLE001 - as in cell_identity
+        if isinstance(exc, SceneError):
+            if raise_scene_errors:
+                raise
+            return base | {"status": "failed", "reason": str(exc)}
+        return base | {"status": "failed", "reason": _checks_raised(cell, exc)}
+    try:
         with threadpool_limits(limits=1, user_api="blas"):  # results must not depend on --jobs
-            out = cell.task.run(solver, cell.scene, resolution, dict(cell.solver_params))
-    except Exception as exc:  # noqa: BLE001 - whatever a solver raises is its cell's failure, never a traceback
+            out = cell.task.run(solver, scene, resolution, dict(cell.solver_params))
+    except KeyboardInterrupt:
+        raise
+    except BaseException as exc:  # noqa: BLE001 - whatever a solver raises is its cell's failure, never a traceback
         if raise_scene_errors and isinstance(exc, SceneError):
             raise
-        text = " ".join(str(exc).split())
-        return base | {"status": "failed", "reason": text if isinstance(exc, Inadmissible)
-                       else f"{type(exc).__name__}: {text}"}
+        return base | {"status": "failed", "reason": " ".join(str(exc).split()) if isinstance(exc, Inadmissible)
+                       else describe_exception(exc)}
+    after = _content_hash(scene)
+    if after != before:
+        return base | {"status": "failed", "reason": f"solver {cell.solver!r} modified the scene it was given "
+                       f"(content hash {before} before the solve, {after} after); allowed: a solver reads its scene "
+                       "and never changes it"}
     res = dict(out.get("resolution") or {})
-    res.setdefault("h", resolution.spacing(cell.scene.box.width))
-    return base | out | {"resolution": res, "errors": compare.errors(cell.scene, out.get("samples"))}
+    res.setdefault("h", resolution.spacing(scene.box.width))
+    return out | base | {"resolution": res, "errors": compare.errors(scene, out.get("samples"))}
+
+
+def _content_hash(scene: Scene) -> str:
+    try:
+        return scene.content_hash()
+    except Exception as exc:  # noqa: BLE001 - a scene changed into something that no longer hashes
+        return f"none ({describe_exception(exc)})"
+
+
+def _in_worker(cell: Cell, raise_scene_errors: bool) -> dict[str, Any]:
+    """A worker's task: the cell's result, or the SceneError that the command line reports as bad input."""
+    try:
+        return compute_cell(cell, raise_scene_errors)
+    except SceneError as exc:
+        return {_SCENE_ERROR: str(exc)}
+
+
+def _world() -> tuple[Any, ...]:
+    """What the workers must share with this process when they are forked: the import path, the working
+    folder and the registered solvers (a change starts new workers)."""
+    return tuple(sys.path), os.getcwd(), snapshot()
+
+
+def run_cell(cell: Cell, raise_scene_errors: bool = False, time_limit: float | None = None) -> dict[str, Any]:
+    """Run one cell in a worker process and return its result (`compute_cell`): the first idle worker of this
+    process's pool, the same one call after call while it lives (the serial timed pass warms up and times
+    there).  A cell that runs past `time_limit` seconds (default: the `cell_time_limit` in force) is killed and
+    failed with that reason; one that ends its worker process is failed with its exit code or signal."""
+    limit = _TIME_LIMIT.get() if time_limit is None else time_limit
+    return _result(cell, pool(_world()).run_one(_in_worker, (cell, raise_scene_errors), limit), limit)
+
+
+def _result(cell: Cell, outcome: Outcome, limit: float) -> dict[str, Any]:
+    """A worker's outcome as the cell's result."""
+    if outcome.kind == "returned":
+        if _SCENE_ERROR in outcome.value:
+            raise SceneError(outcome.value[_SCENE_ERROR])
+        return outcome.value
+    if outcome.kind == "timed-out":
+        return _failed(cell, outcome.reason, time_limit_s=limit)
+    if outcome.kind == "died":
+        return _failed(cell, outcome.reason)
+    return _failed(cell, f"its worker process could not run it: {outcome.reason}")
 
 
 def _indexed(i: int, cell: Cell) -> tuple[int, dict[str, Any]]:
     ignore_sigint_in_worker()
-    return i, run_cell(cell)
+    return i, compute_cell(cell)
 
 
 def _parallel(cells: list[Cell], todo: list[int], jobs: int, client: Any | None
               ) -> Iterator[tuple[int, dict[str, Any]]]:
-    """(index, result) pairs in completion order: joblib on local cores, or the Dask cluster of `client`."""
+    """(index, result) pairs in completion order: `jobs` worker processes, or the Dask cluster of `client`
+    (a Dask task that raised, or whose worker died, is its cell's failed status)."""
     if client is not None:
-        futures = [client.submit(_indexed, i, cells[i], pure=False) for i in todo]
-        for fut in as_completed(futures):
-            yield fut.result()
+        futures = {client.submit(_indexed, i, cells[i], pure=False): i for i in todo}
+        for fut in as_completed(list(futures)):
+            try:
+                yield fut.result()
+            except Exception as exc:  # noqa: BLE001 - e.g. distributed's KilledWorker: that cell's failure
+                yield futures[fut], _failed(cells[futures[fut]], f"its Dask task failed: {describe_exception(exc)}")
         return
-    # loky replaces a worker whose memory grew (numba, FiPy caches) and says so; the cell is rerun, nothing lost
-    warnings.filterwarnings("ignore", message="A worker stopped while some jobs", category=UserWarning)
-    yield from Parallel(n_jobs=jobs, return_as="generator_unordered")(delayed(_indexed)(i, cells[i]) for i in todo)
+    limit = _TIME_LIMIT.get()
+    tasks = [(i, _in_worker, (cells[i], False)) for i in todo]
+    for i, outcome in pool(_world()).run(tasks, jobs, limit):
+        yield i, _result(cells[i], outcome, limit)
 
 
 def connect(address: str, timeout: float = 5.0) -> Any:
@@ -153,7 +287,7 @@ def _warm_up(cells: list[Cell]) -> None:
         if c.solver not in cheapest or (c.n, c.refine) < (cheapest[c.solver].n, cheapest[c.solver].refine):
             cheapest[c.solver] = c
     for c in cheapest.values():
-        run_cell(c)
+        run_cell(c)  # in the worker that runs the timed cells next
 
 
 def plan(study: Study, cache: Cache, rerun: frozenset[str] | None = None) -> list[dict[str, Any]]:
@@ -174,17 +308,27 @@ def _rerun(cell: Cell, rerun: frozenset[str] | None) -> bool:
 
 
 def execute(study: Study, cache: Cache, jobs: int = 1, progress: bool = True, scheduler: str | None = None,
-            rerun: frozenset[str] | None = None, allow_large: bool = False
+            rerun: frozenset[str] | None = None, allow_large: bool = False, time_limit: float | None = None
             ) -> tuple[list[dict[str, Any]], dict[str, int]]:
     """Run every cell not yet cached; return all results in cell order and the counts.
 
     `rerun` recomputes cached cells too: all of them (an empty set) or those of the named solvers.  A
     cell beyond the work limits (`limits.check_work`) stops the study before anything runs, unless
-    `allow_large`.
-    Cells of timed groups run last, serially in this process, after a warm-up solve per solver;
-    the others run in parallel (joblib with `jobs` > 1, or a Dask cluster at `scheduler`).
+    `allow_large`; a cell whose solver's estimate raised fails with that reason, unsolved.
+    Every computed cell runs in a worker process and is killed after `time_limit` seconds (default: the
+    `cell_time_limit` in force); a cached cell that failed on a shorter limit is computed again.
+    Cells of timed groups run last, one at a time in one worker process, after a warm-up solve per solver
+    there; the others run on `jobs` worker processes, or a Dask cluster at `scheduler`.
     Each finished cell is written to the cache at once, so an interrupted study loses nothing.
     """
+    limit = _TIME_LIMIT.get() if time_limit is None else float(time_limit)
+    with cell_time_limit(limit):
+        return _execute(study, cache, jobs, progress, scheduler, rerun, allow_large, limit)
+
+
+def _execute(study: Study, cache: Cache, jobs: int, progress: bool, scheduler: str | None,
+             rerun: frozenset[str] | None, allow_large: bool, limit: float
+             ) -> tuple[list[dict[str, Any]], dict[str, int]]:
     cells = [c for g in study.groups for c in g.cells]
     identities = [cell_identity(c) for c in cells]
     keys = [cell_key(ident[0]) for ident in identities]
@@ -194,6 +338,8 @@ def execute(study: Study, cache: Cache, jobs: int = 1, progress: bool = True, sc
     for i, key in enumerate(keys):
         entry, state = cache.load(key) if not _rerun(cells[i], rerun) else (None, "rerun")
         entry = as_cell(entry, cells[i])
+        if entry is not None and entry.get("status") == "failed" and (entry.get("time_limit_s") or limit) < limit:
+            entry = None  # it ran out of a shorter time limit than this run allows: computed again
         if state.startswith("corrupt"):
             counts["corrupt"] += 1
             tqdm.write(f"cache entry {key} ({cells[i].describe()}) is {state}; recomputing", file=sys.stderr)
@@ -203,10 +349,14 @@ def execute(study: Study, cache: Cache, jobs: int = 1, progress: bool = True, sc
         else:
             todo.append(i)
         results.append(entry)
+    refused: dict[int, str] = {}  # cells whose solver's estimate raised: failed, never solved
     for i in todo:  # the work limits, before anything starts
         if identities[i][1] is None and isinstance(cells[i].task, SolveTask):
-            check_work(get_solver(cells[i].solver), cells[i].scene, Resolution(cells[i].n, cells[i].refine),
-                       dict(cells[i].solver_params), allow_large)
+            try:
+                check_work(get_solver(cells[i].solver), cells[i].scene, Resolution(cells[i].n, cells[i].refine),
+                           dict(cells[i].solver_params), allow_large, label=cells[i].solver)
+            except (EstimateError, SolverUnavailable) as exc:
+                refused[i] = str(exc)
     cache.remove_stray_files()
     client = connect(scheduler) if scheduler is not None else None  # before the progress bar: errors are one line
     bar = tqdm(total=len(cells), initial=counts["cached"], desc=study.name, unit="cell", disable=not progress,
@@ -249,14 +399,14 @@ def execute(study: Study, cache: Cache, jobs: int = 1, progress: bool = True, sc
                 share(i, entry, done=False)
             else:
                 mine.append(i)
-        _run(study, cells, identities, mine, finish, bar, jobs, client)
+        _run(study, cells, identities, mine, finish, bar, jobs, client, refused)
         for i in theirs:
             bar.set_description(f"{study.name}: waiting for another process: {cells[i].describe()}"[:70])
             entry = _wait_for(cache, keys[i])
             if entry is not None:
                 share(i, entry, done=False)
             else:  # its computing process died or failed to store it: compute it here
-                _run(study, cells, identities, [i], finish, bar, 1, None)
+                _run(study, cells, identities, [i], finish, bar, 1, None, refused)
     finally:
         cache.unlock_all()
         bar.close()
@@ -268,8 +418,12 @@ def execute(study: Study, cache: Cache, jobs: int = 1, progress: bool = True, sc
 
 
 def _run(study: Study, cells: list[Cell], identities: list[tuple[dict[str, Any], str | None]], todo: list[int],
-         finish: Any, bar: Any, jobs: int, client: Any | None) -> None:
-    """Run the cells `todo`: the free ones in parallel, then the timed ones serially after a warm-up."""
+         finish: Any, bar: Any, jobs: int, client: Any | None, refused: dict[int, str]) -> None:
+    """Run the cells `todo`: the free ones in parallel, then the timed ones serially after a warm-up (one
+    worker process: the first idle one, as `run_cell` takes).  A refused cell is failed with its reason."""
+    for i in [i for i in todo if i in refused]:
+        finish(i, _failed(cells[i], refused[i]))
+    todo = [i for i in todo if i not in refused]
     free = [i for i in todo if not cells[i].serial]
     timed = [i for i in todo if cells[i].serial and identities[i][1] is None]
     timed_skips = [i for i in todo if cells[i].serial and identities[i][1] is not None]

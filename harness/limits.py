@@ -1,21 +1,37 @@
-"""Bounded work: what one cell may cost before the harness refuses to start it without --allow-large.
+"""Bounded work: what one cell may cost before the harness refuses to start it without --allow-large, and
+how long it may run before it is stopped.
 
 A solver that offers `estimate(scene, resolution, **params)` says, before it starts, how many unknowns and
 time steps a solve takes and how much memory it needs.  A cell beyond MAX_WORK unknown-steps (about ten
 minutes of one core at ~5 ns per unknown-step) or beyond half of this machine's memory is refused in one
-line that names the resolution, the estimate and the limit.
+line that names the resolution, the estimate and the limit.  An estimate that raises or answers something
+other than a WorkEstimate is an `EstimateError` naming the solver (its cell fails; `run` prints one line).
+
+Whatever the estimate said, a computed cell is killed after its time limit (`--time-limit`, default
+DEFAULT_TIME_LIMIT): one hour is six times the ten minutes that MAX_WORK allows a cell, room for a slow or
+busy machine and for the solvers that offer no estimate, while a solve that never returns costs at most an
+hour, not the study.
 """
 
 from __future__ import annotations
 
+import copy
+import math
 import os
 from typing import Any
 
-from pcverify.scene import Resolution, Scene, SceneError
+from pcverify.scene import Resolution, Scene, SceneError, shown
 from pcverify.solvers.protocol import Solver
 
 MAX_WORK = 1e11  # unknowns x time steps of one cell
 MEMORY_SHARE = 0.5  # of this machine's physical memory
+DEFAULT_TIME_LIMIT = 3600.0  # seconds one computed cell may run
+MAX_TIME_LIMIT = 30 * 24 * 3600.0  # the longest --time-limit: 30 days
+
+
+class EstimateError(SceneError):
+    """A solver's `estimate` that raised or did not return a WorkEstimate: its cell cannot be checked
+    against the limits (one line naming the solver)."""
 
 
 def physical_memory() -> int:
@@ -24,19 +40,50 @@ def physical_memory() -> int:
 
 
 def check_work(solver: Solver, scene: Scene, resolution: Resolution, params: dict[str, Any],
-               allow_large: bool) -> None:
-    """SceneError if the solver's estimate of this solve is beyond the limits (unless `allow_large`)."""
-    estimate = getattr(solver, "estimate", None)  # optional part of the solver protocol
-    if estimate is None or allow_large:
+               allow_large: bool, label: str | None = None) -> None:
+    """SceneError if the solver's estimate of this solve is beyond the limits (unless `allow_large`);
+    EstimateError if the estimate raises or is not a WorkEstimate.  `label`: the solver's name as the user
+    gave it (default its `name`); the estimate sees a copy of the scene."""
+    who = label or solver.name
+    if allow_large:
         return
-    work = estimate(scene, resolution, **params)
-    where = f"{solver.name} on {scene.name} at n={resolution.n} refine={resolution.refine}"
+    try:
+        estimate = getattr(solver, "estimate", None)  # optional part of the solver protocol
+        if estimate is None:
+            return
+        work = estimate(copy.deepcopy(scene), resolution, **params)
+        unknowns, steps, size = (_count(getattr(work, k, None)) for k in ("unknowns", "steps", "bytes"))
+    except (SceneError, KeyboardInterrupt):
+        raise
+    except BaseException as exc:  # noqa: BLE001 - a plugin's estimate: one line, never a traceback
+        try:
+            text = " ".join(str(exc).split())
+        except Exception:  # noqa: BLE001 - an exception whose message cannot be shown
+            text = ""
+        raise EstimateError(f"solver {who!r}: estimate(scene, resolution) raised {type(exc).__name__}"
+                            f"{': ' + text if text else ''}; allowed: a WorkEstimate (--allow-large skips the "
+                            "estimate)") from None
+    if None in (unknowns, steps, size):
+        raise EstimateError(f"solver {who!r}: estimate(scene, resolution) returned {shown(work)}; allowed: a "
+                            "WorkEstimate of unknowns, steps and bytes >= 0 (--allow-large skips the estimate)")
+    where = f"{who} on {scene.name} at n={resolution.n} refine={resolution.refine}"
     memory = MEMORY_SHARE * physical_memory()
-    if work.bytes > memory:
-        raise SceneError(f"{where} needs about {work.bytes / 2**30:.3g} GiB ({work.unknowns:.3g} unknowns); "
+    if size > memory:
+        raise SceneError(f"{where} needs about {size / 2**30:.3g} GiB ({unknowns:.3g} unknowns); "
                          f"allowed: at most {memory / 2**30:.3g} GiB (half of this machine's memory) without "
                          "--allow-large")
-    if work.unknowns * work.steps > MAX_WORK:
-        raise SceneError(f"{where} is {work.unknowns:.3g} unknowns x {work.steps:.3g} time steps = "
-                         f"{work.unknowns * work.steps:.3g} unknown-steps; allowed: at most {MAX_WORK:.0e} without "
+    if unknowns * steps > MAX_WORK:
+        raise SceneError(f"{where} is {unknowns:.3g} unknowns x {steps:.3g} time steps = "
+                         f"{unknowns * steps:.3g} unknown-steps; allowed: at most {MAX_WORK:.0e} without "
                          "--allow-large")
+
+
+def _count(value: Any) -> float | None:
+    """A finite number >= 0 of an estimate, or None."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)) and not hasattr(value, "__float__"):
+        return None
+    try:
+        number = float(value)
+    except (TypeError, ValueError, OverflowError):
+        return None
+    return number if math.isfinite(number) and number >= 0 else None

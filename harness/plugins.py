@@ -30,7 +30,7 @@ def _load(name: str) -> None:
         raise PluginError(f"plugins entry {shown(name)} is not valid; allowed: a dotted module name")
     try:
         module = importlib.import_module(name)
-    except Exception as exc:  # noqa: BLE001 - any import-time error of the plugin, shown as one line
+    except (Exception, SystemExit) as exc:  # noqa: BLE001 - any import-time error of the plugin, shown as one line
         raise PluginError(f"plugin {name!r} failed to import: {type(exc).__name__}: {' '.join(str(exc).split())}"
                           ) from None
     origin = f"plugin module {name}"

@@ -149,13 +149,22 @@ def _check_solver_params(g: dict[str, Any], solvers: list[str], where: str, task
             continue  # reported as a skipped cell with the import error
         except SceneError as exc:
             raise SceneError(f"{where}: {exc}") from None
-        if not task.supports(solver, scene)[0]:
-            continue  # skipped with the reason (a probe-less solver in a stability group, a scene it cannot do)
+        try:
+            if not task.supports(solver, scene)[0]:
+                continue  # skipped with the reason (a probe-less solver in a stability group, a scene it cannot do)
+        except KeyboardInterrupt:
+            raise
+        except BaseException:  # noqa: BLE001 - a plugin's supports that raises: its cells fail with the reason
+            continue
         for params in variants:
             try:
                 task.check(solver, params)
             except SceneError as exc:
                 raise SceneError(f"{where}: {exc}") from None
+            except KeyboardInterrupt:
+                raise
+            except BaseException:  # noqa: BLE001 - a plugin's own check that raises: its cells fail with the reason
+                break
 
 
 def solver_params_of(table: dict[str, Any], solver: str) -> dict[str, Any]:

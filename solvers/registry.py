@@ -141,20 +141,67 @@ def _load(target: Any, what: str) -> type:
         module = importlib.import_module(module_name)
     except ImportError as exc:
         raise SolverUnavailable(f"{what} is unavailable: {type(exc).__name__}: {exc}") from exc
-    except Exception as exc:  # noqa: BLE001 - a plugin's own import-time error, shown as one line
+    except KeyboardInterrupt:
+        raise
+    except BaseException as exc:  # noqa: BLE001 - a plugin's own import-time error (SystemExit too), one line
         raise SolverUnavailable(f"{what} is unavailable: importing {module_name} failed with "
-                                f"{type(exc).__name__}: {exc}") from exc
+                                f"{_describe(exc)}") from None
     cls = getattr(module, cls_name, None)
     if cls is None:
         raise SolverUnavailable(f"{what} is unavailable: module {module_name} has no {cls_name!r}")
     return cls
 
 
+def snapshot() -> tuple[tuple[str, str, str], ...]:
+    """Every known solver as (name, target, origin): what a process forked from this one knows."""
+    return tuple((name, f"{_show(e.target)}@{id(e.target) if not isinstance(e.target, str) else ''}", e.origin)
+                 for name, e in sorted(entries().items()))
+
+
+class _Named:
+    """A solver seen under the name its cell asked for: everything is the solver's own but `name`."""
+
+    def __init__(self, solver: Solver, name: str) -> None:
+        self._solver = solver
+        self.name = name
+
+    def __getattr__(self, attr: str) -> Any:
+        return getattr(self._solver, attr)
+
+
+def named(solver: Solver, name: str) -> Solver:
+    """`solver` as seen by its cell: under `name`, the name the user gave it (a registry name or "module:Class"),
+    when the name the class gives itself is another registered solver's (a module:Class calling itself
+    "skfem"), so that no message of its cell borrows that solver's name; otherwise the solver itself."""
+    own = getattr(solver, "name", None)
+    if own == name or own not in entries():
+        return solver
+    return _Named(solver, name)  # type: ignore[return-value]
+
+
+def _instance(cls: type, what: str) -> Solver:
+    """`cls()`; whatever its constructor raises (SystemExit included) is a SolverUnavailable naming it."""
+    try:
+        return cls()
+    except KeyboardInterrupt:
+        raise
+    except BaseException as exc:  # noqa: BLE001 - a plugin's own constructor, shown as one line
+        raise SolverUnavailable(f"{what} is unavailable: {cls.__qualname__}() raised {_describe(exc)}") from None
+
+
+def _describe(exc: BaseException) -> str:
+    try:
+        text = " ".join(str(exc).split())
+    except Exception:  # noqa: BLE001 - an exception whose message cannot be shown
+        text = ""
+    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
+
+
 def get_solver(name: str) -> Solver:
     """An instance of the solver called `name`, or of "module:Class".
 
     SceneError if the name is unknown or the class is not a solver; SolverUnavailable if its module
-    (or a dependency of it) cannot be imported."""
+    (or a dependency of it) cannot be imported, or its constructor raises."""
     table = entries()
     unknown = SceneError(f"solver={shown(name)} is unknown; allowed: one of {', '.join(sorted(table))}, or "
                          "module:Class")
@@ -164,10 +211,10 @@ def get_solver(name: str) -> Solver:
             raise unknown
         cls = _load(name, f"solver {name!r}")
         check_solver_class(cls, f"solver {name!r}")
-        return cls()
+        return _instance(cls, f"solver {name!r}")
     if not isinstance(name, str) or name not in table:
         raise unknown
     entry = table[name]
     cls = _load(entry.target, f"solver {name!r} ({entry.origin})")
     check_solver_class(cls, f"solver {name!r} ({entry.origin})")
-    return cls()
+    return _instance(cls, f"solver {name!r} ({entry.origin})")

@@ -1,0 +1,293 @@
+"""Worker processes that the study's process can kill: where every computed cell runs.
+
+A solver, shipped or a plugin, runs in a worker process, never in the process that holds the study: a solve
+that calls `os._exit`, is killed by a signal (the OOM killer, a segfault) or never returns ends that worker,
+not the study.  The parent waits on each worker's pipe and process with the cell's time limit; a worker that
+dies or runs past its limit is killed and replaced, and exactly its task gets the outcome that says so.
+
+The pool is this process's own (`pool`): workers are forked from it when first needed (they start with
+pcverify and the solvers already imported: a few milliseconds, no second import) and serve task after task,
+so a solver's compiled kernels stay warm from one cell to the next, and the serial timed pass warms up and
+times in the same process (`Pool.run_one` always takes the first idle worker).  Each worker runs one task at
+a time, so a dead worker names its task; only when other workers were busy beside it (the OOM killer picks
+the largest process, not the guilty one) is the task run again alone before it is called the culprit.
+A worker writes whatever it prints to stderr (file descriptor 1 is a copy of 2), ignores Ctrl-C (the
+study's process handles it and kills its workers) and exits when the study's process has gone.
+"""
+
+from __future__ import annotations
+
+import atexit
+import contextlib
+import io
+import multiprocessing
+import os
+import pickle
+import signal
+import sys
+import time
+from collections import deque
+from collections.abc import Callable, Iterable, Iterator
+from dataclasses import dataclass, field
+from multiprocessing.connection import Connection, wait
+from typing import Any
+
+from pcverify.harness.interrupt import STUDY_PID, ignore_sigint_in_worker
+
+_FORK = multiprocessing.get_context("fork")  # a worker inherits the imported modules: no start-up import
+_KEEP: list[Any] = []  # a worker's inherited std streams, kept so that their buffers are never flushed twice
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """How a task ended: `value` when it returned (kind "returned"), else why not (kind "died", "timed-out"
+    or "raised": the worker could not run it, e.g. its arguments or result would not pickle)."""
+
+    kind: str
+    value: Any = None
+    reason: str = ""
+
+
+Task = tuple[Any, Callable[..., Any], tuple[Any, ...]]  # (tag, function, arguments)
+
+
+@dataclass(eq=False)
+class _Worker:
+    process: Any
+    conn: Connection
+    tag: Any = None
+    seq: int = 0
+    started: float = 0.0
+    shared: bool = False  # another worker was busy while this task ran
+    task: Task | None = None
+
+
+@dataclass
+class Pool:
+    """Worker processes of this process, created on demand and reused; `world` names the state they were
+    forked from (the caller's sys.path and registrations), and the pool is replaced when it changes."""
+
+    world: Any = None
+    pid: int = field(default_factory=os.getpid)
+    workers: list[_Worker] = field(default_factory=list)
+    _seq: int = 0
+
+    def run_one(self, fn: Callable[..., Any], args: tuple[Any, ...], time_limit: float) -> Outcome:
+        """Run `fn(*args)` in the first idle worker (the same one call after call while it lives)."""
+        return list(self.run([(0, fn, args)], 1, time_limit))[0][1]
+
+    def run(self, tasks: Iterable[Task], width: int, time_limit: float) -> Iterator[tuple[Any, Outcome]]:
+        """(tag, Outcome) of every task, in completion order, with at most `width` running at once, each
+        killed after `time_limit` seconds.  A task whose worker died while others ran is run again alone
+        before it is reported as died.  Leaving the loop early (an interrupt) kills the busy workers."""
+        queue: deque[Task] = deque(tasks)
+        suspects: deque[Task] = deque()
+        busy: list[_Worker] = []
+        try:
+            while queue or suspects or busy:
+                if suspects:
+                    if not busy:
+                        self._send(self._idle(busy), suspects.popleft(), busy)
+                else:
+                    while queue and len(busy) < width:
+                        self._send(self._idle(busy), queue.popleft(), busy)
+                now = time.monotonic()
+                timeout = max(0.0, min(w.started + time_limit for w in busy) - now)
+                ready = set(wait([w.conn for w in busy] + [w.process.sentinel for w in busy], timeout))
+                for w in list(busy):
+                    if w.conn in ready or w.process.sentinel in ready:
+                        outcome = self._collect(w)
+                    elif time.monotonic() - w.started >= time_limit:
+                        self._retire(w)
+                        outcome = Outcome("timed-out", reason=f"exceeded the time limit of {time_limit:g} s "
+                                          "(its worker process was killed)")
+                    else:
+                        continue
+                    busy.remove(w)
+                    task, w.task = w.task, None
+                    if outcome.kind == "died" and w.shared:
+                        suspects.append(task)  # maybe a neighbour's fault: run it again, alone
+                        continue
+                    yield w.tag, outcome
+        finally:
+            for w in busy:  # abandoned tasks (an interrupt): their workers are killed, not left computing
+                self._retire(w)
+
+    def _idle(self, busy: list[_Worker]) -> _Worker:
+        for w in self.workers:
+            if w not in busy and w.process.is_alive():
+                return w
+            if w not in busy:
+                self._retire(w)
+                return self._idle(busy)
+        return self._start()
+
+    def _start(self) -> _Worker:
+        for stream in (sys.stdout, sys.stderr):  # nothing of this process's buffers is written twice
+            with contextlib.suppress(Exception):
+                stream.flush()
+        mine, theirs = _FORK.Pipe()
+        others = [w.conn for w in self.workers]
+        process = _FORK.Process(target=_serve, args=(theirs, mine, others, os.getpid()), name="pcverify-worker")
+        process.start()
+        theirs.close()
+        worker = _Worker(process, mine)
+        self.workers.append(worker)
+        return worker
+
+    def _send(self, w: _Worker, task: Task, busy: list[_Worker]) -> None:
+        tag, fn, args = task
+        self._seq += 1
+        w.tag, w.seq, w.task, w.started, w.shared = tag, self._seq, task, time.monotonic(), bool(busy)
+        for other in busy:
+            other.shared = True
+        busy.append(w)
+        try:
+            blob = pickle.dumps((fn, args), protocol=pickle.HIGHEST_PROTOCOL)
+        except Exception as exc:  # noqa: BLE001 - arguments a worker cannot receive: that task's outcome
+            blob = pickle.dumps((_refuse, (f"its arguments cannot be sent to a worker ({describe_exception(exc)})",)))
+        try:
+            w.conn.send((w.seq, blob))
+        except OSError:
+            pass  # the worker died meanwhile: its sentinel says so
+
+    def _collect(self, w: _Worker) -> Outcome:
+        """The finished task's outcome: its reply, or how its worker died."""
+        try:
+            if w.conn.poll():
+                seq, kind, payload = w.conn.recv()
+                if seq == w.seq:
+                    return Outcome("returned", payload) if kind == "ok" else Outcome("raised", reason=payload)
+        except (EOFError, OSError, pickle.UnpicklingError, ValueError, TypeError):
+            pass
+        self._retire(w)
+        return Outcome("died", reason=f"its worker process ended without a result "
+                                      f"({exit_description(w.process.exitcode)})")
+
+    def _retire(self, w: _Worker) -> None:
+        """Kill a worker (no-op if it has ended) and forget it."""
+        with contextlib.suppress(Exception):
+            if w.process.is_alive():
+                w.process.kill()
+            w.process.join(5.0)
+        with contextlib.suppress(Exception):
+            w.conn.close()
+        if w in self.workers:
+            self.workers.remove(w)
+
+    def close(self) -> None:
+        """Stop every worker of this pool."""
+        for w in list(self.workers):
+            self._retire(w)
+
+
+def exit_description(code: int | None) -> str:
+    """What a process's exit code says: "killed by signal 9, SIGKILL" or "exit code 7"."""
+    if code is None:
+        return "no exit status"
+    if code < 0:
+        try:
+            name = signal.Signals(-code).name
+        except ValueError:
+            name = "an unknown signal"
+        return f"killed by signal {-code}, {name}"
+    return f"exit code {code}"
+
+
+_POOL: list[Pool] = []
+
+
+def pool(world: Any) -> Pool:
+    """This process's pool, replaced (its workers stopped) when `world` differs from the one its workers were
+    forked from.  A forked child never uses its parent's pool."""
+    if _POOL and (_POOL[0].pid != os.getpid() or _POOL[0].world != world):
+        old = _POOL.pop()
+        if old.pid == os.getpid():
+            old.close()
+    if not _POOL:
+        _POOL.append(Pool(world))
+    return _POOL[0]
+
+
+@atexit.register
+def _close_pool() -> None:
+    if _POOL and _POOL[0].pid == os.getpid():
+        _POOL[0].close()
+
+
+def describe_exception(exc: BaseException) -> str:
+    """`Type: message` of an exception on one line, even when its str() raises."""
+    try:
+        text = " ".join(str(exc).split())
+    except Exception:  # noqa: BLE001 - a hostile exception's __str__
+        text = "(its message cannot be shown)"
+    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
+
+
+def _refuse(reason: str) -> Any:
+    raise RuntimeError(reason)
+
+
+def _serve(conn: Connection, mine: Connection, others: list[Connection], parent: int) -> None:
+    """A worker's life: receive (seq, pickled (fn, args)), reply (seq, "ok", value) or (seq, "error", text),
+    until the pipe closes."""
+    mine.close()
+    for other in others:  # the parent's ends of the other workers' pipes: theirs alone
+        with contextlib.suppress(OSError):
+            other.close()
+    _output_to_stderr()
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)  # not the study's handler, inherited by the fork
+    os.environ[STUDY_PID] = str(parent)
+    ignore_sigint_in_worker()  # Ctrl-C is the study's to handle; exit when the study's process is gone
+    while True:
+        try:
+            seq, blob = conn.recv()
+        except (EOFError, OSError):
+            os._exit(0)
+        try:
+            fn, args = pickle.loads(blob)
+            reply = (seq, "ok", fn(*args))
+        except BaseException as exc:  # noqa: BLE001 - whatever a task raises is its outcome, the worker goes on
+            reply = (seq, "error", describe_exception(exc))
+        try:
+            conn.send(reply)
+        except (EOFError, OSError):
+            os._exit(0)
+        except BaseException as exc:  # noqa: BLE001 - a result that does not pickle
+            conn.send((seq, "error", f"its result cannot be sent back ({describe_exception(exc)})"))
+        for stream in (sys.stdout, sys.stderr):
+            with contextlib.suppress(Exception):
+                stream.flush()
+
+
+def _output_to_stderr() -> None:
+    """In a worker: file descriptor 1 becomes a copy of 2 (so C-level prints go to stderr too), and Python's
+    sys.stdout and sys.stderr are fresh streams on them (the inherited ones may hold another thread's lock or
+    the parent's unflushed output)."""
+    _KEEP.extend([sys.stdout, sys.stderr])
+    os.dup2(2, 1)
+    sys.stderr = io.TextIOWrapper(io.FileIO(2, "w", closefd=False), line_buffering=True, errors="backslashreplace")
+    sys.stdout = sys.stderr
+
+
+@contextlib.contextmanager
+def output_to_stderr() -> Iterator[None]:
+    """Within the block, whatever this process prints (Python's print and C-level writes to file descriptor
+    1) goes to stderr, so a plugin's output never mixes with the JSON a command prints afterwards."""
+    with contextlib.suppress(Exception):
+        sys.stdout.flush()
+    try:
+        saved = os.dup(1)
+    except OSError:  # no stdout at all: nothing to protect
+        saved = None
+    if saved is not None:
+        os.dup2(2, 1)
+    try:
+        with contextlib.redirect_stdout(sys.stderr):
+            yield
+    finally:
+        with contextlib.suppress(Exception):
+            sys.stdout.flush()  # a plugin's writes to the real sys.stdout: out to stderr, before fd 1 is back
+        if saved is not None:
+            os.dup2(saved, 1)
+            os.close(saved)
