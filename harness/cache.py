@@ -102,6 +102,7 @@ class Cache:
             raise SceneError(f"cache folder {self.root} cannot be used: {problem}; allowed: a folder, or a path where "
                              "one can be made (--cache DIR; default OUT/cache)")
         self.locks: set[str] = set()  # keys this process holds
+        self.stale_after = STALE_LOCK_S  # raised by a study whose cell time limit is longer than the default
         self._told: dict[str, float] = {}  # when this process next says it waits for a key's lock
 
     def path(self, key: str) -> Path:
@@ -152,7 +153,7 @@ class Cache:
 
     def lock_state(self, key: str) -> tuple[str, dict[str, Any]]:
         """(state, lock) of `key`'s lock: state 'free' (no lock), 'held' (by a live process, or being written
-        right now), 'dead' (its holder died on this host), 'stale' (older than STALE_LOCK_S, whatever it
+        right now), 'dead' (its holder died on this host), 'stale' (older than `stale_after`, whatever it
         names) or 'garbage' (unreadable, and not being written: left behind); lock holds `pid`, `host` and
         `age` (seconds) where known."""
         path = self._lock_path(key)
@@ -177,7 +178,7 @@ class Cache:
         lock = {"pid": pid, "host": host, "age": age}
         if host == HOST and not process_alive(pid, host):
             return "dead", lock
-        return ("stale" if age > STALE_LOCK_S else "held"), lock
+        return ("stale" if age > self.stale_after else "held"), lock
 
     @staticmethod
     def _mtime(path: Path) -> float:
@@ -202,7 +203,7 @@ class Cache:
         who = f"pid {lock['pid']} on host {lock['host']}" if "pid" in lock else "a holder not named in it"
         when = "when its holder dies, or " if lock.get("host") == HOST else ""
         return (f"cell lock {self._lock_path(key)} is held by {who} for {_age(lock['age'])} (taken over {when}once "
-                f"it is older than {_age(STALE_LOCK_S)}: twice the default cell time limit)")
+                f"it is older than {_age(self.stale_after)}: twice the cell time limit)")
 
     def tell_waiting(self, key: str) -> None:
         """Called while this process waits for `key`'s lock: once the wait has lasted WAIT_FIRST_NOTICE_S, say on
@@ -248,8 +249,8 @@ class Cache:
             if state in ("dead", "stale", "garbage"):
                 if state == "stale":
                     tqdm.write(f"pcverify: warning: cell lock {self._lock_path(key)} of pid {lock['pid']} on host "
-                               f"{lock['host']} is {_age(lock['age'])} old, older than {_age(STALE_LOCK_S)} (twice "
-                               "the default cell time limit): stale, taken over", file=sys.stderr)
+                               f"{lock['host']} is {_age(lock['age'])} old, older than {_age(self.stale_after)} (twice "
+                               "the cell time limit): stale, taken over", file=sys.stderr)
                 discard(str(self._lock_path(key)))
 
     def unlock(self, key: str) -> None:

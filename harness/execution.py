@@ -322,6 +322,7 @@ def execute(study: Study, cache: Cache, jobs: int = 1, progress: bool = True, sc
     Each finished cell is written to the cache at once, so an interrupted study loses nothing.
     """
     limit = _TIME_LIMIT.get() if time_limit is None else float(time_limit)
+    cache.stale_after = max(cache.stale_after, 2 * limit)  # a live cell's lock never looks stale
     with cell_time_limit(limit):
         return _execute(study, cache, jobs, progress, scheduler, rerun, allow_large, limit)
 

@@ -37,7 +37,8 @@ from red_team import COMMAND, ENV, TALLY, cli, popen, tally
 from pcverify.harness import cache as cache_module
 from pcverify.harness.cache import cell_key
 from pcverify.harness.cli import main
-from pcverify.harness.execution import cell_identity
+from pcverify.harness.execution import cell_identity, execute
+from pcverify.harness.limits import DEFAULT_TIME_LIMIT
 from pcverify.harness.study import load_study
 
 TESTS = Path(__file__).resolve().parent
@@ -544,3 +545,14 @@ def test_zz_files_tally() -> None:
         tried, rejected, accepted = (TALLY[f"{family} {k}"] for k in ("tried", "rejected", "accepted"))
         print(f"\n{family}: tried {tried}, rejected cleanly {rejected}, accepted correctly {accepted}")
         assert tried == rejected + accepted == cases, (family, tried, rejected, accepted)
+
+
+def test_a_lock_is_stale_only_after_twice_the_cell_time_limit(tmp_path) -> None:
+    """The default stale age is twice the default cell time limit, and a study allowed a longer time limit
+    raises it, so the lock of a cell still computing within its limit is never taken over."""
+    assert cache_module.STALE_LOCK_S == 2 * DEFAULT_TIME_LIMIT
+    (tmp_path / "s.toml").write_text('name = "s"\n[[group]]\nid = "g"\nscene = "bar-heat-faces"\n'
+                                     'solvers = ["skfem"]\nn = [2]\n')
+    cache = cache_module.Cache(tmp_path / "cache")
+    execute(load_study(str(tmp_path / "s.toml")), cache, progress=False, time_limit=3 * 3600.0)
+    assert cache.stale_after == 6 * 3600.0
