@@ -19,6 +19,8 @@ from __future__ import annotations
 
 import atexit
 import contextlib
+import ctypes
+import ctypes.util
 import io
 import multiprocessing
 import os
@@ -231,6 +233,7 @@ def _refuse(reason: str) -> Any:
 def _serve(conn: Connection, mine: Connection, others: list[Connection], parent: int) -> None:
     """A worker's life: receive (seq, pickled (fn, args)), reply (seq, "ok", value) or (seq, "error", text),
     until the pipe closes."""
+    _die_with(parent)
     mine.close()
     for other in others:  # the parent's ends of the other workers' pipes: theirs alone
         with contextlib.suppress(OSError):
@@ -258,6 +261,20 @@ def _serve(conn: Connection, mine: Connection, others: list[Connection], parent:
         for stream in (sys.stdout, sys.stderr):
             with contextlib.suppress(Exception):
                 stream.flush()
+
+
+PR_SET_PDEATHSIG = 1  # prctl(2): the signal this process gets when the thread that forked it ends
+
+
+def _die_with(parent: int) -> None:
+    """In a worker: be killed (SIGKILL) the moment the study's process ends, even by SIGKILL, so that no solve
+    goes on computing (and writing) for a study that is gone.  Linux's prctl; elsewhere a worker notices only
+    when it next talks to the study's process."""
+    with contextlib.suppress(Exception):
+        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True)
+        libc.prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+    if os.getppid() != parent:  # the study's process ended before the request was made
+        os._exit(0)
 
 
 def _output_to_stderr() -> None:

@@ -33,6 +33,20 @@ def popen(*args: str, cwd: Path, env: dict[str, str] | None = None) -> subproces
                             env=env or ENV, start_new_session=True)
 
 
+def processes_with(marker: str) -> list[int]:
+    """Pids of the processes whose environment holds `marker` (a study and everything it started)."""
+    pids = []
+    for proc in Path("/proc").iterdir():
+        if not proc.name.isdigit():
+            continue
+        try:
+            if marker.encode() in (proc / "environ").read_bytes():
+                pids.append(int(proc.name))
+        except OSError:
+            continue
+    return pids
+
+
 def one_line_error(out: subprocess.CompletedProcess) -> str:
     """The single `pcverify: error: ...` line of a refused command (asserts exit 2, one line, no traceback)."""
     lines = out.stderr.strip().splitlines()

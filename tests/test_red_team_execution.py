@@ -23,7 +23,7 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
-from red_team import ENV, TALLY, cli, one_line_error, popen, tally
+from red_team import ENV, TALLY, cli, one_line_error, popen, processes_with, tally
 
 SMALL = """
 name = "small"
@@ -147,27 +147,13 @@ def test_two_copies_of_a_study_at_once_compute_no_cell_twice(tmp_path) -> None:
 
 
 # ----------------------------------------------------------------------------- family 9: shutdown
-def _processes_with(marker: str) -> list[int]:
-    """Pids of the processes whose environment holds `marker` (the study and everything it started)."""
-    pids = []
-    for proc in Path("/proc").iterdir():
-        if not proc.name.isdigit():
-            continue
-        try:
-            if marker.encode() in (proc / "environ").read_bytes():
-                pids.append(int(proc.name))
-        except OSError:
-            continue
-    return pids
-
-
 def _gone_within(marker: str, seconds: float) -> bool:
     deadline = time.time() + seconds
     while time.time() < deadline:
-        if not _processes_with(marker):
+        if not processes_with(marker):
             return True
         time.sleep(0.25)
-    return not _processes_with(marker)
+    return not processes_with(marker)
 
 
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGKILL])
@@ -189,7 +175,7 @@ def test_a_killed_study_leaves_no_process_and_keeps_its_cells(tmp_path, sig) -> 
     if sig == signal.SIGTERM:
         assert proc.returncode == 128 + signal.SIGTERM
         assert "pcverify: terminated (finished cells are kept in the cache)" in err
-    assert _gone_within(marker.split("=")[1], 10.0), _processes_with(marker.split("=")[1])
+    assert _gone_within(marker.split("=")[1], 10.0), processes_with(marker.split("=")[1])
     kept = len(list(cache.glob("*.json")))
     resumed = json.loads(cli("study", "slow.toml", "--out", "out", "--json", cwd=tmp_path).stdout)[0]
     assert resumed["cached"] >= kept and resumed["done"] == 12 - resumed["cached"]

@@ -240,7 +240,7 @@ def test_a_week_old_lock_is_taken_over_with_a_warning(work, capsys, holder) -> N
     assert code == 0, err[-1500:]
     warned = [w for w in _warnings(err) if str(Path("out") / "cache" / f"{key}.lock") in w]
     assert len(warned) == 1 and f"pid {pid} on host {host}" in warned[0] and "7.0 days old" in warned[0], err
-    assert "stale, taken over" in warned[0] and "twice the default cell time limit" in warned[0]
+    assert "stale, taken over" in warned[0] and "(twice the cell time limit)" in warned[0]
     assert not lock.exists() and not list(cache.glob("*.lock"))
     assert "2 cells, 1 cached, 1 run, 0 failed" in out
     tally("caches and report folders", "accepted")

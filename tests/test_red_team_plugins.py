@@ -18,13 +18,15 @@ from __future__ import annotations
 
 import json
 import os
+import signal
 import sys
 import time
+import uuid
 from pathlib import Path
 
 import pandas as pd
 import pytest
-from red_team import ENV, TALLY, cli, tally
+from red_team import ENV, TALLY, cli, popen, processes_with, tally
 
 from pcverify.harness.cli import main
 
@@ -33,6 +35,7 @@ OTHERS = "plugins that change what others see"
 
 PLUGIN = '''
 """Solvers that behave like scikit-fem except for one thing, at n = 3 (the middle cell of a study)."""
+import ctypes
 import dataclasses
 import os
 import signal
@@ -91,6 +94,12 @@ class Kill(Base):
 class Sleep(Base):
     def misbehave(self, scene):
         time.sleep(10**6)
+
+
+class Compute(Base):
+    """A solve in compiled code that holds the interpreter lock (as a numba kernel does): libc's sleep."""
+    def misbehave(self, scene):
+        ctypes.PyDLL(None).sleep(10**6)
 
 
 class Printer(Base):
@@ -320,6 +329,28 @@ def test_a_solve_that_never_returns_is_killed_at_the_time_limit(plugins, tmp_pat
     tally(MISBEHAVE, "rejected")
 
 
+def test_a_study_killed_during_a_solve_leaves_no_worker_computing(plugins, tmp_path) -> None:
+    """The study's process SIGKILLed (as the OOM killer would) while a worker is in a compiled solve that holds
+    the interpreter lock (no watchdog thread of the worker can run): the worker was left computing, orphaned,
+    until its solve ended (for ever here); now it dies with the study."""
+    marker = uuid.uuid4().hex
+    env = {**ENV, "PYTHONPATH": str(plugins), "PCVERIFY_RED_TEAM_MARK": marker}
+    proc = popen("run", "bar-heat-faces", "--solver", "pv_hostile:Compute", "--n", "3", cwd=tmp_path,
+                 env=env)
+    deadline = time.monotonic() + 120
+    while len(processes_with(marker)) < 2 and time.monotonic() < deadline:  # the study and its worker
+        time.sleep(0.1)
+    assert len(processes_with(marker)) >= 2, "no worker started"
+    time.sleep(1.0)  # the worker is in the solve
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.communicate(timeout=60)
+    deadline = time.monotonic() + 5
+    while processes_with(marker) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not processes_with(marker), "a worker of the killed study is still running"
+    tally(MISBEHAVE, "accepted")
+
+
 def test_a_bad_time_limit_is_one_line(capsys) -> None:
     line = _one_line(main(["run", "bar-heat-faces", "--solver", "skfem", "--time-limit", "0"]), capsys.readouterr().err)
     assert "time-limit='0' is not valid; allowed: seconds in (0, " in line
@@ -384,7 +415,7 @@ def test_a_solver_calling_itself_skfem_is_reported_under_its_own_name(plugins, t
 
 
 def test_zz_plugins_tally() -> None:
-    expected = {MISBEHAVE: 18, OTHERS: 2}
+    expected = {MISBEHAVE: 19, OTHERS: 2}
     for family, count in expected.items():
         tried, rejected, accepted = (TALLY[f"{family} {k}"] for k in ("tried", "rejected", "accepted"))
         print(f"\n{family}: tried {tried}, rejected cleanly {rejected}, accepted correctly {accepted}")
