@@ -41,6 +41,7 @@ onto the model and summarises the run).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -440,15 +441,30 @@ def _friction_summary(window: np.ndarray, st: mk.State, law: ct.ContactLaw, cont
     return out
 
 
-def solve_contact(scene: Scene, n: int, p: dict[str, Any]) -> tuple[dict[str, Any], Automata]:
-    """Run a contact scene at resolution n: the out dict of the solver (field, summary, status, ...) and the
-    automata the field lives on."""
+def run_pressed(scene: Scene, n: int, p: dict[str, Any]) -> tuple[dict[str, Any], Automata]:
+    """The MCA solver's contact compression at resolution n: the solver's out dict (field, summary, status, ...)
+    and the automata the field lives on."""
+    return _run(scene, n, p, _pressed)
+
+
+def run_sliding(scene: Scene, n: int, p: dict[str, Any]) -> tuple[dict[str, Any], Automata]:
+    """The MCA solver's sliding contact at resolution n (as run_pressed)."""
+    return _run(scene, n, p, _sliding)
+
+
+def run_heating(scene: Scene, n: int, p: dict[str, Any]) -> tuple[dict[str, Any], Automata]:
+    """The MCA solver's frictional heating at resolution n (as run_pressed)."""
+    return _run(scene, n, p, _heating)
+
+
+def _run(scene: Scene, n: int, p: dict[str, Any], run: Callable[..., dict[str, Any]]
+         ) -> tuple[dict[str, Any], Automata]:
+    """The two bodies of the scene at resolution n, the contact law of the parameters, `run` on them."""
     contact = scene.contact
     aut, bonded = body_automata(scene.box, n, scene.material.density, contact)
     mat = scene.material
     el = Elastic(mat.youngs_modulus, mat.poisson_ratio, many_body=p["many_body"], coefficient=p["coefficient"])
     law = law_of(aut, contact, p)
-    run = _heating if contact.heating else _sliding if contact.sliding else _pressed
     out = run(scene, aut, bonded, el, law, p)
     out.pop("power", None)
     model, st = out.pop("model"), out.pop("state")
