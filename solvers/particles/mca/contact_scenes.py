@@ -129,8 +129,9 @@ def contact_summary(st: mk.State) -> dict[str, Any]:
     return out
 
 
-def _pressed(scene: Scene, aut: Automata, bonded: Automata, el: Elastic, law: ct.ContactLaw, p: dict[str, Any]
-             ) -> dict[str, Any]:
+def pressed(scene: Scene, aut: Automata, bonded: Automata, el: Elastic, law: ct.ContactLaw, p: dict[str, Any]
+            ) -> dict[str, Any]:
+    """Pressed: the supports compress the stack across the interface, relaxed dynamically (module docstring)."""
     contact = scene.contact
     rate = Model(bonded, el).relaxation_rate()
     t_ramp = p["ramp_periods"] * 2 * math.pi / rate
@@ -179,8 +180,10 @@ def _face_strain(scene: Scene, aut: Automata, u: np.ndarray, ax: int) -> float:
     return (mean(f"{a}{'WHL'[ax]}") - mean(f"{a}0")) / float(ext[ax])
 
 
-def _sliding(scene: Scene, aut: Automata, bonded: Automata, el: Elastic, law: ct.ContactLaw, p: dict[str, Any]
-             ) -> dict[str, Any]:
+def sliding(scene: Scene, aut: Automata, bonded: Automata, el: Elastic, law: ct.ContactLaw, p: dict[str, Any]
+            ) -> dict[str, Any]:
+    """Sliding: preloaded, then driven along the plane; mu_dr and the energy balance over the window (module
+    docstring)."""
     contact = scene.contact
     ext = scene.box.extent
     ax, dr = contact.axis_index, contact.direction_index
@@ -333,12 +336,12 @@ def contact_lost(window: np.ndarray, slid: float, room: float, contact: Contact)
     return ""
 
 
-def _heating(scene: Scene, aut: Automata, bonded: Automata, el: Elastic, law: ct.ContactLaw, p: dict[str, Any]
-             ) -> dict[str, Any]:
+def heating(scene: Scene, aut: Automata, bonded: Automata, el: Elastic, law: ct.ContactLaw, p: dict[str, Any]
+            ) -> dict[str, Any]:
     """Sliding, then MCA heat of the bonded automata (the contact conducts as the interface pairs of the rest
     geometry) from the scene's initial temperature to t_end, fed by the window's mean friction power of each
     contact: half to the slave, half to its rest partners (the facet found at the rest positions, by weight)."""
-    out = _sliding(scene, aut, bonded, el, law, p)
+    out = sliding(scene, aut, bonded, el, law, p)
     slave_power = out.pop("power", None)
     summary = out["summary"]
     if out["status"] != "ok" or slave_power is None:
@@ -441,38 +444,27 @@ def _friction_summary(window: np.ndarray, st: mk.State, law: ct.ContactLaw, cont
     return out
 
 
-def run_pressed(scene: Scene, n: int, p: dict[str, Any]) -> tuple[dict[str, Any], Automata]:
-    """The MCA solver's contact compression at resolution n: the solver's out dict (field, summary, status, ...)
-    and the automata the field lives on."""
-    return _run(scene, n, p, _pressed)
+def on_bodies(run: Callable[..., dict[str, Any]]) -> Callable[[Scene, int, dict[str, Any]],
+                                                              tuple[dict[str, Any], Automata]]:
+    """`run` (pressed, sliding, heating) on the two bodies of a contact scene at resolution n, with the contact law
+    of the parameters: the solver's out dict (field, summary, status, ...) and the automata the field lives on."""
 
+    def on_two_bodies(scene: Scene, n: int, p: dict[str, Any]) -> tuple[dict[str, Any], Automata]:
+        contact = scene.contact
+        aut, bonded = body_automata(scene.box, n, scene.material.density, contact)
+        mat = scene.material
+        el = Elastic(mat.youngs_modulus, mat.poisson_ratio, many_body=p["many_body"], coefficient=p["coefficient"])
+        law = law_of(aut, contact, p)
+        out = run(scene, aut, bonded, el, law, p)
+        out.pop("power", None)
+        model, st = out.pop("model"), out.pop("state")
+        out["summary"]["friction_step_ratio"] = friction_step_ratio(model, law, contact)
+        out["work"] = {"pair_steps": int(st.counters[mk.C_PAIRSTEPS]), "time_steps": int(st.counters[mk.C_STEPS]),
+                       "kernel_s": model.kernel_s, "unknowns": 6 * aut.size}
+        out["unknowns"] = 6 * aut.size
+        return out, aut
 
-def run_sliding(scene: Scene, n: int, p: dict[str, Any]) -> tuple[dict[str, Any], Automata]:
-    """The MCA solver's sliding contact at resolution n (as run_pressed)."""
-    return _run(scene, n, p, _sliding)
-
-
-def run_heating(scene: Scene, n: int, p: dict[str, Any]) -> tuple[dict[str, Any], Automata]:
-    """The MCA solver's frictional heating at resolution n (as run_pressed)."""
-    return _run(scene, n, p, _heating)
-
-
-def _run(scene: Scene, n: int, p: dict[str, Any], run: Callable[..., dict[str, Any]]
-         ) -> tuple[dict[str, Any], Automata]:
-    """The two bodies of the scene at resolution n, the contact law of the parameters, `run` on them."""
-    contact = scene.contact
-    aut, bonded = body_automata(scene.box, n, scene.material.density, contact)
-    mat = scene.material
-    el = Elastic(mat.youngs_modulus, mat.poisson_ratio, many_body=p["many_body"], coefficient=p["coefficient"])
-    law = law_of(aut, contact, p)
-    out = run(scene, aut, bonded, el, law, p)
-    out.pop("power", None)
-    model, st = out.pop("model"), out.pop("state")
-    out["summary"]["friction_step_ratio"] = friction_step_ratio(model, law, contact)
-    out["work"] = {"pair_steps": int(st.counters[mk.C_PAIRSTEPS]), "time_steps": int(st.counters[mk.C_STEPS]),
-                   "kernel_s": model.kernel_s, "unknowns": 6 * aut.size}
-    out["unknowns"] = 6 * aut.size
-    return out, aut
+    return on_two_bodies
 
 
 def friction_step_ratio(model: Model, law: ct.ContactLaw, contact: Contact) -> float:

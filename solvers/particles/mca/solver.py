@@ -175,7 +175,6 @@ class Mca:
 
 # -- heat ----------------------------------------------------------------------------------------
 
-
 def _heat(scene: Scene, aut: Automata, p: dict[str, Any]) -> dict[str, Any]:
     mat = scene.material
     held, values = mca_heat.held_temperatures(scene, aut)
@@ -202,7 +201,6 @@ def _heat(scene: Scene, aut: Automata, p: dict[str, Any]) -> dict[str, Any]:
 
 
 # -- elasticity ----------------------------------------------------------------------------------
-
 
 def _fixes(scene: Scene, aut: Automata, rate_of: dict[str, float]
            ) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[str]]:
@@ -300,7 +298,6 @@ def _work(model: Model, st: mk.State) -> dict[str, Any]:
 
 # -- fracture ------------------------------------------------------------------------------------
 
-
 def _fracture(scene: Scene, aut: Automata, p: dict[str, Any]) -> dict[str, Any]:
     el = _elastic(scene, p)
     resp = scene.elasticity.response
@@ -397,7 +394,6 @@ def _fracture(scene: Scene, aut: Automata, p: dict[str, Any]) -> dict[str, Any]:
 
 # -- modes ---------------------------------------------------------------------------------------
 
-
 def _modes(scene: Scene, aut: Automata, p: dict[str, Any]) -> dict[str, Any]:
     el = _elastic(scene, p)
     rot = p["rotations"]
@@ -446,7 +442,6 @@ def failure_strain(resp, youngs: float) -> float:
 
 # -- the table of analyses -------------------------------------------------------------------------
 
-
 @dataclass(frozen=True)
 class SceneKind:
     """What chooses a scene's analysis: its physics words, its conduction mode and whether its contact slides
@@ -463,26 +458,28 @@ class SceneKind:
 
 
 Run = Callable[[Scene, int, dict[str, Any]], tuple[dict[str, Any], Automata]]
-Estimate = Callable[[Scene, Resolution, dict[str, Any]], WorkEstimate]
+Steps = Callable[[Scene, float, dict[str, Any]], int]  # (scene, smallest spacing h, parameters) -> time steps
 
 
 @dataclass(frozen=True)
 class Analysis:
     """One kind of MCA run.  It runs a scene whose physics has every word of `needs` and none beyond `allows`,
     whose conduction mode is `conduction` and whose contact slides as `sliding` (None: either); `check` gives
-    the reason it still refuses the scene ("" when it runs it).  `bodies`: copies of the bar lattice (2 for
-    contact); `stepping`: the explicit scheme its stability probe runs ("heat", "mechanics"), or "" and
-    `no_stepping` saying why there is none."""
+    the reason it still refuses the scene ("" when it runs it).  Its work: `unknowns` per automaton of `bodies`
+    copies of the bar lattice, `steps` time steps, a dense matrix up to `dense` unknowns.  `stepping`: the
+    explicit scheme its stability probe runs ("heat", "mechanics"), or "" and `no_stepping` saying why none."""
 
     name: str
     needs: frozenset[str]
-    estimate: Estimate
     run: Run
+    steps: Steps | None  # None: a direct or eigen solve, one step
     allows: frozenset[str] = frozenset()
     conduction: str | None = None
     sliding: bool | None = None
     check: Callable[[Scene], str] = lambda scene: ""
+    unknowns: int = 6
     bodies: int = 1
+    dense: int = 0
     stepping: str = "mechanics"
     no_stepping: str = ""
 
@@ -500,6 +497,16 @@ class Analysis:
             parts.append("a sliding contact" if self.sliding else "a contact that does not slide")
         return f"mca's {self.name} needs {' and '.join(parts)}"
 
+    def estimate(self, scene: Scene, resolution: Resolution, p: dict[str, Any]) -> WorkEstimate:
+        """Unknowns, time steps and memory of the run, from the scene and the parameters alone."""
+        shape = scene.box.lattice_shape(resolution.n)
+        count = math.prod(shape) * self.bodies
+        h = min(e / max(k - 1, 1) for e, k in zip(scene.box.extent, shape, strict=True))
+        unknowns = self.unknowns * count
+        dense = 16 * unknowns**2 if unknowns <= self.dense else 0
+        steps = 1 if self.steps is None else max(1, self.steps(scene, h, p))
+        return WorkEstimate(unknowns=unknowns, steps=steps, bytes=BYTES_PER_AUTOMATON * count + dense)
+
 
 def _on_bar(run: Callable[[Scene, Automata, dict[str, Any]], dict[str, Any]]) -> Run:
     """A run on the automata of the bar lattice at resolution n."""
@@ -509,14 +516,6 @@ def _on_bar(run: Callable[[Scene, Automata, dict[str, Any]], dict[str, Any]]) ->
         return run(scene, aut, p), aut
 
     return on_bar
-
-
-def _lattice(scene: Scene, resolution: Resolution, bodies: int = 1) -> tuple[int, float, int]:
-    """(automata, smallest spacing h, bytes) of `bodies` copies of the bar lattice at the resolution."""
-    shape = scene.box.lattice_shape(resolution.n)
-    count = math.prod(shape) * bodies
-    h = min(e / max(k - 1, 1) for e, k in zip(scene.box.extent, shape, strict=True))
-    return count, h, BYTES_PER_AUTOMATON * count
 
 
 def _heat_steps(scene: Scene, h: float, p: dict[str, Any]) -> int:
@@ -539,6 +538,12 @@ def _relax_steps(scene: Scene, h: float, p: dict[str, Any]) -> int:
     return min(p["max_steps"], math.ceil(RELAX_STEPS_PER_CELL * max(scene.box.extent) / h))
 
 
+def _fracture_steps(scene: Scene, h: float, p: dict[str, Any]) -> int:
+    """The loading time to 1.5 times the failure strain, capped by max_steps."""
+    eps = 1.5 * failure_strain(scene.elasticity.response, scene.material.youngs_modulus)
+    return min(p["max_steps"], math.ceil(eps / scene.elasticity.strain_rate / _wave(scene, h, p)[1]))
+
+
 def _slide_steps(scene: Scene, h: float, p: dict[str, Any]) -> int:
     """A sliding contact: the preload's relaxation, then the drive's ramp and its whole duration, which nothing
     cuts (a run that would need more than max_steps for them fails before it starts)."""
@@ -553,41 +558,6 @@ def _heating_steps(scene: Scene, h: float, p: dict[str, Any]) -> int:
     return _slide_steps(scene, h, p) + _heat_steps(scene, h, p)
 
 
-def _estimate_steady_heat(scene: Scene, resolution: Resolution, p: dict[str, Any]) -> WorkEstimate:
-    count, _, mem = _lattice(scene, resolution)
-    return WorkEstimate(unknowns=count, bytes=mem)
-
-
-def _estimate_transient_heat(scene: Scene, resolution: Resolution, p: dict[str, Any]) -> WorkEstimate:
-    count, h, mem = _lattice(scene, resolution)
-    return WorkEstimate(unknowns=count, steps=max(1, _heat_steps(scene, h, p)), bytes=mem)
-
-
-def _estimate_modes(scene: Scene, resolution: Resolution, p: dict[str, Any]) -> WorkEstimate:
-    """6 unknowns per automaton; a dense eigenproblem up to 1500 free dofs."""
-    count, _, mem = _lattice(scene, resolution)
-    dense = 6 * count <= 1500
-    return WorkEstimate(unknowns=6 * count, bytes=mem + (16 * (6 * count) ** 2 if dense else 0))
-
-
-def _estimate_fracture(scene: Scene, resolution: Resolution, p: dict[str, Any]) -> WorkEstimate:
-    """The loading time to 1.5 times the failure strain over the time step."""
-    count, h, mem = _lattice(scene, resolution)
-    eps = 1.5 * failure_strain(scene.elasticity.response, scene.material.youngs_modulus)
-    steps = min(p["max_steps"], math.ceil(eps / scene.elasticity.strain_rate / _wave(scene, h, p)[1]))
-    return WorkEstimate(unknowns=6 * count, steps=max(1, steps), bytes=mem)
-
-
-def _mechanics(bodies: int, steps: Callable[[Scene, float, dict[str, Any]], int]) -> Estimate:
-    """The estimate of a time-stepped run of 6 unknowns per automaton on `bodies` lattices, `steps` long."""
-
-    def estimate(scene: Scene, resolution: Resolution, p: dict[str, Any]) -> WorkEstimate:
-        count, h, mem = _lattice(scene, resolution, bodies)
-        return WorkEstimate(unknowns=6 * count, steps=max(1, steps(scene, h, p)), bytes=mem)
-
-    return estimate
-
-
 def _held_temperature(scene: Scene) -> str:
     return "" if scene.constraints else "steady conduction without any prescribed temperature is singular"
 
@@ -598,24 +568,25 @@ def _held_bar(scene: Scene) -> str:
     return "an unsupported elastic bar is singular: no FaceSupport or FaceClamp"
 
 
+HEAT = frozenset({"conduction"})
 HEAT_LOADS = frozenset({"heat-source", "interface-flux"})
 ELASTIC = frozenset({"elasticity"})
 CONTACT = frozenset({"elasticity", "contact"})
 
 ANALYSES: tuple[Analysis, ...] = (
-    Analysis("steady heat", frozenset({"conduction"}), _estimate_steady_heat, _on_bar(_heat), allows=HEAT_LOADS,
-             conduction="steady", check=_held_temperature, stepping="",
+    Analysis("steady heat", HEAT, _on_bar(_heat), None, allows=HEAT_LOADS, conduction="steady",
+             check=_held_temperature, unknowns=1, stepping="",
              no_stepping="steady mca heat is a direct solve: no time stepping, no stability probe needed"),
-    Analysis("transient heat", frozenset({"conduction"}), _estimate_transient_heat, _on_bar(_heat),
-             allows=HEAT_LOADS, conduction="transient", stepping="heat"),
-    Analysis("static elasticity", ELASTIC, _mechanics(1, _relax_steps), _on_bar(_static), check=_held_bar),
-    Analysis("modes", ELASTIC | {"modes"}, _estimate_modes, _on_bar(_modes), check=_held_bar, stepping="",
+    Analysis("transient heat", HEAT, _on_bar(_heat), _heat_steps, allows=HEAT_LOADS, conduction="transient",
+             unknowns=1, stepping="heat"),
+    Analysis("static elasticity", ELASTIC, _on_bar(_static), _relax_steps, check=_held_bar),
+    Analysis("modes", ELASTIC | {"modes"}, _on_bar(_modes), None, check=_held_bar, dense=1500, stepping="",
              no_stepping="bar-modes is an eigenproblem: no time stepping"),
-    Analysis("fracture", ELASTIC | {"fracture"}, _estimate_fracture, _on_bar(_fracture), check=_held_bar),
-    Analysis("contact compression", CONTACT, _mechanics(2, _relax_steps), cs.run_pressed, sliding=False, bodies=2),
-    Analysis("sliding contact", CONTACT, _mechanics(2, _slide_steps), cs.run_sliding, sliding=True, bodies=2),
-    Analysis("frictional heating", CONTACT | {"conduction", "frictional-heating"}, _mechanics(2, _heating_steps),
-             cs.run_heating, allows=frozenset({"interface-flux"}), conduction="transient", sliding=True, bodies=2),
+    Analysis("fracture", ELASTIC | {"fracture"}, _on_bar(_fracture), _fracture_steps, check=_held_bar),
+    Analysis("contact compression", CONTACT, cs.on_bodies(cs.pressed), _relax_steps, sliding=False, bodies=2),
+    Analysis("sliding contact", CONTACT, cs.on_bodies(cs.sliding), _slide_steps, sliding=True, bodies=2),
+    Analysis("frictional heating", CONTACT | {"conduction", "frictional-heating"}, cs.on_bodies(cs.heating),
+             _heating_steps, allows=frozenset({"interface-flux"}), conduction="transient", sliding=True, bodies=2),
 )
 
 
