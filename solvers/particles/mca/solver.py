@@ -175,23 +175,30 @@ class Mca:
 
 # -- heat ----------------------------------------------------------------------------------------
 
-def _heat(scene: Scene, aut: Automata, p: dict[str, Any]) -> dict[str, Any]:
+def _steady_heat(scene: Scene, aut: Automata, p: dict[str, Any]) -> dict[str, Any]:
+    """Steady: a direct solve of the automata's heat balance."""
+    held, values = mca_heat.held_temperatures(scene, aut)
+    power = mca_heat.sources(scene, aut)
+    t0 = time.perf_counter()
+    temp = mca_heat.steady(aut, scene.material.conductivity, values, held, power)
+    return _heat_result(scene, aut, temp, {}, {"unknowns": aut.size, "time_steps": 0,
+                                                "kernel_s": time.perf_counter() - t0})
+
+
+def _transient_heat(scene: Scene, aut: Automata, p: dict[str, Any]) -> dict[str, Any]:
+    """Transient: explicit steps at the stable step (times heat_cfl) to t_end."""
     mat = scene.material
     held, values = mca_heat.held_temperatures(scene, aut)
-    summary: dict[str, Any] = {}
-    work: dict[str, Any] = {"unknowns": aut.size}
-    power = mca_heat.sources(scene, aut)
-    if scene.conduction.mode == "steady":
-        t0 = time.perf_counter()
-        temp = mca_heat.steady(aut, mat.conductivity, values, held, power)
-        work.update(time_steps=0, kernel_s=time.perf_counter() - t0)
-    else:
-        st, par, steps = mca_heat.transient(aut, mat.conductivity, mat.density * mat.heat_capacity, values, held,
-                                            scene.conduction.t_end, p["heat_cfl"], power)
-        work["kernel_s"] = timed("heat", st, par, steps)
-        temp = st.temp
-        summary.update(dt=par.dt, steps=steps)
-        work.update(time_steps=steps, pair_steps=steps * len(aut.pairs))
+    st, par, steps = mca_heat.transient(aut, mat.conductivity, mat.density * mat.heat_capacity, values, held,
+                                        scene.conduction.t_end, p["heat_cfl"], mca_heat.sources(scene, aut))
+    work = {"unknowns": aut.size, "kernel_s": timed("heat", st, par, steps), "time_steps": steps,
+            "pair_steps": steps * len(aut.pairs)}
+    return _heat_result(scene, aut, st.temp, {"dt": par.dt, "steps": steps}, work)
+
+
+def _heat_result(scene: Scene, aut: Automata, temp: np.ndarray, summary: dict[str, Any], work: dict[str, Any]
+                 ) -> dict[str, Any]:
+    """T / t_max at the automata, its summary, and a status that flags non-finite temperatures."""
     rel = temp / scene.conduction.t_max
     status, reason = ("ok", "") if np.all(np.isfinite(rel)) else ("unstable", "non-finite temperature")
     reason = "; ".join(r for r in (reason, point_patch_note(scene.constraints, float(aut.spacing.min()))) if r)
@@ -574,10 +581,10 @@ ELASTIC = frozenset({"elasticity"})
 CONTACT = frozenset({"elasticity", "contact"})
 
 ANALYSES: tuple[Analysis, ...] = (
-    Analysis("steady heat", HEAT, _on_bar(_heat), None, allows=HEAT_LOADS, conduction="steady",
+    Analysis("steady heat", HEAT, _on_bar(_steady_heat), None, allows=HEAT_LOADS, conduction="steady",
              check=_held_temperature, unknowns=1, stepping="",
              no_stepping="steady mca heat is a direct solve: no time stepping, no stability probe needed"),
-    Analysis("transient heat", HEAT, _on_bar(_heat), _heat_steps, allows=HEAT_LOADS, conduction="transient",
+    Analysis("transient heat", HEAT, _on_bar(_transient_heat), _heat_steps, allows=HEAT_LOADS, conduction="transient",
              unknowns=1, stepping="heat"),
     Analysis("static elasticity", ELASTIC, _on_bar(_static), _relax_steps, check=_held_bar),
     Analysis("modes", ELASTIC | {"modes"}, _on_bar(_modes), None, check=_held_bar, dense=1500, stepping="",
