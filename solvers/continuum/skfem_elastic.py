@@ -30,10 +30,8 @@ Discretisation (PHYSICS.md §5):
 - Modal: K phi = omega^2 M phi on the free dofs, ARPACK (scipy eigsh) in shift-invert mode about
   sigma = 0 with the inverse of K applied by the same linear solver (direct or AMG-CG to cg_rtol), a
   seeded start vector (deterministic).  The modes are classified by their parities under the two mirror
-  planes of the bar, x = W/2 and y = H/2 (the clamp at z = 0 keeps both symmetries; `_reflection`):
-  (-, +) bending-x (u_x dominant), (+, -) bending-y, (-, -) torsion, (+, +) axial.  Degenerate clusters
-  (the two bending families of the square section) are rotated to definite parities first.  A (+, +) mode
-  whose mass is mostly lateral is called "symmetric-lateral" instead of axial.
+  planes of the bar (`pcverify.solvers.modes`, shared with the MCA): bending-x, bending-y, torsion, axial,
+  symmetric-lateral or mixed; in a degenerate cluster bending-y comes before bending-x.
 - Output: displacement (m) at the sample points by exact interpolation of the FE field (`basis.probes`),
   values shape (k, 3) (modal scenes: the lowest mode's shape scaled to max |u| = 1).  Static summary:
   reaction_force = sum of (K u)_z over the dofs of face zL, the axial force the support applies to the bar
@@ -52,7 +50,6 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 import skfem
-from scipy.linalg import eigh
 from scipy.sparse.linalg import LinearOperator, eigsh
 from skfem import Basis, BilinearForm, ElementVector, FacetBasis, Functional, MeshHex
 from skfem.helpers import dot
@@ -62,6 +59,7 @@ from pcverify.scene import FaceClamp, FaceSupport, Param, Resolution, Scene, Sce
 from pcverify.solvers.continuum.grid import HEX_CORNERS, StructuredGrid
 from pcverify.solvers.continuum.linear_solver import SpdSolver, smoothed_aggregation
 from pcverify.solvers.continuum.work import ELASTIC_BYTES_PER_DOF, grid_nodes
+from pcverify.solvers.modes import classify, lowest_of_each_kind, symmetric_lateral
 from pcverify.solvers.protocol import Solution, WorkEstimate, effective_params
 
 PARAMETERS: tuple[Param, ...] = (
@@ -76,9 +74,6 @@ PARAMETERS: tuple[Param, ...] = (
 )
 
 ELEMENTS = {"q1": ("ElementHex1", 2, 1), "q2": ("ElementHex2", 4, 2)}  # class, intorder, degree
-KIND_BY_PARITY = {(-1, 1): "bending-x", (1, -1): "bending-y", (-1, -1): "torsion", (1, 1): "axial"}
-KINDS = ("bending-x", "bending-y", "torsion", "axial")
-CLUSTER_RTOL = 1e-5  # eigenvalues closer than this (relative) are treated as one degenerate cluster
 
 
 def _linear_solver(a: sp.spmatrix, method: str, rtol: float, near_null: np.ndarray | None = None) -> SpdSolver:
@@ -144,77 +139,6 @@ def rigid_body_modes(locs: np.ndarray, centre: np.ndarray) -> np.ndarray:
     b[1::3, 4], b[2::3, 4] = -z, y  # about x
     b[0::3, 5], b[2::3, 5] = z, -x  # about y
     return b
-
-
-def _reflection(locs: np.ndarray, extent: np.ndarray, axis: int, unit: float) -> tuple[np.ndarray, np.ndarray]:
-    """Mirror x_axis -> extent - x_axis as a signed permutation of interleaved vector dofs.
-
-    Returns (perm, sign) with (R u)[j] = sign[j] * u[perm[j]]: the dof j at point p, component c takes the
-    value of component c at the mirror point, negated for c = axis.  `unit` is the dof spacing (exact keys).
-    """
-    keys = np.rint(locs / unit).astype(np.int64)
-    mirror = keys.copy()
-    mirror[axis] = int(round(extent[axis] / unit)) - keys[axis]
-    span = keys.max(axis=1) + 1
-
-    def code(k: np.ndarray) -> np.ndarray:
-        return (k[0] * span[1] + k[1]) * span[2] + k[2]
-
-    own, other = code(keys), code(mirror)
-    order = np.argsort(own)
-    pos = np.searchsorted(own, other, sorter=order)
-    if np.any(pos >= own.size) or np.any(own[order[np.minimum(pos, own.size - 1)]] != other):
-        raise ValueError("the grid is not mirror symmetric")
-    node_perm = order[pos]
-    n = locs.shape[1]
-    perm = (3 * node_perm[:, None] + np.arange(3)[None, :]).ravel()
-    sign = np.ones(3 * n)
-    sign[axis::3] = -1.0
-    return perm, sign
-
-
-def classify_modes(phi: np.ndarray, omega2: np.ndarray, mass: sp.spmatrix, reflections) -> dict[str, Any]:
-    """Rotate degenerate clusters to definite mirror parities and name each mode by its parity class.
-
-    phi: (ndof, k) full-length mode shapes, omega2 ascending.  reflections: [(perm, sign)] for the x and y
-    mirrors.  Returns the rotated shapes, parities (k, 2), kinds and the lateral mass fraction.
-    """
-    phi = phi.copy()
-    k = phi.shape[1]
-    start = 0
-    while start < k:  # clusters of (nearly) equal eigenvalues
-        stop = start + 1
-        while stop < k and omega2[stop] - omega2[start] <= CLUSTER_RTOL * abs(omega2[start]):
-            stop += 1
-        if stop - start > 1:
-            block = phi[:, start:stop]
-            mb = mass @ block
-            comb = sum(w * (block[perm] * sign[:, None]).T @ mb
-                       for w, (perm, sign) in zip((1.0, 2.0), reflections, strict=True))
-            comb = 0.5 * (comb + comb.T)
-            gram = block.T @ mb
-            _, vecs = eigh(comb, gram)
-            phi[:, start:stop] = block @ vecs
-        start = stop
-    mphi = mass @ phi
-    norms = np.einsum("ij,ij->j", phi, mphi)
-    parities = np.array([[np.einsum("ij,ij->j", phi[perm] * sign[:, None], mphi)[j] / norms[j]
-                          for perm, sign in reflections] for j in range(k)])
-    axial_fraction = np.einsum("ij,ij->j", phi[2::3], (mass @ _only(phi, 2))[2::3]) / norms
-    kinds = []
-    for j in range(k):
-        key = tuple(int(np.sign(p)) if abs(p) > 0.5 else 0 for p in parities[j])
-        kind = KIND_BY_PARITY.get(key, "mixed")
-        if kind == "axial" and axial_fraction[j] < 0.5:
-            kind = "symmetric-lateral"
-        kinds.append(kind)
-    return {"phi": phi, "parities": parities, "kinds": kinds, "axial_fraction": axial_fraction}
-
-
-def _only(phi: np.ndarray, comp: int) -> np.ndarray:
-    out = np.zeros_like(phi)
-    out[comp::3] = phi[comp::3]
-    return out
 
 
 class SkfemElastic:
@@ -450,22 +374,17 @@ class SkfemElastic:
             raise ArithmeticError(f"non-positive eigenvalue {vals.min():.3g}: the clamped bar is not stable")
         phi = np.zeros((stiff.shape[0], k_solve))
         phi[free] = vecs
-        refl = [_reflection(locs, extent, axis, unit) for axis in (0, 1)]
-        cls = classify_modes(phi, vals, mass, refl)
+        cls = classify(phi, vals, mass, locs.T, extent, unit, energy=(symmetric_lateral,)).first(k)
         vals = vals[:k]
-        cls = {key: v[:k] if key != "phi" else v[:, :k] for key, v in cls.items()}
         freqs = np.sqrt(vals) / (2.0 * np.pi)
         # relative eigen-residual ||K phi - w2 M phi|| / ||K phi|| of every returned pair
-        kphi = stiff[free] @ cls["phi"]
-        mphi = mass[free] @ cls["phi"]
+        kphi = stiff[free] @ cls.phi
+        mphi = mass[free] @ cls.phi
         resid = np.linalg.norm(kphi - mphi * vals[None, :], axis=0) / np.linalg.norm(kphi, axis=0)
-        summary: dict[str, Any] = {"frequencies_hz": freqs, "mode_kinds": cls["kinds"]}
-        for kind in KINDS:
-            hits = [j for j, kd in enumerate(cls["kinds"]) if kd == kind]
-            if hits:
-                summary[f"f_{kind.replace('-', '_')}_hz"] = float(freqs[hits[0]])
-        extra = {"summary": summary, "mode_parities": cls["parities"], "axial_mass_fraction": cls["axial_fraction"],
+        summary: dict[str, Any] = {"frequencies_hz": freqs, "mode_kinds": cls.kinds}
+        summary.update(lowest_of_each_kind(cls.kinds, freqs))
+        extra = {"summary": summary, "mode_parities": cls.parities, "axial_mass_fraction": cls.shares["axial"],
                  "eigen_residuals": resid}
         # the reported displacement is the lowest mode, scaled to max |u| = 1 (shape, in m per unit)
-        u = cls["phi"][:, 0] / np.abs(cls["phi"][:, 0]).max()
+        u = cls.phi[:, 0] / np.abs(cls.phi[:, 0]).max()
         return u, extra, solver

@@ -41,6 +41,7 @@ onto the model and summarises the run).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -128,8 +129,9 @@ def contact_summary(st: mk.State) -> dict[str, Any]:
     return out
 
 
-def _pressed(scene: Scene, aut: Automata, bonded: Automata, el: Elastic, law: ct.ContactLaw, p: dict[str, Any]
-             ) -> dict[str, Any]:
+def pressed(scene: Scene, aut: Automata, bonded: Automata, el: Elastic, law: ct.ContactLaw, p: dict[str, Any]
+            ) -> dict[str, Any]:
+    """Pressed: the supports compress the stack across the interface, relaxed dynamically (module docstring)."""
     contact = scene.contact
     rate = Model(bonded, el).relaxation_rate()
     t_ramp = p["ramp_periods"] * 2 * math.pi / rate
@@ -178,8 +180,10 @@ def _face_strain(scene: Scene, aut: Automata, u: np.ndarray, ax: int) -> float:
     return (mean(f"{a}{'WHL'[ax]}") - mean(f"{a}0")) / float(ext[ax])
 
 
-def _sliding(scene: Scene, aut: Automata, bonded: Automata, el: Elastic, law: ct.ContactLaw, p: dict[str, Any]
-             ) -> dict[str, Any]:
+def sliding(scene: Scene, aut: Automata, bonded: Automata, el: Elastic, law: ct.ContactLaw, p: dict[str, Any]
+            ) -> dict[str, Any]:
+    """Sliding: preloaded, then driven along the plane; mu_dr and the energy balance over the window (module
+    docstring)."""
     contact = scene.contact
     ext = scene.box.extent
     ax, dr = contact.axis_index, contact.direction_index
@@ -332,12 +336,12 @@ def contact_lost(window: np.ndarray, slid: float, room: float, contact: Contact)
     return ""
 
 
-def _heating(scene: Scene, aut: Automata, bonded: Automata, el: Elastic, law: ct.ContactLaw, p: dict[str, Any]
-             ) -> dict[str, Any]:
+def heating(scene: Scene, aut: Automata, bonded: Automata, el: Elastic, law: ct.ContactLaw, p: dict[str, Any]
+            ) -> dict[str, Any]:
     """Sliding, then MCA heat of the bonded automata (the contact conducts as the interface pairs of the rest
     geometry) from the scene's initial temperature to t_end, fed by the window's mean friction power of each
     contact: half to the slave, half to its rest partners (the facet found at the rest positions, by weight)."""
-    out = _sliding(scene, aut, bonded, el, law, p)
+    out = sliding(scene, aut, bonded, el, law, p)
     slave_power = out.pop("power", None)
     summary = out["summary"]
     if out["status"] != "ok" or slave_power is None:
@@ -440,23 +444,27 @@ def _friction_summary(window: np.ndarray, st: mk.State, law: ct.ContactLaw, cont
     return out
 
 
-def solve_contact(scene: Scene, n: int, p: dict[str, Any]) -> tuple[dict[str, Any], Automata]:
-    """Run a contact scene at resolution n: the out dict of the solver (field, summary, status, ...) and the
-    automata the field lives on."""
-    contact = scene.contact
-    aut, bonded = body_automata(scene.box, n, scene.material.density, contact)
-    mat = scene.material
-    el = Elastic(mat.youngs_modulus, mat.poisson_ratio, many_body=p["many_body"], coefficient=p["coefficient"])
-    law = law_of(aut, contact, p)
-    run = _heating if contact.heating else _sliding if contact.sliding else _pressed
-    out = run(scene, aut, bonded, el, law, p)
-    out.pop("power", None)
-    model, st = out.pop("model"), out.pop("state")
-    out["summary"]["friction_step_ratio"] = friction_step_ratio(model, law, contact)
-    out["work"] = {"pair_steps": int(st.counters[mk.C_PAIRSTEPS]), "time_steps": int(st.counters[mk.C_STEPS]),
-                   "kernel_s": model.kernel_s, "unknowns": 6 * aut.size}
-    out["unknowns"] = 6 * aut.size
-    return out, aut
+def on_bodies(run: Callable[..., dict[str, Any]]) -> Callable[[Scene, int, dict[str, Any]],
+                                                              tuple[dict[str, Any], Automata]]:
+    """`run` (pressed, sliding, heating) on the two bodies of a contact scene at resolution n, with the contact law
+    of the parameters: the solver's out dict (field, summary, status, ...) and the automata the field lives on."""
+
+    def on_two_bodies(scene: Scene, n: int, p: dict[str, Any]) -> tuple[dict[str, Any], Automata]:
+        contact = scene.contact
+        aut, bonded = body_automata(scene.box, n, scene.material.density, contact)
+        mat = scene.material
+        el = Elastic(mat.youngs_modulus, mat.poisson_ratio, many_body=p["many_body"], coefficient=p["coefficient"])
+        law = law_of(aut, contact, p)
+        out = run(scene, aut, bonded, el, law, p)
+        out.pop("power", None)
+        model, st = out.pop("model"), out.pop("state")
+        out["summary"]["friction_step_ratio"] = friction_step_ratio(model, law, contact)
+        out["work"] = {"pair_steps": int(st.counters[mk.C_PAIRSTEPS]), "time_steps": int(st.counters[mk.C_STEPS]),
+                       "kernel_s": model.kernel_s, "unknowns": 6 * aut.size}
+        out["unknowns"] = 6 * aut.size
+        return out, aut
+
+    return on_two_bodies
 
 
 def friction_step_ratio(model: Model, law: ct.ContactLaw, contact: Contact) -> float:

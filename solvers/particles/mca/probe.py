@@ -34,7 +34,8 @@ THEORY = ("velocity Verlet: undamped, stable for omega_max dt < 2; MCA sets dt =
 
 class McaProbe:
     """Runs the MCA solver's explicit schemes at a step chosen by the probe (heat: forward Euler at
-    ratio * dt_Gershgorin; mechanics: the solver itself at cfl = ratio)."""
+    ratio * dt_Gershgorin; mechanics: the solver itself at cfl = ratio); which one, from the scene's analysis in
+    the solver's table (`Mca.analysis`)."""
 
     theory = THEORY
 
@@ -42,12 +43,12 @@ class McaProbe:
         self.solver = solver
 
     def supports(self, scene: Scene) -> tuple[bool, str]:
+        """The scene's analysis (the solver's table) has an explicit scheme to probe."""
         ok, why = self.solver.supports(scene)
-        if ok and "elasticity" not in scene.physics and scene.conduction.mode != "transient":
-            return False, "steady mca heat is a direct solve: no time stepping, no stability probe needed"
-        if ok and "modes" in scene.physics:
-            return False, "bar-modes is an eigenproblem: no time stepping"
-        return ok, why
+        if not ok:
+            return ok, why
+        analysis = self.solver.analysis(scene)
+        return (True, "") if analysis.stepping else (False, analysis.no_stepping)
 
     def prepare(self, scene: Scene, resolution: Resolution, params: dict[str, Any]) -> ProbeSetup:
         if "cfl" in params or "heat_cfl" in params:
@@ -55,7 +56,7 @@ class McaProbe:
                              "sets the step)")
         effective_params(self.solver, params)
         context = {"omega_max": math.nan, "damping_ratio": math.nan, "drive_amplitude": math.nan}
-        if "elasticity" in scene.physics:
+        if self.solver.analysis(scene).stepping == "mechanics":
             return ProbeSetup(dt_theory=math.nan, theory_limit=1.0, quantity="cfl = dt / (2 / omega_G)",
                               theory_label="Gershgorin guarantee: stable up to at least 1", context=context,
                               state=("mechanics", scene, resolution, params))

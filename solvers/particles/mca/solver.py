@@ -1,16 +1,19 @@
-"""The movable cellular automaton (MCA) solver: elasticity, fracture, eigenfrequencies and heat of the bar.
+"""The movable cellular automaton (MCA) solver: elasticity, fracture, eigenfrequencies, heat and contact.
 
 Pieces: `automata` (Voronoi cells of the bar's simple-cubic lattice, d = a), `kernel` (numba: incremental
 pair and many-body stresses, rotations, response functions, unlinking, velocity Verlet), `kernels` (the
 kernel family by name, one signature), `model` (constants, rest state, dynamic relaxation; the derivation of
 the many-body coefficient is in its docstring), `stiffness` (the linearised model: modes, stable step),
-`heat` (conduction between linked automata), `response` (sigma = f(eps) and its exact uniaxial curve).  This
-module maps a scene onto them and turns the results into a Solution.
+`heat` (conduction between linked automata), `response` (sigma = f(eps) and its exact uniaxial curve),
+`contact_scenes` (two bodies pressed, slid, heated by friction).  This module holds the table of analyses
+(`ANALYSES`): each kind of MCA run is one entry, chosen by what the scene declares (its physics words, its
+conduction mode, whether its contact slides; never its name), with its refusal check, its work estimate and
+its run; `Mca` looks the scene's analysis up and turns the run's results into a Solution.
 
-Scenes:
-- conduction (bar-heat-*): steady by a direct solve of the automata's heat balance, transient by explicit
-  steps at the stable step; samples T / t_max at the automata.
-- elasticity, static (bar-compression): the supports' displacements are ramped in over `ramp_periods`
+Analyses on the bar lattice:
+- heat, steady and transient (bar-heat-*): steady by a direct solve of the automata's heat balance, transient
+  by explicit steps at the stable step; samples T / t_max at the automata.
+- static elasticity (bar-compression): the supports' displacements are ramped in over `ramp_periods`
   periods 2 pi / gamma with viscous damping gamma (`Model.relaxation_rate`; dynamic relaxation), until the largest
   residual force on a free degree of freedom is below relax_tol * E |strain| a^2.  Supports on z faces only
   leave rigid x/y translation and rotation about z free: held by the same "3-2-1" set as skfem-elastic
@@ -21,13 +24,17 @@ Scenes:
   reaches 1.5 times the response function's failure strain.  failure_stress = peak reaction / (W H);
   energy_error = max |KE + U - KE0 - W_supports| / max U over the elastic phase (before the first unlink).
 - modes (bar-modes): eigenfrequencies of the linearised automata (translations and rotations, the clamped
-  face's automata held), K phi = omega^2 M phi by shift-invert Lanczos about 0.
+  face's automata held), K phi = omega^2 M phi by shift-invert Lanczos about 0; kinds by mirror parity
+  (`pcverify.solvers.modes`, shared with skfem-elastic).
+Contact analyses (two bodies of the bar lattice): compression, sliding, frictional heating (`contact_scenes`).
 """
 
 from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -44,13 +51,14 @@ from pcverify.scene import (
     SceneError,
     point_patch_note,
 )
+from pcverify.solvers.modes import classify, lowest_of_each_kind
 from pcverify.solvers.protocol import Solution, WorkEstimate, effective_params, heat_summary
 
+from . import contact_scenes as cs
 from . import heat as mca_heat
 from . import kernel as mk
 from . import response as rf
 from .automata import Automata, bar_automata
-from .contact_scenes import default_slide_ramp, slide_steps, solve_contact
 from .kernels import timed
 from .model import COEFFICIENTS, Elastic, Model, rebuild_pairs, relax, relax_status
 from .probe import McaProbe
@@ -115,7 +123,7 @@ PARAMETERS: tuple[Param, ...] = (
 
 
 class Mca:
-    """Movable cellular automata on the bar lattice (elasticity, fracture, modes, heat)."""
+    """Movable cellular automata on the bar lattice (elasticity, fracture, modes, heat, contact)."""
 
     name = "mca"
     kind = "particle"
@@ -125,98 +133,35 @@ class Mca:
         """The probe of this solver's explicit heat and mechanics steps."""
         return McaProbe(self)
 
+    def analysis(self, scene: Scene) -> Analysis:
+        """The entry of ANALYSES that runs `scene`; SceneError with the reason when none does."""
+        analysis, why = analysis_of(scene)
+        if analysis is None:
+            raise SceneError(why)
+        return analysis
+
     def estimate(self, scene: Scene, resolution: Resolution, **params: Any) -> WorkEstimate:
-        """Unknowns (6 per automaton; two bodies of the bar lattice in contact scenes), time steps and memory
-        of the solve, from the scene and the parameters alone: steady heat and modes 1 step (modes: a dense
-        eigenproblem up to 1500 free dofs); transient heat t_end / (heat_cfl h^2 / (6 alpha)); fracture the
-        loading time over about cfl h / (4 c); a relaxation RELAX_STEPS_PER_CELL steps per spacing of the
-        longest extent, capped by max_steps; a sliding contact adds the drive's ramp and its whole duration (a
-        run that would need more than max_steps for them fails before it starts) and frictional heating its
-        heat steps."""
+        """Unknowns, time steps and memory of the solve, from the scene and the parameters alone (the scene's
+        analysis's estimate)."""
         p = effective_params(self, params)
-        shape = scene.box.lattice_shape(resolution.n)
-        count = math.prod(shape) * (2 if "contact" in scene.physics else 1)
-        h = min(e / max(k - 1, 1) for e, k in zip(scene.box.extent, shape, strict=True))
-        mem = BYTES_PER_AUTOMATON * count
-        if "modes" in scene.physics:
-            dense = 6 * count <= 1500
-            return WorkEstimate(unknowns=6 * count, bytes=mem + (16 * (6 * count) ** 2 if dense else 0))
-        mat = scene.material
-        if "conduction" in scene.physics and "contact" not in scene.physics:
-            if scene.conduction.mode == "steady":
-                return WorkEstimate(unknowns=count, bytes=mem)
-            alpha = mat.conductivity / (mat.density * mat.heat_capacity)
-            steps = scene.conduction.t_end / (p["heat_cfl"] * h * h / (6.0 * alpha))
-            return WorkEstimate(unknowns=count, steps=max(1, math.ceil(steps)), bytes=mem)
-        youngs = mat.youngs_modulus
-        wave = math.sqrt(youngs / mat.density) if math.isfinite(youngs) else 5000.0
-        dt = 0.25 * p["cfl"] * h / wave  # below the Gershgorin step (measured 0.32 cfl h / c): more steps, not fewer
-        if "fracture" in scene.physics:
-            eps = 1.5 * failure_strain(scene.elasticity.response, youngs)
-            steps = eps / scene.elasticity.strain_rate / dt
-        else:
-            steps = RELAX_STEPS_PER_CELL * max(scene.box.extent) / h
-        steps = min(p["max_steps"], math.ceil(steps))
-        contact = scene.contact
-        if contact is not None and contact.sliding:  # then the ramp and the whole window, which nothing cuts
-            rate = math.pi * wave / (4.0 * float(max(scene.box.extent)))  # Model.relaxation_rate
-            t_ramp = p["slide_ramp"] if p["slide_ramp"] is not None else default_slide_ramp(rate)
-            steps += sum(slide_steps(contact, t_ramp, dt))
-            if contact.heating:
-                alpha = mat.conductivity / (mat.density * mat.heat_capacity)
-                steps += math.ceil(scene.conduction.t_end / (p["heat_cfl"] * h * h / (6.0 * alpha)))
-        return WorkEstimate(unknowns=6 * count, steps=max(1, steps), bytes=mem)
+        return self.analysis(scene).estimate(scene, resolution, p)
 
     def supports(self, scene: Scene) -> tuple[bool, str]:
-        phys = set(scene.physics)
-        if "conduction" in phys and phys <= {"conduction", "heat-source", "interface-flux"}:
-            if scene.conduction.mode == "steady" and not scene.constraints:
-                return False, "steady conduction without any prescribed temperature is singular"
-            return True, ""
-        if "contact" in phys:
-            extra = phys - {"elasticity", "contact", "conduction", "frictional-heating", "interface-flux"}
-            if extra:
-                return False, f"mca contact scenes do not model {sorted(extra)}"
-            contact = scene.contact
-            if ("conduction" in phys) != contact.heating:
-                return False, "mca couples contact and conduction through frictional heating only"
-            if contact.heating and not (contact.sliding and scene.conduction.mode == "transient"):
-                return False, "frictional heating needs sliding and a transient conduction part"
-            return True, ""
-        if "elasticity" in phys:
-            extra = phys - {"elasticity", "modes", "fracture"}
-            if extra:
-                return False, f"mca does not model {sorted(extra)}"
-            if not any(isinstance(c, (FaceSupport, FaceClamp)) for c in scene.constraints):
-                return False, "an unsupported elastic bar is singular: no FaceSupport or FaceClamp"
-            return True, ""
-        return False, f"mca does conduction and elasticity; scene needs {sorted(phys)}"
+        analysis, why = analysis_of(scene)
+        return analysis is not None, why
 
     def solve(self, scene: Scene, resolution: Resolution, samples: dict[str, np.ndarray] | None = None,
               **params: Any) -> Solution:
         p = effective_params(self, params)
-        ok, why = self.supports(scene)
-        if not ok:
-            raise SceneError(why)
+        analysis = self.analysis(scene)
         t_wall = time.perf_counter()
         n = resolution.n
         pts = scene.sample_sets(n) if samples is None else samples
-        if "contact" in scene.physics:
-            out, aut = solve_contact(scene, n, p)
-            pts = {k: v[aut.holds(v)] for k, v in pts.items()}  # a slider shorter than its base: its automata only
-        elif "conduction" in scene.physics:
-            aut = bar_automata(scene.box, n, scene.material.density)
-            out = self._heat(scene, aut, p)
-        else:
-            aut = bar_automata(scene.box, n, scene.material.density)
-            if "modes" in scene.physics:
-                out = self._modes(scene, aut, p)
-            elif "fracture" in scene.physics:
-                out = self._fracture(scene, aut, p)
-            else:
-                out = self._static(scene, aut, p)
+        out, aut = analysis.run(scene, n, p)
+        if analysis.bodies > 1:  # a slider shorter than its base: the samples at its automata only
+            pts = {k: v[aut.holds(v)] for k, v in pts.items()}
         field = out.pop("field")
-        if "kernel_s" in out["work"]:  # seconds inside the time-stepping / solve kernel (issue 7: ns per pair-step)
+        if "kernel_s" in out["work"]:  # seconds inside the time-stepping / solve kernel (ns per pair-step)
             out["summary"]["kernel_s"] = out["work"]["kernel_s"]
         values = {} if field is None else {k: {"points": np.asarray(v, float), "values": field[aut.node_at(v)]}
                                            for k, v in pts.items()}
@@ -227,262 +172,269 @@ class Mca:
                         reason=out.pop("reason", ""), quantity=out.pop("quantity"), work=out.pop("work"),
                         summary=out.pop("summary"), diagnostics=out.pop("diagnostics", {}))
 
-    # -- heat ----------------------------------------------------------------------------------------
 
-    def _heat(self, scene: Scene, aut: Automata, p: dict[str, Any]) -> dict[str, Any]:
-        mat = scene.material
-        held, values = mca_heat.held_temperatures(scene, aut)
-        summary: dict[str, Any] = {}
-        work: dict[str, Any] = {"unknowns": aut.size}
-        power = mca_heat.sources(scene, aut)
-        if scene.conduction.mode == "steady":
-            t0 = time.perf_counter()
-            temp = mca_heat.steady(aut, mat.conductivity, values, held, power)
-            work.update(time_steps=0, kernel_s=time.perf_counter() - t0)
+# -- heat ----------------------------------------------------------------------------------------
+
+def _steady_heat(scene: Scene, aut: Automata, p: dict[str, Any]) -> dict[str, Any]:
+    """Steady: a direct solve of the automata's heat balance."""
+    held, values = mca_heat.held_temperatures(scene, aut)
+    power = mca_heat.sources(scene, aut)
+    t0 = time.perf_counter()
+    temp = mca_heat.steady(aut, scene.material.conductivity, values, held, power)
+    return _heat_result(scene, aut, temp, {}, {"unknowns": aut.size, "time_steps": 0,
+                                                "kernel_s": time.perf_counter() - t0})
+
+
+def _transient_heat(scene: Scene, aut: Automata, p: dict[str, Any]) -> dict[str, Any]:
+    """Transient: explicit steps at the stable step (times heat_cfl) to t_end."""
+    mat = scene.material
+    held, values = mca_heat.held_temperatures(scene, aut)
+    st, par, steps = mca_heat.transient(aut, mat.conductivity, mat.density * mat.heat_capacity, values, held,
+                                        scene.conduction.t_end, p["heat_cfl"], mca_heat.sources(scene, aut))
+    work = {"unknowns": aut.size, "kernel_s": timed("heat", st, par, steps), "time_steps": steps,
+            "pair_steps": steps * len(aut.pairs)}
+    return _heat_result(scene, aut, st.temp, {"dt": par.dt, "steps": steps}, work)
+
+
+def _heat_result(scene: Scene, aut: Automata, temp: np.ndarray, summary: dict[str, Any], work: dict[str, Any]
+                 ) -> dict[str, Any]:
+    """T / t_max at the automata, its summary, and a status that flags non-finite temperatures."""
+    rel = temp / scene.conduction.t_max
+    status, reason = ("ok", "") if np.all(np.isfinite(rel)) else ("unstable", "non-finite temperature")
+    reason = "; ".join(r for r in (reason, point_patch_note(scene.constraints, float(aut.spacing.min()))) if r)
+    summary.update(heat_summary(rel, float((rel * aut.volume).sum() / aut.volume.sum())))
+    return {"field": rel, "unknowns": aut.size, "quantity": "T/t_max", "work": work, "summary": summary,
+            "status": status, "reason": reason}
+
+
+# -- elasticity ----------------------------------------------------------------------------------
+
+def _fixes(scene: Scene, aut: Automata, rate_of: dict[str, float]
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[str]]:
+    """(fixm, fixv, group, notes): constrained dofs, their velocities, face groups (1 = zL, 2 = z0)."""
+    n = aut.size
+    ext = scene.box.extent
+    fixm = np.zeros((n, 6), dtype=np.uint8)
+    fixv = np.zeros((n, 6))
+    group = np.zeros(n, dtype=np.int64)
+    notes: list[str] = []
+    clamped = False
+    for c in scene.constraints:
+        if not isinstance(c, (FaceSupport, FaceClamp)):
+            raise SceneError(f"mca elasticity: constraint {type(c).__name__} is not supported")
+        idx = aut.on_face(c.face, ext)
+        if isinstance(c, FaceClamp):
+            fixm[idx] = 1
+            fixv[idx] = 0.0
+            clamped = True
         else:
-            st, par, steps = mca_heat.transient(aut, mat.conductivity, mat.density * mat.heat_capacity, values, held,
-                                                scene.conduction.t_end, p["heat_cfl"], power)
-            work["kernel_s"] = timed("heat", st, par, steps)
-            temp = st.temp
-            summary.update(dt=par.dt, steps=steps)
-            work.update(time_steps=steps, pair_steps=steps * len(aut.pairs))
-        rel = temp / scene.conduction.t_max
-        status, reason = ("ok", "") if np.all(np.isfinite(rel)) else ("unstable", "non-finite temperature")
-        reason = "; ".join(r for r in (reason, point_patch_note(scene.constraints, float(aut.spacing.min()))) if r)
-        summary.update(heat_summary(rel, float((rel * aut.volume).sum() / aut.volume.sum())))
-        return {"field": rel, "unknowns": aut.size, "quantity": "T/t_max", "work": work, "summary": summary,
-                "status": status, "reason": reason}
+            ax = "xyz".index(c.face[0])
+            fixm[idx, ax] = 1
+            fixv[idx, ax] = rate_of.get(c.face, 0.0)
+    group[aut.on_face("zL", ext)] = 1
+    group[aut.on_face("z0", ext)] = 2
+    supported = {"xyz".index(c.face[0]) for c in scene.constraints if isinstance(c, FaceSupport)}
+    if not clamped and supported == {2}:
+        z0 = aut.on_face("z0", ext)
+        xy = aut.positions[z0, :2]
+        a = z0[np.flatnonzero(np.all(np.abs(xy) <= 1e-9 * ext[0], axis=1))]
+        b = z0[np.flatnonzero((np.abs(xy[:, 0] - ext[0]) <= 1e-9 * ext[0]) & (np.abs(xy[:, 1]) <= 1e-9 * ext[1]))]
+        fixm[a, 0] = fixm[a, 1] = fixm[b, 1] = 1
+        notes.append("rigid-body set: u_x = u_y = 0 at (0, 0, 0), u_y = 0 at (W, 0, 0)")
+    elif not clamped and supported != {0, 1, 2}:
+        raise SceneError("mca elasticity: supports that leave rigid motion free are implemented for z faces "
+                         "only; allowed: FaceSupport on z0/zL, or a FaceClamp")
+    return fixm, fixv, group, notes
 
-    # -- elasticity ----------------------------------------------------------------------------------
 
-    @staticmethod
-    def _fixes(scene: Scene, aut: Automata, rate_of: dict[str, float]) -> tuple[np.ndarray, np.ndarray, np.ndarray,
-                                                                                 list[str]]:
-        """(fixm, fixv, group, notes): constrained dofs, their velocities, face groups (1 = zL, 2 = z0)."""
-        n = aut.size
-        ext = scene.box.extent
-        fixm = np.zeros((n, 6), dtype=np.uint8)
-        fixv = np.zeros((n, 6))
-        group = np.zeros(n, dtype=np.int64)
-        notes: list[str] = []
-        clamped = False
-        for c in scene.constraints:
-            if not isinstance(c, (FaceSupport, FaceClamp)):
-                raise SceneError(f"mca elasticity: constraint {type(c).__name__} is not supported")
-            idx = aut.on_face(c.face, ext)
-            if isinstance(c, FaceClamp):
-                fixm[idx] = 1
-                fixv[idx] = 0.0
-                clamped = True
-            else:
-                ax = "xyz".index(c.face[0])
-                fixm[idx, ax] = 1
-                fixv[idx, ax] = rate_of.get(c.face, 0.0)
-        group[aut.on_face("zL", ext)] = 1
-        group[aut.on_face("z0", ext)] = 2
-        supported = {"xyz".index(c.face[0]) for c in scene.constraints if isinstance(c, FaceSupport)}
-        if not clamped and supported == {2}:
-            z0 = aut.on_face("z0", ext)
-            xy = aut.positions[z0, :2]
-            a = z0[np.flatnonzero(np.all(np.abs(xy) <= 1e-9 * ext[0], axis=1))]
-            b = z0[np.flatnonzero((np.abs(xy[:, 0] - ext[0]) <= 1e-9 * ext[0]) & (np.abs(xy[:, 1]) <= 1e-9 * ext[1]))]
-            fixm[a, 0] = fixm[a, 1] = fixm[b, 1] = 1
-            notes.append("rigid-body set: u_x = u_y = 0 at (0, 0, 0), u_y = 0 at (W, 0, 0)")
-        elif not clamped and supported != {0, 1, 2}:
-            raise SceneError("mca elasticity: supports that leave rigid motion free are implemented for z faces "
-                             "only; allowed: FaceSupport on z0/zL, or a FaceClamp")
-        return fixm, fixv, group, notes
+def _elastic(scene: Scene, p: dict[str, Any]) -> Elastic:
+    mat = scene.material
+    return Elastic(mat.youngs_modulus, mat.poisson_ratio, many_body=p["many_body"], coefficient=p["coefficient"])
 
-    @staticmethod
-    def _elastic(scene: Scene, p: dict[str, Any]) -> Elastic:
-        mat = scene.material
-        return Elastic(mat.youngs_modulus, mat.poisson_ratio, many_body=p["many_body"], coefficient=p["coefficient"])
 
-    @staticmethod
-    def _strains(scene: Scene, aut: Automata, u: np.ndarray) -> tuple[float, float]:
-        """Axial strain from the zL face, lateral strain from the face-averaged x and y displacements."""
-        ext = scene.box.extent
-        on = {f: aut.on_face(f, ext) for f in ("x0", "xW", "y0", "yH", "z0", "zL")}
+def _strains(scene: Scene, aut: Automata, u: np.ndarray) -> tuple[float, float]:
+    """Axial strain from the zL face, lateral strain from the face-averaged x and y displacements."""
+    ext = scene.box.extent
+    on = {f: aut.on_face(f, ext) for f in ("x0", "xW", "y0", "yH", "z0", "zL")}
 
-        def mean(face: str, ax: int) -> float:
-            idx = on[face]
-            wgt = aut.volume[idx]
-            return float((u[idx, ax] * wgt).sum() / wgt.sum())
+    def mean(face: str, ax: int) -> float:
+        idx = on[face]
+        wgt = aut.volume[idx]
+        return float((u[idx, ax] * wgt).sum() / wgt.sum())
 
-        axial = (mean("zL", 2) - mean("z0", 2)) / ext[2]
-        lateral = 0.5 * ((mean("xW", 0) - mean("x0", 0)) / ext[0] + (mean("yH", 1) - mean("y0", 1)) / ext[1])
-        return axial, lateral
+    axial = (mean("zL", 2) - mean("z0", 2)) / ext[2]
+    lateral = 0.5 * ((mean("xW", 0) - mean("x0", 0)) / ext[0] + (mean("yH", 1) - mean("y0", 1)) / ext[1])
+    return axial, lateral
 
-    def _static(self, scene: Scene, aut: Automata, p: dict[str, Any]) -> dict[str, Any]:
-        el = self._elastic(scene, p)
-        probe = Model(aut, el)
-        rate = probe.relaxation_rate()
-        t_ramp = p["ramp_periods"] * 2 * math.pi / rate
-        disp = {c.face: c.displacement for c in scene.constraints if isinstance(c, FaceSupport)}
-        fixm, fixv, group, notes = self._fixes(scene, aut, {f: d / t_ramp for f, d in disp.items()})
-        gamma = rate if p["damping"] is None else p["damping"]
-        strain = max(abs(d) for d in disp.values()) / scene.box.length if disp else 1e-3
-        e_load = 0.5 * el.youngs * strain**2 * scene.box.volume
-        model = Model(aut, el, rotations=p["rotations"], krot=p["krot"], cfl=p["cfl"], gamma=gamma, fixm=fixm,
-                      fixv=fixv, group=group, t_stop=t_ramp, ke_limit=p["blowup"] * e_load)
-        st = model.new_state()
-        scale = el.youngs * max(strain, 1e-12) * float(aut.spacing.min()) ** 2
-        status, res, _ = relax(model, st, scale, tol=p["relax_tol"], max_steps=p["max_steps"])
-        u = st.x - aut.positions
-        steps = int(st.counters[mk.C_STEPS])
-        summary: dict[str, Any] = {"residual": res, "steps": steps, "dt": model.dt, "damping": gamma,
-                                   "ramp_s": t_ramp}
-        react = float(-st.f[group == 1, 2].sum())
-        summary["reaction_force"] = react
-        if "zL" in disp and "z0" in disp:
-            axial, lateral = self._strains(scene, aut, u)
-            area = scene.box.width * scene.box.height
-            summary.update(axial_strain=axial, lateral_strain=lateral, E_eff=react / area / axial,
-                           nu_eff=-lateral / axial)
-        kstat, reason = relax_status(status, res, p["relax_tol"], steps, p["max_steps"])
-        return {"field": u, "unknowns": 6 * aut.size, "quantity": "u (m)", "summary": summary, "status": kstat,
-                "reason": reason, "work": self._work(model, st), "diagnostics": {"notes": notes}}
 
-    @staticmethod
-    def _work(model: Model, st: mk.State) -> dict[str, Any]:
-        return {"pair_steps": int(st.counters[mk.C_PAIRSTEPS]), "time_steps": int(st.counters[mk.C_STEPS]),
-                "kernel_s": model.kernel_s, "unknowns": 6 * model.aut.size}
-
-    # -- fracture ------------------------------------------------------------------------------------
-
-    def _fracture(self, scene: Scene, aut: Automata, p: dict[str, Any]) -> dict[str, Any]:
-        el = self._elastic(scene, p)
-        resp = scene.elasticity.response
-        length = scene.box.length
-        speed = scene.elasticity.strain_rate * length
-        fixm, fixv, group, notes = self._fixes(scene, aut, {"zL": speed})
-        gamma = 0.0 if p["damping"] is None else p["damping"]
-        e_load = 0.5 * rf.tensile_strength(resp) ** 2 / el.youngs * scene.box.volume
-        model = Model(aut, el, response=resp, fracture=True, rotations=p["rotations"], friction=p["friction"],
-                      krot=p["krot"], relink_stress=p["relink_stress"], cfl=p["cfl"], gamma=gamma, fixm=fixm,
-                      fixv=fixv, group=group, ke_limit=p["blowup"] * e_load)
-        eps_fail = failure_strain(resp, el.youngs)
-        t_end = 1.5 * eps_fail / scene.elasticity.strain_rate
-        steps_total = min(p["max_steps"], math.ceil(t_end / model.dt))
-        every = max(1, steps_total // p["records"])
-        st = model.new_state(hist_rows=steps_total // every + 2, peak=True)
+def _static(scene: Scene, aut: Automata, p: dict[str, Any]) -> dict[str, Any]:
+    el = _elastic(scene, p)
+    probe = Model(aut, el)
+    rate = probe.relaxation_rate()
+    t_ramp = p["ramp_periods"] * 2 * math.pi / rate
+    disp = {c.face: c.displacement for c in scene.constraints if isinstance(c, FaceSupport)}
+    fixm, fixv, group, notes = _fixes(scene, aut, {f: d / t_ramp for f, d in disp.items()})
+    gamma = rate if p["damping"] is None else p["damping"]
+    strain = max(abs(d) for d in disp.values()) / scene.box.length if disp else 1e-3
+    e_load = 0.5 * el.youngs * strain**2 * scene.box.volume
+    model = Model(aut, el, rotations=p["rotations"], krot=p["krot"], cfl=p["cfl"], gamma=gamma, fixm=fixm,
+                  fixv=fixv, group=group, t_stop=t_ramp, ke_limit=p["blowup"] * e_load)
+    st = model.new_state()
+    scale = el.youngs * max(strain, 1e-12) * float(aut.spacing.min()) ** 2
+    status, res, _ = relax(model, st, scale, tol=p["relax_tol"], max_steps=p["max_steps"])
+    u = st.x - aut.positions
+    steps = int(st.counters[mk.C_STEPS])
+    summary: dict[str, Any] = {"residual": res, "steps": steps, "dt": model.dt, "damping": gamma,
+                               "ramp_s": t_ramp}
+    react = float(-st.f[group == 1, 2].sum())
+    summary["reaction_force"] = react
+    if "zL" in disp and "z0" in disp:
+        axial, lateral = _strains(scene, aut, u)
         area = scene.box.width * scene.box.height
-        ke0 = 0.5 * float((aut.mass[:, None] * st.v**2).sum())
-        rows = []
-        done = 0
-        code = mk.OK
-        chunk = max(every, 2000 // every * every)
-        rebuilds = added = 0
-        while done < steps_total:
-            code = model.advance(st, min(chunk, steps_total - done), every)
-            rows.append(st.hist[: st.counters[mk.C_ROWS], :mk.H_LOAD].copy())
-            done = int(st.counters[mk.C_STEPS])
-            if code == mk.MOVED:
-                st, more = rebuild_pairs(model, st)
-                added += more
-                rebuilds += 1
-                code = mk.OK
-                continue
-            if code != mk.OK:
-                break
-            h = np.concatenate(rows)
-            peak = h[:, mk.H_R1].max()
-            if st.counters[mk.C_UNLINK] > 0 and h[-1, mk.H_R1] < 0.05 * peak:
-                break
-        h = np.concatenate(rows) if rows else np.zeros((0, mk.H_LOAD))
-        n_pairs = len(aut.pairs)
-        summary: dict[str, Any] = {"dt": model.dt, "steps": done, "damping": gamma}
-        peak_r, peak_u, peak_step = (float(v) for v in st.peak)
-        if math.isfinite(peak_r):  # tracked every step: the history's thinning (records) does not move it
-            summary.update(failure_stress=peak_r / area, failure_strain=peak_u / length, reaction_force=peak_r,
-                           peak_step=int(peak_step), strength_expected=rf.tensile_strength(resp) if resp else math.inf)
-        elastic = h[h[:, mk.H_LINKED] == n_pairs]
-        energy_check = resp is not None and resp.kind == "elastic" and gamma == 0.0
-        if len(h):
-            summary["linked_fraction"] = float(h[-1, mk.H_LINKED] / n_pairs)
-            if energy_check and len(elastic):
-                bal = elastic[:, mk.H_KE] + elastic[:, mk.H_U] - ke0 - elastic[:, mk.H_WORK]
-                summary["energy_error"] = float(np.max(np.abs(bal)) / max(np.max(elastic[:, mk.H_U]), 1e-300))
-            if math.isfinite(peak_r):
-                stress = h[:, mk.H_R1] / area
-                before = h[:, mk.H_T] < (peak_step + 0.5) * model.dt
-                rise = h[(stress > 0.1 * peak_r / area) & (stress < 0.6 * peak_r / area) & before]
-                if len(rise) >= MIN_RISE_ROWS:
-                    summary["E_eff"] = float(np.polyfit(rise[:, mk.H_U1] / length, rise[:, mk.H_R1] / area, 1)[0])
-        summary["unlink_events"] = int(st.counters[mk.C_UNLINK])
-        summary["relink_events"] = int(st.counters[mk.C_RELINK])
-        summary["pair_list_rebuilds"] = rebuilds
-        summary["pairs_added"] = added
-        status, reason = "ok", ""
-        if code in (mk.NAN, mk.GROWTH):
-            status, reason = "unstable", f"{mk.STATUS_TEXT[code]} at step {done}; history up to there kept"
-        elif done >= p["max_steps"] and p["max_steps"] < math.ceil(t_end / model.dt):
-            strain = done * model.dt * scene.elasticity.strain_rate
-            status, reason = "failed", (f"max_steps={p['max_steps']} reached at strain {strain:.3g}, before the "
-                                        f"planned end {1.5 * eps_fail:.3g} (1.5 times the failure strain); raise "
-                                        "max_steps")
-        elif summary.get("energy_error", 0.0) > ENERGY_ALARM:
-            status, reason = "unstable", (f"energy balance of the elastic phase off by {summary['energy_error']:.3g} "
-                                          f"(> {ENERGY_ALARM:g}): the time step is too large; results kept")
-        elif st.counters[mk.C_UNLINK] == 0:
-            strain = done * model.dt * scene.elasticity.strain_rate
-            status, reason = "failed", f"no pair unlinked up to strain {strain:.3g}"
-        elif summary.get("peak_step", 0) < MIN_PEAK_STEPS:
-            status, reason = "failed", (f"the peak stress came after {summary.get('peak_step', 0)} steps (fewer than "
-                                        f"{MIN_PEAK_STEPS}): the loading is not resolved in time; lower strain_rate "
-                                        "or cfl")
-        elif energy_check and len(elastic) < MIN_CHECK_ROWS:
-            status, reason = "failed", (f"the energy check of the elastic phase cannot run: {len(elastic)} history "
-                                        f"rows before the first unlink (it needs {MIN_CHECK_ROWS}); raise records or "
-                                        "lower strain_rate")
-        elif "E_eff" not in summary:
-            status, reason = "failed", (f"E_eff cannot be fitted: fewer than {MIN_RISE_ROWS} history rows between 10 % "
-                                        "and 60 % of the peak stress; raise records or lower strain_rate")
-        aut = model.aut
-        diag = {"notes": notes, "history": {"columns": list(mk.HISTORY_COLUMNS[:mk.H_LOAD]), "rows": h}}
-        return {"field": st.x - aut.positions, "unknowns": 6 * aut.size, "quantity": "u (m)", "summary": summary,
-                "status": status, "reason": reason, "work": self._work(model, st), "diagnostics": diag}
+        summary.update(axial_strain=axial, lateral_strain=lateral, E_eff=react / area / axial,
+                       nu_eff=-lateral / axial)
+    kstat, reason = relax_status(status, res, p["relax_tol"], steps, p["max_steps"])
+    return {"field": u, "unknowns": 6 * aut.size, "quantity": "u (m)", "summary": summary, "status": kstat,
+            "reason": reason, "work": _work(model, st), "diagnostics": {"notes": notes}}
 
-    # -- modes ---------------------------------------------------------------------------------------
 
-    def _modes(self, scene: Scene, aut: Automata, p: dict[str, Any]) -> dict[str, Any]:
-        el = self._elastic(scene, p)
-        rot = p["rotations"]
-        t0 = time.perf_counter()
-        k = stiffness(aut, el.shear, el.lam, el.kn, p["krot"], rotations=rot)
-        m = mass_diagonal(aut, rotations=rot)
-        nd = 6 if rot else 3
-        fixm, _, _, _ = self._fixes(scene, aut, {})
-        held = fixm[:, :nd].ravel() == 1
-        free = np.flatnonzero(~held)
-        kff = k[free][:, free].tocsc()
-        count = int(scene.elasticity.modes)
-        if count >= free.size - 1:
-            raise SceneError(f"modes={count} is out of range; allowed: integer in [1, {free.size - 2}] at this "
-                             "resolution")
-        if free.size <= 1500:
-            vals, vecs = sla.eigh(kff.toarray(), np.diag(m[free]))
-        else:
-            v0 = np.random.default_rng(4).standard_normal(free.size)
-            vals, vecs = eigsh(kff, k=count, M=sp.diags(m[free]).tocsc(), sigma=0.0, which="LM", v0=v0)
-        order = np.argsort(vals)[:count]
-        vals, vecs = vals[order], vecs[:, order]
-        freqs = np.sqrt(np.clip(vals, 0.0, None)) / (2 * np.pi)
-        full = np.zeros((k.shape[0], count))
-        full[free] = vecs
-        frac_rot = np.zeros(count)
-        if rot:
-            mm = m[:, None] * full**2
-            frac_rot = mm.reshape(aut.size, 6, count)[:, 3:].sum(axis=(0, 1)) / mm.sum(axis=0)
-        kinds = mode_kinds(aut, scene.box.extent, full, m, nd, freqs)
-        summary: dict[str, Any] = {"frequencies_hz": freqs, "mode_kinds": kinds, "rotational_mass_fraction": frac_rot}
-        for kind in ("bending-x", "bending-y", "torsion", "axial"):
-            hits = [j for j, kd in enumerate(kinds) if kd == kind]
-            if hits:
-                summary[f"f_{kind.replace('-', '_')}_hz"] = float(freqs[hits[0]])
-        work = {"unknowns": int(free.size), "kernel_s": time.perf_counter() - t0}
-        return {"field": None, "unknowns": int(free.size), "quantity": "frequencies (Hz)", "summary": summary,
-                "work": work}
+def _work(model: Model, st: mk.State) -> dict[str, Any]:
+    return {"pair_steps": int(st.counters[mk.C_PAIRSTEPS]), "time_steps": int(st.counters[mk.C_STEPS]),
+            "kernel_s": model.kernel_s, "unknowns": 6 * model.aut.size}
+
+
+# -- fracture ------------------------------------------------------------------------------------
+
+def _fracture(scene: Scene, aut: Automata, p: dict[str, Any]) -> dict[str, Any]:
+    el = _elastic(scene, p)
+    resp = scene.elasticity.response
+    length = scene.box.length
+    speed = scene.elasticity.strain_rate * length
+    fixm, fixv, group, notes = _fixes(scene, aut, {"zL": speed})
+    gamma = 0.0 if p["damping"] is None else p["damping"]
+    e_load = 0.5 * rf.tensile_strength(resp) ** 2 / el.youngs * scene.box.volume
+    model = Model(aut, el, response=resp, fracture=True, rotations=p["rotations"], friction=p["friction"],
+                  krot=p["krot"], relink_stress=p["relink_stress"], cfl=p["cfl"], gamma=gamma, fixm=fixm,
+                  fixv=fixv, group=group, ke_limit=p["blowup"] * e_load)
+    eps_fail = failure_strain(resp, el.youngs)
+    t_end = 1.5 * eps_fail / scene.elasticity.strain_rate
+    steps_total = min(p["max_steps"], math.ceil(t_end / model.dt))
+    every = max(1, steps_total // p["records"])
+    st = model.new_state(hist_rows=steps_total // every + 2, peak=True)
+    area = scene.box.width * scene.box.height
+    ke0 = 0.5 * float((aut.mass[:, None] * st.v**2).sum())
+    rows = []
+    done = 0
+    code = mk.OK
+    chunk = max(every, 2000 // every * every)
+    rebuilds = added = 0
+    while done < steps_total:
+        code = model.advance(st, min(chunk, steps_total - done), every)
+        rows.append(st.hist[: st.counters[mk.C_ROWS], :mk.H_LOAD].copy())
+        done = int(st.counters[mk.C_STEPS])
+        if code == mk.MOVED:
+            st, more = rebuild_pairs(model, st)
+            added += more
+            rebuilds += 1
+            code = mk.OK
+            continue
+        if code != mk.OK:
+            break
+        h = np.concatenate(rows)
+        peak = h[:, mk.H_R1].max()
+        if st.counters[mk.C_UNLINK] > 0 and h[-1, mk.H_R1] < 0.05 * peak:
+            break
+    h = np.concatenate(rows) if rows else np.zeros((0, mk.H_LOAD))
+    n_pairs = len(aut.pairs)
+    summary: dict[str, Any] = {"dt": model.dt, "steps": done, "damping": gamma}
+    peak_r, peak_u, peak_step = (float(v) for v in st.peak)
+    if math.isfinite(peak_r):  # tracked every step: the history's thinning (records) does not move it
+        summary.update(failure_stress=peak_r / area, failure_strain=peak_u / length, reaction_force=peak_r,
+                       peak_step=int(peak_step), strength_expected=rf.tensile_strength(resp) if resp else math.inf)
+    elastic = h[h[:, mk.H_LINKED] == n_pairs]
+    energy_check = resp is not None and resp.kind == "elastic" and gamma == 0.0
+    if len(h):
+        summary["linked_fraction"] = float(h[-1, mk.H_LINKED] / n_pairs)
+        if energy_check and len(elastic):
+            bal = elastic[:, mk.H_KE] + elastic[:, mk.H_U] - ke0 - elastic[:, mk.H_WORK]
+            summary["energy_error"] = float(np.max(np.abs(bal)) / max(np.max(elastic[:, mk.H_U]), 1e-300))
+        if math.isfinite(peak_r):
+            stress = h[:, mk.H_R1] / area
+            before = h[:, mk.H_T] < (peak_step + 0.5) * model.dt
+            rise = h[(stress > 0.1 * peak_r / area) & (stress < 0.6 * peak_r / area) & before]
+            if len(rise) >= MIN_RISE_ROWS:
+                summary["E_eff"] = float(np.polyfit(rise[:, mk.H_U1] / length, rise[:, mk.H_R1] / area, 1)[0])
+    summary["unlink_events"] = int(st.counters[mk.C_UNLINK])
+    summary["relink_events"] = int(st.counters[mk.C_RELINK])
+    summary["pair_list_rebuilds"] = rebuilds
+    summary["pairs_added"] = added
+    status, reason = "ok", ""
+    if code in (mk.NAN, mk.GROWTH):
+        status, reason = "unstable", f"{mk.STATUS_TEXT[code]} at step {done}; history up to there kept"
+    elif done >= p["max_steps"] and p["max_steps"] < math.ceil(t_end / model.dt):
+        strain = done * model.dt * scene.elasticity.strain_rate
+        status, reason = "failed", (f"max_steps={p['max_steps']} reached at strain {strain:.3g}, before the "
+                                    f"planned end {1.5 * eps_fail:.3g} (1.5 times the failure strain); raise "
+                                    "max_steps")
+    elif summary.get("energy_error", 0.0) > ENERGY_ALARM:
+        status, reason = "unstable", (f"energy balance of the elastic phase off by {summary['energy_error']:.3g} "
+                                      f"(> {ENERGY_ALARM:g}): the time step is too large; results kept")
+    elif st.counters[mk.C_UNLINK] == 0:
+        strain = done * model.dt * scene.elasticity.strain_rate
+        status, reason = "failed", f"no pair unlinked up to strain {strain:.3g}"
+    elif summary.get("peak_step", 0) < MIN_PEAK_STEPS:
+        status, reason = "failed", (f"the peak stress came after {summary.get('peak_step', 0)} steps (fewer than "
+                                    f"{MIN_PEAK_STEPS}): the loading is not resolved in time; lower strain_rate "
+                                    "or cfl")
+    elif energy_check and len(elastic) < MIN_CHECK_ROWS:
+        status, reason = "failed", (f"the energy check of the elastic phase cannot run: {len(elastic)} history "
+                                    f"rows before the first unlink (it needs {MIN_CHECK_ROWS}); raise records or "
+                                    "lower strain_rate")
+    elif "E_eff" not in summary:
+        status, reason = "failed", (f"E_eff cannot be fitted: fewer than {MIN_RISE_ROWS} history rows between 10 % "
+                                    "and 60 % of the peak stress; raise records or lower strain_rate")
+    aut = model.aut
+    diag = {"notes": notes, "history": {"columns": list(mk.HISTORY_COLUMNS[:mk.H_LOAD]), "rows": h}}
+    return {"field": st.x - aut.positions, "unknowns": 6 * aut.size, "quantity": "u (m)", "summary": summary,
+            "status": status, "reason": reason, "work": _work(model, st), "diagnostics": diag}
+
+
+# -- modes ---------------------------------------------------------------------------------------
+
+def _modes(scene: Scene, aut: Automata, p: dict[str, Any]) -> dict[str, Any]:
+    el = _elastic(scene, p)
+    rot = p["rotations"]
+    t0 = time.perf_counter()
+    k = stiffness(aut, el.shear, el.lam, el.kn, p["krot"], rotations=rot)
+    m = mass_diagonal(aut, rotations=rot)
+    nd = 6 if rot else 3
+    fixm, _, _, _ = _fixes(scene, aut, {})
+    held = fixm[:, :nd].ravel() == 1
+    free = np.flatnonzero(~held)
+    kff = k[free][:, free].tocsc()
+    count = int(scene.elasticity.modes)
+    if count >= free.size - 1:
+        raise SceneError(f"modes={count} is out of range; allowed: integer in [1, {free.size - 2}] at this "
+                         "resolution")
+    if free.size <= 1500:
+        vals, vecs = sla.eigh(kff.toarray(), np.diag(m[free]))
+    else:
+        v0 = np.random.default_rng(4).standard_normal(free.size)
+        vals, vecs = eigsh(kff, k=count, M=sp.diags(m[free]).tocsc(), sigma=0.0, which="LM", v0=v0)
+    order = np.argsort(vals)[:count]
+    vals, vecs = vals[order], vecs[:, order]
+    freqs = np.sqrt(np.clip(vals, 0.0, None)) / (2 * np.pi)
+    full = np.zeros((k.shape[0], count))
+    full[free] = vecs
+    # bending-x before bending-y in a degenerate cluster (x mirror only); no kinds named by energy yet: its
+    # (+, +) rotation-dominated modes (small krot) would be called symmetric-lateral, a rotational kind's job
+    cls = classify(full, vals, m, aut.positions, scene.box.extent, aut.spacing, rotations=rot, order=(1.0, 0.0))
+    summary: dict[str, Any] = {"frequencies_hz": freqs, "mode_kinds": cls.kinds,
+                               "rotational_mass_fraction": cls.shares.get("rotational", np.zeros(count))}
+    summary.update(lowest_of_each_kind(cls.kinds, freqs))
+    work = {"unknowns": int(free.size), "kernel_s": time.perf_counter() - t0}
+    return {"field": None, "unknowns": int(free.size), "quantity": "frequencies (Hz)", "summary": summary,
+            "work": work}
 
 
 def failure_strain(resp, youngs: float) -> float:
@@ -495,45 +447,171 @@ def failure_strain(resp, youngs: float) -> float:
     return float(eps[broken[0]]) if broken.size else 0.2
 
 
-KIND_BY_PARITY = {(-1, 1): "bending-x", (1, -1): "bending-y", (-1, -1): "torsion", (1, 1): "axial"}
+# -- the table of analyses -------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class SceneKind:
+    """What chooses a scene's analysis: its physics words, its conduction mode and whether its contact slides
+    (None where the scene has no such part)."""
+
+    physics: frozenset[str]
+    conduction: str | None = None
+    sliding: bool | None = None
+
+    @classmethod
+    def of(cls, scene: Scene) -> SceneKind:
+        return cls(frozenset(scene.physics), None if scene.conduction is None else scene.conduction.mode,
+                   None if scene.contact is None else scene.contact.sliding)
 
 
-def mode_kinds(aut: Automata, extent: np.ndarray, phi: np.ndarray, m: np.ndarray, nd: int,
-               freqs: np.ndarray | None = None) -> list[str]:
-    """Kind of each mode by its parities under the mirror planes x = W/2 and y = H/2 (as skfem-elastic):
-    (-, +) bending-x, (+, -) bending-y, (-, -) torsion, (+, +) axial; "mixed" when a parity is unclear.
-    A mirror maps automaton i to its image and flips the normal translation and the two other rotations
-    (rotations are pseudo-vectors).  Degenerate clusters (equal frequencies to 1e-6, the two bending
-    families of the square section) are first rotated to eigenvectors of the x mirror."""
-    phi = phi.copy()
+Run = Callable[[Scene, int, dict[str, Any]], tuple[dict[str, Any], Automata]]
+Steps = Callable[[Scene, float, dict[str, Any]], int]  # (scene, smallest spacing h, parameters) -> time steps
 
-    def mirror(vec: np.ndarray, ax: int) -> np.ndarray:
-        img = aut.positions.copy()
-        img[:, ax] = extent[ax] - img[:, ax]
-        perm = aut.node_at(img)
-        sign = np.ones(nd)
-        sign[ax] = -1.0
-        if nd == 6:
-            sign[3:] = -1.0
-            sign[3 + ax] = 1.0
-        return (vec.reshape(aut.size, nd, -1)[perm] * sign[None, :, None]).reshape(vec.shape)
 
-    if freqs is not None:
-        start = 0
-        for j in range(1, len(freqs) + 1):
-            if j == len(freqs) or abs(freqs[j] - freqs[start]) > 1e-6 * max(freqs[start], 1.0):
-                if j - start > 1:
-                    block = phi[:, start:j]
-                    op = block.T @ (m[:, None] * mirror(block, 0))
-                    _, rot = np.linalg.eigh(0.5 * (op + op.T))
-                    phi[:, start:j] = block @ rot
-                start = j
-    parities = []
-    for ax in (0, 1):
-        mw = m[:, None] * phi
-        parities.append((mw * mirror(phi, ax)).sum(axis=0) / (mw * phi).sum(axis=0))
-    out = []
-    for px, py in zip(*parities, strict=True):
-        key = (int(np.sign(px)) if abs(px) > 0.5 else 0, int(np.sign(py)) if abs(py) > 0.5 else 0)
-        out.append(KIND_BY_PARITY.get(key, "mixed"))
-    return out
+@dataclass(frozen=True)
+class Analysis:
+    """One kind of MCA run.  It runs a scene whose physics has every word of `needs` and none beyond `allows`,
+    whose conduction mode is `conduction` and whose contact slides as `sliding` (None: either); `check` gives
+    the reason it still refuses the scene ("" when it runs it).  Its work: `unknowns` per automaton of `bodies`
+    copies of the bar lattice, `steps` time steps, a dense matrix up to `dense` unknowns.  `stepping`: the
+    explicit scheme its stability probe runs ("heat", "mechanics"), or "" and `no_stepping` saying why none."""
+
+    name: str
+    needs: frozenset[str]
+    run: Run
+    steps: Steps | None  # None: a direct or eigen solve, one step
+    allows: frozenset[str] = frozenset()
+    conduction: str | None = None
+    sliding: bool | None = None
+    check: Callable[[Scene], str] = lambda scene: ""
+    unknowns: int = 6
+    bodies: int = 1
+    dense: int = 0
+    stepping: str = "mechanics"
+    no_stepping: str = ""
+
+    def matches(self, kind: SceneKind) -> bool:
+        return (self.needs <= kind.physics <= self.needs | self.allows and self.conduction in (None, kind.conduction)
+                and self.sliding in (None, kind.sliding))
+
+    def mismatch(self, kind: SceneKind) -> str:
+        """Why a scene of `kind` whose physics has every word this analysis needs is not one it runs."""
+        extra = kind.physics - self.needs - self.allows
+        if extra:
+            return f"mca's {self.name} does not model {sorted(extra)}"
+        parts = [f"{self.conduction} conduction"] if self.conduction not in (None, kind.conduction) else []
+        if self.sliding not in (None, kind.sliding):
+            parts.append("a sliding contact" if self.sliding else "a contact that does not slide")
+        return f"mca's {self.name} needs {' and '.join(parts)}"
+
+    def estimate(self, scene: Scene, resolution: Resolution, p: dict[str, Any]) -> WorkEstimate:
+        """Unknowns, time steps and memory of the run, from the scene and the parameters alone."""
+        shape = scene.box.lattice_shape(resolution.n)
+        count = math.prod(shape) * self.bodies
+        h = min(e / max(k - 1, 1) for e, k in zip(scene.box.extent, shape, strict=True))
+        unknowns = self.unknowns * count
+        dense = 16 * unknowns**2 if unknowns <= self.dense else 0
+        steps = 1 if self.steps is None else max(1, self.steps(scene, h, p))
+        return WorkEstimate(unknowns=unknowns, steps=steps, bytes=BYTES_PER_AUTOMATON * count + dense)
+
+
+def _on_bar(run: Callable[[Scene, Automata, dict[str, Any]], dict[str, Any]]) -> Run:
+    """A run on the automata of the bar lattice at resolution n."""
+
+    def on_bar(scene: Scene, n: int, p: dict[str, Any]) -> tuple[dict[str, Any], Automata]:
+        aut = bar_automata(scene.box, n, scene.material.density)
+        return run(scene, aut, p), aut
+
+    return on_bar
+
+
+def _heat_steps(scene: Scene, h: float, p: dict[str, Any]) -> int:
+    """Explicit heat steps to t_end: t_end / (heat_cfl h^2 / (6 alpha))."""
+    mat = scene.material
+    alpha = mat.conductivity / (mat.density * mat.heat_capacity)
+    return math.ceil(scene.conduction.t_end / (p["heat_cfl"] * h * h / (6.0 * alpha)))
+
+
+def _wave(scene: Scene, h: float, p: dict[str, Any]) -> tuple[float, float]:
+    """(wave speed c, time step): about cfl h / (4 c), below the Gershgorin step (measured 0.32 cfl h / c), so
+    more steps than the run takes, not fewer."""
+    mat = scene.material
+    wave = math.sqrt(mat.youngs_modulus / mat.density) if math.isfinite(mat.youngs_modulus) else 5000.0
+    return wave, 0.25 * p["cfl"] * h / wave
+
+
+def _relax_steps(scene: Scene, h: float, p: dict[str, Any]) -> int:
+    """A relaxation: RELAX_STEPS_PER_CELL steps per spacing of the longest extent, capped by max_steps."""
+    return min(p["max_steps"], math.ceil(RELAX_STEPS_PER_CELL * max(scene.box.extent) / h))
+
+
+def _fracture_steps(scene: Scene, h: float, p: dict[str, Any]) -> int:
+    """The loading time to 1.5 times the failure strain, capped by max_steps."""
+    eps = 1.5 * failure_strain(scene.elasticity.response, scene.material.youngs_modulus)
+    return min(p["max_steps"], math.ceil(eps / scene.elasticity.strain_rate / _wave(scene, h, p)[1]))
+
+
+def _slide_steps(scene: Scene, h: float, p: dict[str, Any]) -> int:
+    """A sliding contact: the preload's relaxation, then the drive's ramp and its whole duration, which nothing
+    cuts (a run that would need more than max_steps for them fails before it starts)."""
+    wave, dt = _wave(scene, h, p)
+    rate = math.pi * wave / (4.0 * float(max(scene.box.extent)))  # Model.relaxation_rate
+    t_ramp = p["slide_ramp"] if p["slide_ramp"] is not None else cs.default_slide_ramp(rate)
+    return _relax_steps(scene, h, p) + sum(cs.slide_steps(scene.contact, t_ramp, dt))
+
+
+def _heating_steps(scene: Scene, h: float, p: dict[str, Any]) -> int:
+    """Frictional heating: the sliding run, then the heat's explicit steps to t_end."""
+    return _slide_steps(scene, h, p) + _heat_steps(scene, h, p)
+
+
+def _held_temperature(scene: Scene) -> str:
+    return "" if scene.constraints else "steady conduction without any prescribed temperature is singular"
+
+
+def _held_bar(scene: Scene) -> str:
+    if any(isinstance(c, (FaceSupport, FaceClamp)) for c in scene.constraints):
+        return ""
+    return "an unsupported elastic bar is singular: no FaceSupport or FaceClamp"
+
+
+HEAT = frozenset({"conduction"})
+HEAT_LOADS = frozenset({"heat-source", "interface-flux"})
+ELASTIC = frozenset({"elasticity"})
+CONTACT = frozenset({"elasticity", "contact"})
+
+ANALYSES: tuple[Analysis, ...] = (
+    Analysis("steady heat", HEAT, _on_bar(_steady_heat), None, allows=HEAT_LOADS, conduction="steady",
+             check=_held_temperature, unknowns=1, stepping="",
+             no_stepping="steady mca heat is a direct solve: no time stepping, no stability probe needed"),
+    Analysis("transient heat", HEAT, _on_bar(_transient_heat), _heat_steps, allows=HEAT_LOADS, conduction="transient",
+             unknowns=1, stepping="heat"),
+    Analysis("static elasticity", ELASTIC, _on_bar(_static), _relax_steps, check=_held_bar),
+    Analysis("modes", ELASTIC | {"modes"}, _on_bar(_modes), None, check=_held_bar, dense=1500, stepping="",
+             no_stepping="bar-modes is an eigenproblem: no time stepping"),
+    Analysis("fracture", ELASTIC | {"fracture"}, _on_bar(_fracture), _fracture_steps, check=_held_bar),
+    Analysis("contact compression", CONTACT, cs.on_bodies(cs.pressed), _relax_steps, sliding=False, bodies=2),
+    Analysis("sliding contact", CONTACT, cs.on_bodies(cs.sliding), _slide_steps, sliding=True, bodies=2),
+    Analysis("frictional heating", CONTACT | {"conduction", "frictional-heating"}, cs.on_bodies(cs.heating),
+             _heating_steps, allows=frozenset({"interface-flux"}), conduction="transient", sliding=True, bodies=2),
+)
+
+
+def analysis_of(scene: Scene) -> tuple[Analysis | None, str]:
+    """The entry of ANALYSES that runs `scene` and "", or None and why none does: the entry's check, or the
+    mismatch of the entries closest to the scene (those needing most of its physics, the ones that agree on its
+    parts first)."""
+    kind = SceneKind.of(scene)
+    hits = [a for a in ANALYSES if a.matches(kind)]
+    if len(hits) == 1:
+        why = hits[0].check(scene)
+        return (None, why) if why else (hits[0], "")
+    if hits:
+        raise RuntimeError(f"mca: the analyses {[a.name for a in hits]} all match physics {sorted(kind.physics)}")
+    near = [a for a in ANALYSES if a.needs <= kind.physics]
+    if not near:
+        return None, f"mca does conduction and elasticity; scene needs {sorted(kind.physics)}"
+    most = max(len(a.needs) for a in near)
+    near = [a for a in near if len(a.needs) == most]
+    parts = [a for a in near if a.matches(SceneKind(a.needs, kind.conduction, kind.sliding))]
+    return None, "; ".join(dict.fromkeys(a.mismatch(kind) for a in parts or near))

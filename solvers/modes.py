@@ -1,0 +1,163 @@
+"""Kinds of the bar's vibration modes by their parities under the two mirror planes x = W/2 and y = H/2.
+
+One classifier for every solver that computes modes (skfem-elastic, the MCA): each hands over what it has --
+its nodes' positions, its mode vectors (node-interleaved dofs: u_x, u_y, u_z, then the rotations phi_x, phi_y,
+phi_z where a node rotates), its mass (the diagonal per dof, or the mass matrix) -- and gets the kind of each
+mode.  The clamp at z = 0 keeps both mirror symmetries of the bar, so every non-degenerate mode has a definite
+parity under each: (-, +) bending-x (u_x dominant), (+, -) bending-y, (-, -) torsion, (+, +) axial; "mixed" when
+a parity is unclear (|parity| <= 0.5).  Degenerate clusters (the two bending families of the square section)
+are first rotated to definite parities.  Then the kinds named by energy, the rules a solver asks for: a (+, +)
+mode whose mass is mostly lateral is "symmetric-lateral", not axial (`symmetric_lateral`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from scipy.linalg import eigh
+
+KIND_BY_PARITY = {(-1, 1): "bending-x", (1, -1): "bending-y", (-1, -1): "torsion", (1, 1): "axial"}
+KINDS = ("bending-x", "bending-y", "torsion", "axial")  # the kinds whose lowest frequency a summary reports
+CLUSTER_RTOL = 1e-5  # eigenvalues closer than this (relative) are one degenerate cluster
+AXIAL_SHARE = 0.5  # a (+, +) mode with less of its mass norm in u_z is symmetric-lateral
+
+EnergyRule = Callable[[str, dict[str, float]], str]  # (parity kind, the mode's shares) -> its kind
+
+
+@dataclass(frozen=True)
+class Mirror:
+    """A mirror plane as a signed permutation of the mode vectors' dofs: (R u)[j] = sign[j] * u[perm[j]]."""
+
+    perm: np.ndarray
+    sign: np.ndarray
+
+    def __call__(self, phi: np.ndarray) -> np.ndarray:
+        return phi[self.perm] * self.sign[:, None]
+
+
+def mirror(positions: np.ndarray, extent: np.ndarray, axis: int, unit: float | np.ndarray,
+           rotations: bool = False) -> Mirror:
+    """The mirror x_axis -> extent - x_axis of node-interleaved dofs at `positions` (N, 3).
+
+    Node i takes the values of its image; the normal translation u_axis changes sign, and with `rotations` (three
+    more dofs per node, a pseudo-vector) the two rotations about the in-plane axes change sign, the one about
+    the normal does not.  `unit`: the node spacing (a number, or one per axis), which makes the nodes' keys
+    exact integers.  ValueError if a node has no image."""
+    unit = np.broadcast_to(np.asarray(unit, dtype=float), (3,))
+    keys = np.rint(positions / unit).astype(np.int64)
+    image = keys.copy()
+    image[:, axis] = int(np.rint(extent[axis] / unit[axis])) - keys[:, axis]
+    span = keys.max(axis=0) + 1
+
+    def code(k: np.ndarray) -> np.ndarray:
+        return (k[:, 0] * span[1] + k[:, 1]) * span[2] + k[:, 2]
+
+    own = code(keys)
+    order = np.argsort(own)
+    pos = np.minimum(np.searchsorted(own, code(image), sorter=order), own.size - 1)
+    node = order[pos]
+    if np.any(keys[node] != image):
+        raise ValueError("the nodes are not mirror symmetric")
+    per = 6 if rotations else 3
+    sign = np.ones(per)
+    sign[axis] = -1.0
+    if rotations:
+        sign[3:] = -1.0
+        sign[3 + axis] = 1.0
+    return Mirror(perm=(per * node[:, None] + np.arange(per)[None, :]).ravel(), sign=np.tile(sign, node.size))
+
+
+@dataclass(frozen=True)
+class ModeKinds:
+    """The classified modes: the shapes (degenerate clusters rotated), their parities (k, 2) under the x and y
+    mirrors, their kinds, and the share of each mode's mass norm in a group of dofs ("axial": u_z;
+    "rotational": the rotations, where the nodes rotate)."""
+
+    phi: np.ndarray
+    parities: np.ndarray
+    kinds: list[str]
+    shares: dict[str, np.ndarray]
+
+    def first(self, count: int) -> ModeKinds:
+        """The lowest `count` modes."""
+        return ModeKinds(self.phi[:, :count], self.parities[:count], self.kinds[:count],
+                         {k: v[:count] for k, v in self.shares.items()})
+
+
+def classify(phi: np.ndarray, omega2: np.ndarray, mass: Any, positions: np.ndarray, extent: np.ndarray,
+             unit: float | np.ndarray, rotations: bool = False, order: tuple[float, float] = (1.0, 2.0),
+             energy: tuple[EnergyRule, ...] = ()) -> ModeKinds:
+    """Kind of each mode of `phi` (ndof, k), eigenvalues `omega2` ascending, `mass` the diagonal of M per dof
+    (ndof,) or M itself (anything with `@`), nodes at `positions` (N, 3) with spacing `unit`, `rotations` when
+    each node has three rotation dofs after its translations; `energy`: the rules that rename a parity kind by
+    the mode's shares, applied in turn.
+
+    A cluster of eigenvalues equal to CLUSTER_RTOL is rotated to the eigenvectors of w_x R_x + w_y R_y in the
+    mass inner product, (w_x, w_y) = `order`: ascending, so the weights also fix the order of a cluster's modes
+    ((1, 2): bending-y before bending-x; (1, 0): bending-x first, a cluster whose modes share their x parity
+    left as it is)."""
+    mirrors = [mirror(positions, extent, axis, unit, rotations) for axis in (0, 1)]
+    phi = phi.copy()
+    k = phi.shape[1]
+    start = 0
+    while start < k:
+        stop = start + 1
+        while stop < k and omega2[stop] - omega2[start] <= CLUSTER_RTOL * abs(omega2[start]):
+            stop += 1
+        if stop - start > 1:
+            block = phi[:, start:stop]
+            mb = _times(mass, block)
+            comb = sum(w * refl(block).T @ mb for w, refl in zip(order, mirrors, strict=True))
+            _, vecs = eigh(0.5 * (comb + comb.T), block.T @ mb)
+            phi[:, start:stop] = block @ vecs
+        start = stop
+    mphi = _times(mass, phi)
+    norms = np.einsum("ij,ij->j", phi, mphi)
+    parities = np.stack([np.einsum("ij,ij->j", refl(phi), mphi) / norms for refl in mirrors], axis=1)
+    per = 6 if rotations else 3
+    groups = {"axial": (2,)} | ({"rotational": (3, 4, 5)} if rotations else {})
+    shares = {name: _share(phi, mass, comps, per) / norms for name, comps in groups.items()}
+    kinds = []
+    for j in range(k):
+        key = tuple(int(np.sign(p)) if abs(p) > 0.5 else 0 for p in parities[j])
+        kind = KIND_BY_PARITY.get(key, "mixed")
+        for rule in energy:
+            kind = rule(kind, {name: float(v[j]) for name, v in shares.items()})
+        kinds.append(kind)
+    return ModeKinds(phi=phi, parities=parities, kinds=kinds, shares=shares)
+
+
+# -- kinds named by energy (EnergyRule): a kind by where a mode's mass norm sits; a rotational kind (named by
+#    shares["rotational"] against the translations' share) is one more rule here
+
+
+def symmetric_lateral(kind: str, shares: dict[str, float]) -> str:
+    """A (+, +) mode whose mass is mostly lateral (u_z share below AXIAL_SHARE) is symmetric-lateral, not axial."""
+    return "symmetric-lateral" if kind == "axial" and shares["axial"] < AXIAL_SHARE else kind
+
+
+def lowest_of_each_kind(kinds: list[str], freqs: np.ndarray) -> dict[str, float]:
+    """f_<kind>_hz: the lowest frequency of each kind of KINDS that occurs."""
+    out = {}
+    for kind in KINDS:
+        hits = [j for j, kd in enumerate(kinds) if kd == kind]
+        if hits:
+            out[f"f_{kind.replace('-', '_')}_hz"] = float(freqs[hits[0]])
+    return out
+
+
+def _times(mass: Any, phi: np.ndarray) -> np.ndarray:
+    """M phi for M given as its diagonal (ndof,) or as a matrix."""
+    return mass[:, None] * phi if isinstance(mass, np.ndarray) and mass.ndim == 1 else mass @ phi
+
+
+def _share(phi: np.ndarray, mass: Any, comps: tuple[int, ...], per: int) -> np.ndarray:
+    """(P phi)^T M (P phi) of each mode, P keeping the dofs `comps` of every node (`per` dofs a node)."""
+    only = np.zeros_like(phi)
+    for c in comps:
+        only[c::per] = phi[c::per]
+    weighted = _times(mass, only)
+    return sum(np.einsum("ij,ij->j", phi[c::per], weighted[c::per]) for c in comps)
