@@ -79,10 +79,10 @@ class Field:
                 one = Param(self.name, None, low=self.low, high=self.high, low_open=self.low_open, kind=kind).allowed()
         else:
             one = self.hint or {"bool": "true/false", "scalar": "a value"}.get(self.kind, self.kind)
+        if self.shape == "list" and self.min_items == self.max_items:
+            return f"a list of {self.min_items} values, each {one}"
         if self.shape == "list":
-            count = f"{self.min_items} " if self.min_items == self.max_items else "a non-empty " if self.min_items \
-                else "a "
-            return f"{count}list of {one}"
+            return f"a {'non-empty ' if self.min_items else ''}list of {one}"
         return f"{one}, or a {'non-empty ' if self.min_items else ''}list of them" if self.shape else one
 
     def fits(self, value: Any, registries: Registries) -> bool:
