@@ -10,9 +10,9 @@ its id or name), the field, the value and what is allowed:
 
     study file s.toml: group[2] (g): n=1 is not valid; allowed: integer in [2, 1000]
 
-Choices kept in registries above this module (the analyses with their group options, the group figures)
-are passed to `check` by name.  Checks that need other objects (a solver's own parameters, a scene name in
-the catalogue, a calibration's overlap guard) run after the walk, in the modules that own those objects.
+Registries above this module (the analyses with their group options, the group figures) are passed to
+`check` by name.  Checks that need other objects (a solver's parameters, a scene name, a calibration's
+overlap guard) run after the walk, in the modules that own those objects.
 """
 
 from __future__ import annotations
@@ -87,33 +87,24 @@ class Field:
 
     def fits(self, value: Any, registries: Registries) -> bool:
         """Whether one value (an item of a list shape) is of this field's kind, in its range and choices."""
-        kind = self.kind
-        if kind == "int":
-            ok = isinstance(value, int) and not isinstance(value, bool)
-        elif kind == "real":
-            ok = is_real(value)
-        elif kind == "bool":
-            ok = isinstance(value, bool)
-        elif kind == "text":
-            ok = isinstance(value, str) and (not self.pattern or re.fullmatch(self.pattern, value) is not None)
-        elif kind == "scalar":
-            ok = isinstance(value, (str, int, float, bool))
-        else:
-            raise ValueError(f"field {self.name}: kind {kind!r} is not a kind of single value")
-        if ok and kind in ("int", "real"):
+        ok = TYPES[self.kind](value) and (self.kind != "text" or re.fullmatch(self.pattern or "(?s).*", value))
+        if ok and self.kind in ("int", "real"):
             ok = (self.low is None or value > self.low or (value == self.low and not self.low_open)) and (
                 self.high is None or value <= self.high)
         choices = registries[self.registry] if self.registry else self.choices
-        return ok and (not choices or value in choices)
+        return bool(ok) and (not choices or value in choices)
 
     def type_fits(self, value: Any) -> bool:
         """Whether the value has this field's type at all (how `alternatives` pick the one that applies)."""
         if self.shape:
             return isinstance(value, list) or (self.shape == "value or list" and not isinstance(value, dict))
-        return {"int": isinstance(value, int) and not isinstance(value, bool), "real": is_real(value),
-                "bool": isinstance(value, bool), "text": isinstance(value, str),
-                "scalar": isinstance(value, (str, int, float, bool)), "table": isinstance(value, dict),
-                "record": isinstance(value, dict), "tables": isinstance(value, list)}[self.kind]
+        return TYPES[self.kind](value)
+
+
+TYPES = {"int": lambda v: isinstance(v, int) and not isinstance(v, bool), "real": is_real,
+         "bool": lambda v: isinstance(v, bool), "text": lambda v: isinstance(v, str),
+         "scalar": lambda v: isinstance(v, (str, int, float, bool)), "table": lambda v: isinstance(v, dict),
+         "record": lambda v: isinstance(v, dict), "tables": lambda v: isinstance(v, list)}
 
 
 @dataclass(frozen=True)
