@@ -74,9 +74,11 @@ class Field:
         elif self.kind in ("int", "real"):
             if self.low is None and self.high is None:
                 one = "integer" if self.kind == "int" else "number"
+            elif self.kind == "int":  # whole numbers, never in float notation (2147483647, not 2.14748e+09)
+                one = f"integer in [{self.low if self.low is not None else '-inf'}, " \
+                      f"{self.high if self.high is not None else 'inf'}]"
             else:
-                kind = int if self.kind == "int" else float
-                one = Param(self.name, None, low=self.low, high=self.high, low_open=self.low_open, kind=kind).allowed()
+                one = Param(self.name, None, low=self.low, high=self.high, low_open=self.low_open).allowed()
         else:
             one = self.hint or {"bool": "true/false", "scalar": "a value"}.get(self.kind, self.kind)
         if self.shape == "list" and self.min_items == self.max_items:

@@ -5,13 +5,14 @@ declaration."""
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 import pytest
 
 from pcverify.harness.analyses import ANALYSES
 from pcverify.harness.figures import GROUP_FIGURES
-from pcverify.harness.schema import NAME, STUDY, TABLES, Field, Table, check
+from pcverify.harness.schema import CALIBRATION, NAME, STUDY, TABLES, Field, Table, check, check_value
 from pcverify.harness.study import study_files
 from pcverify.harness.studyfile import read_study_document
 from pcverify.scene import SceneError, is_real
@@ -59,6 +60,12 @@ def test_an_int_field_takes_integers_in_its_range_only(value) -> None:
 @pytest.mark.parametrize("value", [0, 0.0, -1.5, True, False, math.nan, math.inf, -math.inf, "1.0", None])
 def test_a_real_field_takes_finite_numbers_in_its_range_and_never_a_bool(value) -> None:
     assert _error(_toy(weight=value)).endswith("is not valid; allowed: number in (0, inf)")
+
+
+def test_an_int_range_is_written_in_whole_numbers() -> None:
+    with pytest.raises(SceneError, match=re.escape("here: seed=True is not valid; allowed: integer in [0, "
+                                                   "2147483647]")):
+        check_value(True, CALIBRATION.field("seed"), "here")
 
 
 def test_the_finite_real_predicate() -> None:
