@@ -15,32 +15,9 @@ from typing import Any
 import pandas as pd
 
 from pcverify.harness import figures, stability, tables
+from pcverify.harness.schema import Field
 from pcverify.harness.stability import PROBE_KINDS
 from pcverify.harness.tasks import SOLVE, TASKS, CellTask
-from pcverify.scene import SceneError, shown
-
-
-@dataclass(frozen=True)
-class Option:
-    """A group option an analysis reads: its type ("text", "list of text"), allowed values, description."""
-
-    name: str
-    kind: str
-    description: str
-    choices: tuple[str, ...] = ()
-
-    def check(self, value: Any, where: str) -> Any:
-        ok = isinstance(value, str) if self.kind == "text" else (
-            isinstance(value, list) and bool(value) and all(isinstance(v, str) for v in value))
-        if ok and self.choices:
-            ok = all(v in self.choices for v in ([value] if isinstance(value, str) else value))
-        if not ok and self.choices:
-            raise SceneError(f"{where}: {self.name}={shown(value)} is unknown; allowed: one of "
-                             f"{', '.join(self.choices)}")
-        if not ok:
-            raise SceneError(f"{where}: {self.name}={shown(value)} is not valid; allowed: {self.kind}")
-        return value
-
 
 Tables = dict[str, pd.DataFrame]
 
@@ -53,7 +30,7 @@ class Analysis:
     description: str
     tables: Callable[[Any, list[dict[str, Any]], Tables], Tables]
     figures: Callable[[Any, list[dict[str, Any]], Tables, Path], list[str]] = lambda g, res, t, folder: []
-    options: tuple[Option, ...] = ()
+    options: tuple[Field, ...] = ()  # the group keys it reads (`schema`: a group's fields by its analysis)
     serial: bool = False
     task: Callable[[dict[str, Any]], CellTask] = field(default=lambda options: SOLVE)
 
@@ -145,35 +122,20 @@ ANALYSES: dict[str, Analysis] = {a.name: a for a in (
     Analysis("table", "one row per cell: status and every summary scalar", lambda g, res, done: {}),
     Analysis("convergence", "values or errors against h per solver sequence, fitted orders, Richardson and GCI",
              _convergence_tables, _convergence_figures, options=(
-                 Option("quantities", "list of text", "summary quantities to follow (default volume_mean, "
-                        "bulk_median)"),
-                 Option("reference_table", "text", "an earlier group's fits table whose values are the reference"),
-                 Option("reference_metric", "text", "the column of reference_table taken (default extrapolated)"))),
+                 Field("quantities", "text", "summary quantities to follow (default volume_mean, bulk_median)",
+                       shape="list"),
+                 Field("reference_table", "text", "an earlier group's fits table whose values are the reference"),
+                 Field("reference_metric", "text", "the column of reference_table taken (default extrapolated)"))),
     Analysis("timing", "wall time against unknowns per solver (timed serially after a warm-up)",
              lambda g, res, done: {f"{g.id}-timing": tables.timing(res)}, _timing_figures, serial=True),
     Analysis("work-precision", "error against wall time and work per solver (timed serially after a warm-up)",
              _work_precision_tables, _work_precision_figures, serial=True,
-             options=(Option("error", "text", "the error column (default nodes.l2)"),)),
+             options=(Field("error", "text", "the error column (default nodes.l2)"),)),
     Analysis("stability", "measured time-step limits (probe = limit) or a stability map (probe = map)",
              _stability_tables, _stability_figures,
-             options=(Option("probe", "text", "limit or map (default limit)", PROBE_KINDS),),
+             options=(Field("probe", "text", "limit or map (default limit)", choices=PROBE_KINDS),),
              task=lambda options: TASKS[f"stability-{options.get('probe', 'limit')}"]),
 )}
-
-GROUP_KEYS = {
-    "id": "group id (text)", "title": "title (text)", "scene": "scene name", "scene_params": "{ name = value }",
-    "solvers": "solver names or module:Class", "n": "lattice resolutions", "refine": "grid refinements",
-    "solver_params": "{ name = value } shared, or { solver = { ... } } per solver",
-    "sweep": "{ parameter = [values] } (the product is run)", "analysis": f"one of {', '.join(ANALYSES)}",
-    "serial": "true/false: timed serially after a warm-up", "figures": f"list of {', '.join(figures.GROUP_FIGURES)}",
-    "vtu": "true/false: write VTU point clouds",
-}
-
-
-def allowed_group_keys(analysis: str) -> dict[str, str]:
-    """Every key a group with this analysis may have, with a description."""
-    return GROUP_KEYS | {o.name: o.description for o in ANALYSES[analysis].options}
-
 
 def group_report(g: Any, res: list[dict[str, Any]], cells: pd.DataFrame, folder: Path,
                  done: Tables) -> tuple[Tables, list[str]]:

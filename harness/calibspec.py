@@ -20,34 +20,14 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from pcverify.harness.catalogue import make_scene
-from pcverify.harness.studyfile import safe_name
+from pcverify.harness.schema import CALIBRATION, CALIBRATION_CELL, PARAMETER, STUDY, as_list, check_value, row_where
 from pcverify.scene import Scene, SceneError, shown
 from pcverify.solvers.protocol import effective_params, uses_refine
 from pcverify.solvers.registry import SolverUnavailable, get_solver
 
-DESIGNS = ("sobol", "lhs")
-ERRORS = ("relative", "absolute")
 FIELD_KINDS = (".l2", ".linf")  # metrics <sample set>.l2 / .linf are field errors against the analytic solution
-
-CALIBRATION_KEYS = {
-    "id": "calibration id (letters, digits, . _ -)", "title": "text", "solver": "a solver name",
-    "solver_params": "{ name = value }: fixed parameters of every run", "parameter": "[[calibration.parameter]] tables",
-    "calibrate": "[[calibration.calibrate]] tables", "validate": "[[calibration.validate]] tables",
-    "budget": "integer: solver runs of the search (design + local search)", "design": "sobol or lhs",
-    "design_points": "integer: points of the space-filling design", "starts": "integer: local searches",
-    "seed": "integer: seed of the design", "replicas": "{ parameter = [values] }: runs at the optimum that "
-    "measure the objective's noise", "noise_factor": "number: the band is best + noise_factor * noise",
-    "noise_floor": "number: smallest band (objective units)", "sensitivity_step": "number in (0, 0.5]: step "
-    "of the one-at-a-time sensitivity as a fraction of each parameter's (log) range",
-    "tolerance": "number: the validation error below which a held-out cell counts as matched",
-}
-PARAMETER_KEYS = {"name": "a solver parameter", "low": "number", "high": "number", "log": "true/false"}
-CELL_KEYS = {"scene": "a scene name", "scene_params": "{ name = value }", "n": "integer or list of integers",
-             "refine": "integer", "metric": "a summary quantity or <samples>.l2 / .linf",
-             "reference": "analytic, or { solver, n, refine, solver_params } (a list of >= 3 refine: Richardson)",
-             "error": "relative or absolute (scalar metrics; default relative)"}
-REFERENCE_KEYS = {"solver": "a solver name", "n": "integer (default: the cell's n)",
-                  "refine": "integer or list of >= 3 integers", "solver_params": "{ name = value }"}
+OPTIONS = ("budget", "design", "design_points", "starts", "seed", "noise_factor", "noise_floor", "sensitivity_step",
+           "tolerance")  # the search options, with their defaults on `Calibration` and ranges in `schema.CALIBRATION`
 
 
 @dataclass(frozen=True)
@@ -147,28 +127,6 @@ class Calibration:
     defaults: dict[str, Any] = field(default_factory=dict)  # the solver's declared values of the free parameters
 
 
-def _number(value: Any) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
-
-
-def _integer(value: Any, what: str, where: str, low: int, high: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
-        raise SceneError(f"{where}: {what}={shown(value)} is not valid; allowed: integer in [{low}, {high}]")
-    return value
-
-
-def _table(value: Any, what: str, where: str) -> dict[str, Any]:
-    if not isinstance(value, dict):
-        raise SceneError(f"{where}: {what}={shown(value)} is not valid; allowed: a table {{ key = value, ... }}")
-    return value
-
-
-def _unknown(item: dict[str, Any], allowed: dict[str, str], what: str, where: str) -> None:
-    unknown = sorted(set(item) - set(allowed))
-    if unknown:
-        raise SceneError(f"{where}: {unknown[0]} is not a field of {what}; allowed: {', '.join(allowed)}")
-
-
 def _solver_params_ok(solver: Any, params: dict[str, Any], where: str) -> dict[str, Any]:
     try:
         return effective_params(solver, params)
@@ -176,22 +134,17 @@ def _solver_params_ok(solver: Any, params: dict[str, Any], where: str) -> dict[s
         raise SceneError(f"{where}: {exc}") from None
 
 
-def _parameter(item: Any, solver: Any, fixed: dict[str, Any], where: str) -> FreeParam:
-    item = _table(item, "parameter", where)
-    _unknown(item, PARAMETER_KEYS, "a [[calibration.parameter]]", where)
-    name = item.get("name")
+def _parameter(item: dict[str, Any], solver: Any, fixed: dict[str, Any], where: str) -> FreeParam:
+    name, low, high, log = item["name"], item["low"], item["high"], item.get("log", False)
     known = [p.name for p in solver.parameters]
-    if not isinstance(name, str) or name not in known:
+    if name not in known:
         raise SceneError(f"{where}: name={shown(name)} is not a parameter of solver {solver.name!r}; allowed: one "
                          f"of {', '.join(known)}")
     if name in fixed:
         raise SceneError(f"{where}: {name} is both free and fixed (solver_params); allowed: one of the two")
-    low, high, log = item.get("low"), item.get("high"), item.get("log", False)
-    if not (_number(low) and _number(high) and low < high):
+    if not low < high:
         raise SceneError(f"{where}: low={shown(low)}, high={shown(high)} are not valid; allowed: numbers with "
                          "low < high")
-    if not isinstance(log, bool):
-        raise SceneError(f"{where}: log={shown(log)} is not valid; allowed: true/false")
     if log and low <= 0:
         raise SceneError(f"{where}: low={shown(low)} is not valid with log = true; allowed: low > 0")
     for bound in (low, high):  # both bounds inside the solver's declared range
@@ -202,103 +155,61 @@ def _parameter(item: Any, solver: Any, fixed: dict[str, Any], where: str) -> Fre
 def _reference(value: Any, where: str) -> Reference | None:
     if value == "analytic":
         return None
-    table = _table(value, "reference", where)
-    _unknown(table, REFERENCE_KEYS, "a reference", where)
-    solver = table.get("solver")
-    if not isinstance(solver, str):
-        raise SceneError(f"{where}: reference solver={shown(solver)} is not valid; allowed: a solver name")
-    n = table.get("n")
-    if n is not None:
-        n = _integer(n, "reference n", where, 2, 1000)
-    refine = table.get("refine", 1)
-    refines = refine if isinstance(refine, list) else [refine]
-    refines = [_integer(r, "reference refine", where, 1, 1000) for r in refines]
+    refine = value.get("refine", 1)
+    refines = as_list(refine)
     if len(refines) == 2 or len(set(refines)) != len(refines):
-        raise SceneError(f"{where}: reference refine={shown(refine)} is not valid; allowed: one integer, or a list of "
-                         "three or more different integers (Richardson)")
-    params = _table(table.get("solver_params", {}), "reference solver_params", where)
-    return Reference(solver, n, tuple(refines), tuple(sorted(params.items())))
+        raise SceneError(f"{where}: reference.refine={shown(refine)} is not valid; allowed: one integer, or a list "
+                         "of three or more different integers (Richardson)")
+    params = value.get("solver_params", {})
+    return Reference(value["solver"], value.get("n"), tuple(refines), tuple(sorted(params.items())))
 
 
-def _cells(item: Any, where: str, refine_read: bool) -> list[CalibCell]:
-    item = _table(item, "cell", where)
-    _unknown(item, CELL_KEYS, "a calibration or validation cell", where)
-    name = item.get("scene")
-    if not isinstance(name, str):
-        raise SceneError(f"{where}: scene={shown(name)} is not valid; allowed: a scene name (see `pcverify scenes`)")
-    scene_params = _table(item.get("scene_params", {}), "scene_params", where)
+def _cells(item: dict[str, Any], where: str, refine_read: bool) -> list[CalibCell]:
+    scene_params = item.get("scene_params", {})
     try:
-        scene = make_scene(name, **scene_params)
+        scene = make_scene(item["scene"], **scene_params)
     except SceneError as exc:
         raise SceneError(f"{where}: {exc}") from None
-    ns = item.get("n", 4)
-    ns = [_integer(n, "n", where, 2, 1000) for n in (ns if isinstance(ns, list) else [ns])]
-    if not ns:
-        raise SceneError(f"{where}: n is empty; allowed: an integer or a non-empty list")
-    refine = _integer(item.get("refine", 1), "refine", where, 1, 1000)
-    metric = item.get("metric")
-    if not isinstance(metric, str) or not metric:
-        raise SceneError(f"{where}: metric={shown(metric)} is not valid; allowed: {CELL_KEYS['metric']}")
-    if "reference" not in item:
-        raise SceneError(f"{where}: reference is missing; allowed: {CELL_KEYS['reference']}")
-    reference = _reference(item["reference"], where)
+    metric, reference = item["metric"], _reference(item["reference"], where)
     if metric.endswith(FIELD_KINDS) and reference is not None:
         raise SceneError(f"{where}: metric={metric!r} is a field error against the analytic solution; allowed: "
                          "reference = \"analytic\" with it")
     if reference is None and not metric.endswith(FIELD_KINDS):
         raise SceneError(f"{where}: metric={metric!r} with reference = \"analytic\"; allowed: a field error "
                          "<samples>.l2 or .linf (a scalar metric needs a solver reference)")
-    error = item.get("error", "relative")
-    if error not in ERRORS:
-        raise SceneError(f"{where}: error={shown(error)} is unknown; allowed: one of {', '.join(ERRORS)}")
-    return [CalibCell(scene, tuple(sorted(scene_params.items())), n, refine, metric, reference, error, refine_read)
-            for n in ns]
+    return [CalibCell(scene, tuple(sorted(scene_params.items())), n, item.get("refine", 1), metric, reference,
+                      item.get("error", "relative"), refine_read) for n in as_list(item.get("n", 4))]
 
 
 def parse_calibrations(items: Any, where: str) -> list[Calibration]:
-    """Check every `[[calibration]]` table of a study file; SceneError (one line) names the first bad field,
-    and the overlapping cells of a calibration whose calibration and validation cells overlap."""
-    if not (isinstance(items, list) and all(isinstance(t, dict) for t in items)):
-        raise SceneError(f"{where}: calibration={shown(items)} is not valid; allowed: [[calibration]] tables")
+    """Check every `[[calibration]]` table of a study file against `schema.CALIBRATION`, then against its solver
+    and scenes; SceneError (one line) names the first bad field, and the overlapping cells of a calibration
+    whose calibration and validation cells overlap."""
+    check_value(items, STUDY.field("calibration"), where)
     out: list[Calibration] = []
-    ids: set[str] = set()
-    for k, item in enumerate(items):
-        at = f"{where} calibration {k + 1}"
-        _unknown(item, CALIBRATION_KEYS, "a [[calibration]]", at)
-        cid = item.get("id", f"calibration{k + 1}")
-        safe_name(cid, "id", at)
-        if cid in ids:
-            raise SceneError(f"{at}: id={cid!r} is used by another calibration; allowed: one id per calibration")
-        ids.add(cid)
-        at = f"{where} calibration {cid!r}"
+    for number, item in enumerate(items, 1):
+        at = row_where(where, "calibration", number, item, CALIBRATION)
+        cid = item.get("id", CALIBRATION.default_key.format(number))
         try:
-            solver = get_solver(str(item.get("solver")))
+            solver = get_solver(item["solver"])
         except (SolverUnavailable, SceneError) as exc:
             raise SceneError(f"{at}: {exc}") from None
-        fixed = dict(_table(item.get("solver_params", {}), "solver_params", at))
+        fixed = dict(item.get("solver_params", {}))
         _solver_params_ok(solver, fixed, at)
-        params = item.get("parameter")
-        if not isinstance(params, list) or not params:
-            raise SceneError(f"{at}: no [[calibration.parameter]] tables; allowed: one or more free parameters")
-        free = [_parameter(p, solver, fixed, f"{at} parameter {i + 1}") for i, p in enumerate(params)]
-        if len({p.name for p in free}) != len(free):
-            raise SceneError(f"{at}: a parameter is named twice; allowed: each free parameter once")
-        cells = {}
-        for role in ("calibrate", "validate"):
-            tables = item.get(role)
-            if not isinstance(tables, list) or not tables:
-                raise SceneError(f"{at}: no [[calibration.{role}]] tables; allowed: one or more cells")
-            cells[role] = [c for i, t in enumerate(tables)
-                           for c in _cells(t, f"{at} {role} {i + 1}", uses_refine(solver))]
+        free = [_parameter(p, solver, fixed, row_where(at, "parameter", i, p, PARAMETER))
+                for i, p in enumerate(item["parameter"], 1)]
+        cells = {role: [c for i, t in enumerate(item[role], 1)
+                        for c in _cells(t, row_where(at, role, i, t, CALIBRATION_CELL), uses_refine(solver))]
+                 for role in ("calibrate", "validate")}
         _overlap(cells["calibrate"], cells["validate"], solver, at)
-        opts = _options(item, at)
+        opts = {k: float(item[k]) if isinstance(getattr(Calibration, k), float) else item[k] for k in OPTIONS
+                if k in item}
         budget = opts.get("budget", Calibration.budget)
         if budget < len(cells["calibrate"]):
             raise SceneError(f"{at}: budget={budget}{'' if 'budget' in item else ' (the default)'} is below the "
                              f"{len(cells['calibrate'])} calibration cells (one parameter set costs one run per cell: "
                              f"nothing would be evaluated); allowed: integer in [{len(cells['calibrate'])}, 100000]")
-        replicas = _table(item.get("replicas", {}), "replicas", at)
-        reps = tuple((k2, tuple(v if isinstance(v, list) else [v])) for k2, v in sorted(replicas.items()))
+        reps = tuple((k, tuple(as_list(v))) for k, v in sorted(item.get("replicas", {}).items()))
         for name, values in reps:
             if name in {p.name for p in free}:
                 raise SceneError(f"{at}: replicas.{name} names a free parameter (the optimum would override it); "
@@ -328,24 +239,3 @@ def _overlap(calibrate: list[CalibCell], validate: list[CalibCell], solver: Any,
         raise SceneError(f"{at}: calibration and validation cells overlap ({'; '.join(overlap)}{why}); allowed: "
                          "validation cells held out from calibration (another scene, resolution or metric: one that "
                          "changes what the solver computes)")
-
-
-def _options(item: dict[str, Any], at: str) -> dict[str, Any]:
-    """The search options with their ranges."""
-    opts: dict[str, Any] = {}
-    for key, (low, high) in {"budget": (1, 100_000), "design_points": (1, 4096), "starts": (0, 64),
-                             "seed": (0, 2**31 - 1)}.items():
-        if key in item:
-            opts[key] = _integer(item[key], key, at, low, high)
-    if "design" in item:
-        if item["design"] not in DESIGNS:
-            raise SceneError(f"{at}: design={shown(item['design'])} is unknown; allowed: one of {', '.join(DESIGNS)}")
-        opts["design"] = item["design"]
-    for key, (low, high) in {"noise_factor": (0.0, 100.0), "noise_floor": (0.0, math.inf),
-                             "sensitivity_step": (1e-6, 0.5), "tolerance": (0.0, math.inf)}.items():
-        if key in item:
-            v = item[key]
-            if not _number(v) or not low <= v <= high:
-                raise SceneError(f"{at}: {key}={shown(v)} is not valid; allowed: number in [{low:g}, {high:g}]")
-            opts[key] = float(v)
-    return opts

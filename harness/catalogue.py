@@ -13,6 +13,7 @@ import importlib
 import math
 from typing import Any
 
+from pcverify.harness.schema import SCENE, check
 from pcverify.scene import (
     ALUMINIUM,
     DURALUMIN,
@@ -327,111 +328,44 @@ def make_scene(name: str, **params: Any) -> Scene:
 
 # -- scenes from data: a study file's [[scene]] tables, built from the shipped building blocks --------------
 
-SCENE_TABLE_KEYS = {
-    "name": "scene name (text)", "description": "one line (text)",
-    "box": "{ width, height, length } in m (default the paper's bar)",
-    "material": f"one of {', '.join(MATERIALS)}, or {{ name, density, conductivity, heat_capacity, youngs_modulus, "
-                "poisson_ratio }}",
-    "t_max": "temperature scale of the reported T / t_max (K)", "mode": "steady or transient",
-    "t_end": "end time of a transient (s)", "dt": "continuum time step of a transient (s)",
-    "initial_temperature": "temperature at t = 0 (K)", "source": "uniform volumetric heat source (W/m^3)",
-    "interface": "{ flux (W/m^2), position (m), axis = z }: a planar heat source on an internal plane",
-    "held": "list of { face | point | patch (+ radius), temperature }",
-    "supports": "list of { face, displacement = 0 } (frictionless supports)", "clamps": "list of faces",
-    "modes": "number of eigenfrequencies asked for",
-}
 HEAT_KEYS = ("t_max", "mode", "t_end", "dt", "initial_temperature", "source", "interface", "held")
 ELASTIC_KEYS = ("supports", "clamps", "modes")
 
 
-def _material(value: Any, where: str) -> Material:
-    if isinstance(value, str):
-        if value not in MATERIALS:
-            raise SceneError(f"{where}: material={value!r} is unknown; allowed: one of {', '.join(MATERIALS)} or a "
-                             "table of constants")
-        return MATERIALS[value]
-    if not isinstance(value, dict):
-        raise SceneError(f"{where}: material={value!r} is not valid; allowed: {SCENE_TABLE_KEYS['material']}")
-    allowed = ("name", "density", "conductivity", "heat_capacity", "youngs_modulus", "poisson_ratio")
-    unknown = sorted(set(value) - set(allowed))
-    if unknown:
-        raise SceneError(f"{where}: material.{unknown[0]} is not a material field; allowed: {', '.join(allowed)}")
-    if "density" not in value:
-        raise SceneError(f"{where}: material.density is missing; allowed: number in (0, 1e6] kg/m^3")
-    fields = {k: float(v) if isinstance(v, int) and not isinstance(v, bool) else v for k, v in value.items()}
-    try:
-        return Material(**{"name": "custom", **fields})
-    except (SceneError, TypeError) as exc:
-        raise SceneError(f"{where}: material: {exc}") from None
+def _reals(table: dict[str, Any], text: tuple[str, ...] = ()) -> dict[str, Any]:
+    """A checked table's numbers as floats (TOML reads 1 as an int), its text fields as they are."""
+    return {k: v if k in text else float(v) for k, v in table.items()}
 
 
-def _interface(value: Any, where: str) -> InterfaceFlux:
-    allowed = ("flux", "position", "axis")
-    if not isinstance(value, dict) or set(value) - set(allowed) or not {"flux", "position"} <= set(value):
-        raise SceneError(f"{where}: interface={value!r} is not valid; allowed: {SCENE_TABLE_KEYS['interface']}")
-    fields = {k: float(v) if isinstance(v, int) and not isinstance(v, bool) else v for k, v in value.items()}
-    return InterfaceFlux(**fields)
-
-
-def _point(value: Any, what: str, where: str) -> tuple[float, float, float]:
-    if not (isinstance(value, list) and len(value) == 3 and all(isinstance(v, (int, float)) and not isinstance(v, bool)
-                                                                 and math.isfinite(v) for v in value)):
-        raise SceneError(f"{where}: {what}={value!r} is not valid; allowed: [x, y, z] in m")
-    return (float(value[0]), float(value[1]), float(value[2]))
-
-
-def _held(items: Any, where: str) -> tuple[Any, ...]:
-    if not isinstance(items, list) or not all(isinstance(i, dict) for i in items):
-        raise SceneError(f"{where}: held={items!r} is not valid; allowed: {SCENE_TABLE_KEYS['held']}")
-    out = []
-    for k, item in enumerate(items):
-        at = f"{where} held[{k}]"
-        kinds = [key for key in ("face", "point", "patch") if key in item]
-        unknown = sorted(set(item) - {"face", "point", "patch", "radius", "temperature"})
-        if unknown or len(kinds) != 1 or "temperature" not in item:
-            raise SceneError(f"{at}: {item!r} is not valid; allowed: exactly one of face, point, patch (+ radius), "
-                             "and temperature (K)")
-        value = item["temperature"]
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-            raise SceneError(f"{at}: temperature={value!r} is not valid; allowed: a number (K)")
-        if kinds == ["face"]:
-            out.append(FaceTemperature(item["face"], float(value)))
-        elif kinds == ["point"]:
-            out.append(PointTemperature(_point(item["point"], "point", at), float(value)))
-        else:
-            out.append(PatchTemperature(_point(item["patch"], "patch", at), item.get("radius", math.nan), float(value)))
-    return tuple(out)
+def _held(item: dict[str, Any]) -> Any:
+    if "face" in item:
+        return FaceTemperature(item["face"], float(item["temperature"]))
+    if "point" in item:
+        return PointTemperature(tuple(map(float, item["point"])), float(item["temperature"]))
+    return PatchTemperature(tuple(map(float, item["patch"])), item.get("radius", math.nan), float(item["temperature"]))
 
 
 def spec_from_table(table: dict[str, Any], where: str) -> SceneSpec:
     """A SceneSpec from a study file's [[scene]] table (one line per error, naming the field).
 
     The scene's only parameters are its box dimensions (width, height, length; the table's values are
-    the defaults), so that groups can vary them; everything else is fixed by the table."""
-    unknown = sorted(set(table) - set(SCENE_TABLE_KEYS))
-    if unknown:
-        raise SceneError(f"{where}: {unknown[0]} is not a scene field; allowed: {', '.join(SCENE_TABLE_KEYS)}")
-    name = table.get("name")
-    if not isinstance(name, str) or not name.strip() or len(name) > 80:
-        raise SceneError(f"{where}: name={name!r} is not valid; allowed: text of 1 to 80 characters")
-    box_table = table.get("box", {})
-    if not isinstance(box_table, dict) or set(box_table) - {"width", "height", "length"}:
-        raise SceneError(f"{where}: box={box_table!r} is not valid; allowed: {SCENE_TABLE_KEYS['box']}")
+    the defaults), so that groups can vary them; everything else is fixed by the table (`schema.SCENE`)."""
+    check(table, SCENE, where)
+    name = table["name"]
     try:
-        box = Box(**{"width": BOX.width, "height": BOX.height, "length": BOX.length, **box_table})
-        material = _material(table.get("material", "aluminium"), where)
+        box = Box(**{"width": BOX.width, "height": BOX.height, "length": BOX.length, **table.get("box", {})})
+        material = table.get("material", "aluminium")
+        material = MATERIALS[material] if isinstance(material, str) else Material(**{"name": "custom",
+                                                                                     **_reals(material, ("name",))})
         heat = any(k in table for k in HEAT_KEYS)
         elastic = any(k in table for k in ELASTIC_KEYS)
-        constraints = list(_held(table.get("held", []), where))
-        for k, item in enumerate(table.get("supports", [])):
-            if not isinstance(item, dict) or set(item) - {"face", "displacement"} or "face" not in item:
-                raise SceneError(f"{where} supports[{k}]: {item!r} is not valid; allowed: {{ face, displacement }}")
-            constraints.append(FaceSupport(item["face"], float(item.get("displacement", 0.0))))
-        for face in table.get("clamps", []):
-            constraints.append(FaceClamp(face))
+        constraints = [_held(item) for item in table.get("held", [])]
+        constraints += [FaceSupport(item["face"], float(item.get("displacement", 0.0)))
+                        for item in table.get("supports", [])]
+        constraints += [FaceClamp(face) for face in table.get("clamps", [])]
         heat_fields = {k: table[k] for k in HEAT_KEYS if k in table and k != "held"}
         if "interface" in heat_fields:
-            heat_fields["interface"] = _interface(heat_fields["interface"], where)
+            heat_fields["interface"] = InterfaceFlux(**_reals(heat_fields["interface"], ("axis",)))
         conduction = Conduction(**heat_fields) if heat else None
         elasticity = Elasticity(modes=table.get("modes", 0)) if elastic else None
     except (TypeError, ValueError) as exc:

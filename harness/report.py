@@ -28,6 +28,7 @@ from pcverify.harness.provenance import command, provenance
 from pcverify.harness.reproduce import study_command, table_group, verdict_commands
 from pcverify.harness.tables import cells_table
 from pcverify.harness.vtu import write_vtu
+from pcverify.scene import is_real
 
 
 def _markdown(df: pd.DataFrame) -> str:
@@ -230,10 +231,6 @@ def _read_csv(path: Path) -> pd.DataFrame:
         return pd.DataFrame()
 
 
-def _is_number(x: Any) -> bool:
-    return isinstance(x, (int, float)) and not isinstance(x, bool) and np.isfinite(x)
-
-
 def benchmark_problem(doc: Any) -> str:
     """Why `doc` is not a pytest-benchmark save ("" if it is)."""
     if not isinstance(doc, dict):
@@ -243,7 +240,7 @@ def benchmark_problem(doc: Any) -> str:
         return "has no list of benchmarks"
     for b in marks:
         stats = b.get("stats") if isinstance(b, dict) else None
-        if not (isinstance(stats, dict) and _is_number(stats.get("mean")) and _is_number(stats.get("min"))
+        if not (isinstance(stats, dict) and is_real(stats.get("mean")) and is_real(stats.get("min"))
                 and isinstance(b.get("name"), str)):
             return "has a benchmark without a name and finite mean and min times"
     return ""

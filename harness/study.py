@@ -21,13 +21,8 @@ from pcverify.harness.analyses import ANALYSES
 from pcverify.harness.calibspec import Calibration, parse_calibrations
 from pcverify.harness.catalogue import make_scene, register_scene, spec_from_table
 from pcverify.harness.plugins import load_plugins
-from pcverify.harness.studyfile import (
-    check_study_document,
-    read_study_document,
-    safe_name,
-    solver_params_of,
-    values_of,
-)
+from pcverify.harness.schema import NAME, SCENE, as_list, check_value, row_where
+from pcverify.harness.studyfile import check_groups, check_study_document, read_study_document, solver_params_of
 from pcverify.harness.tasks import SOLVE, CellTask
 from pcverify.harness.verdict import Claim, parse_claims
 from pcverify.scene import Scene, SceneError
@@ -107,13 +102,15 @@ def load_study(name_or_path: str, allow_large: bool = False) -> Study:
     if count > MAX_CELLS and not allow_large:
         raise SceneError(f"study file {path.name} has {count} cells; allowed: at most {MAX_CELLS} without "
                          "--allow-large")
-    plugins = tuple(values_of(doc.get("plugins", []), "plugins", f"study file {path.name}", allow_empty=True))
-    load_plugins(plugins)
-    for k, table in enumerate(doc.get("scene", [])):
-        register_scene(spec_from_table(table, f"{path.name} scene {k + 1}"), f"study file {path}")
     check_study_document(doc, path)  # one-line errors for bad fields, before any cell is built
-    groups = [_group(g, f"{path.name} group {gi + 1}", gi, plugins) for gi, g in enumerate(doc.get("group", []))]
-    claims = parse_claims(doc.get("claim", []), path.name)
+    plugins = tuple(as_list(doc.get("plugins", [])))
+    load_plugins(plugins)
+    for number, table in enumerate(doc.get("scene", []), 1):
+        register_scene(spec_from_table(table, row_where(f"study file {path.name}", "scene", number, table, SCENE)),
+                       f"study file {path}")
+    check_groups(doc, path)
+    groups = [_group(g, gi, plugins) for gi, g in enumerate(doc.get("group", []))]
+    claims = parse_claims(doc.get("claim", []), f"study file {path.name}")
     calibrations = parse_calibrations(doc["calibration"], f"study file {path.name}") if "calibration" in doc else []
     require_solvers(sorted({c.solver for g in groups for c in g.cells} | {c.solver for c in calibrations}),
                     f"study file {path.name}")
@@ -126,8 +123,8 @@ def study_name(doc: dict[str, Any], path: Path) -> str:
     names the study's report folder, so it must be a safe folder name (SceneError naming the allowed length
     and characters otherwise)."""
     if "name" in doc:
-        return safe_name(doc["name"], "name", f"study file {path.name}")
-    return safe_name(path.stem, "name", f"study file {path.name}, which sets no name (so its name is its file name)")
+        return check_value(doc["name"], NAME, f"study file {path.name}")
+    return check_value(path.stem, NAME, f"study file {path.name}, which sets no name (so its name is its file name)")
 
 
 def declared_name(path: Path) -> str:
@@ -167,7 +164,7 @@ def cell_count(doc: dict[str, Any], path: Path) -> int:
     return total
 
 
-def _group(g: dict[str, Any], where: str, gi: int, plugins: tuple[str, ...]) -> Group:
+def _group(g: dict[str, Any], gi: int, plugins: tuple[str, ...]) -> Group:
     gid = g.get("id", f"group{gi + 1}")
     analysis = ANALYSES[g.get("analysis", "table")]
     options = {k: v for k, v in g.items() if k not in ("id", "title", "scene", "scene_params", "solvers", "n",
@@ -177,11 +174,10 @@ def _group(g: dict[str, Any], where: str, gi: int, plugins: tuple[str, ...]) -> 
     scene = make_scene(g["scene"], **scene_params)
     sweep = g.get("sweep", {})
     keys = sorted(sweep)
-    combos = list(itertools.product(*[values_of(sweep[k], f"sweep.{k}", where) for k in keys])) or [()]
+    combos = list(itertools.product(*[as_list(sweep[k]) for k in keys])) or [()]
     cells = []
     for solver, n, refine, combo in itertools.product(
-        values_of(g.get("solvers"), "solvers", where), values_of(g.get("n", [4]), "n", where),
-        values_of(g.get("refine", [1]), "refine", where), combos,
+        as_list(g["solvers"]), as_list(g.get("n", [4])), as_list(g.get("refine", [1])), combos,
     ):
         params = solver_params_of(g.get("solver_params", {}), solver) | dict(zip(keys, combo, strict=True))
         cells.append(Cell(gid, scene, tuple(sorted(scene_params.items())), solver, int(n), int(refine),

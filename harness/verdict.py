@@ -36,13 +36,12 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from pcverify.scene import SceneError, shown
+from pcverify.harness.schema import AGGREGATES as AGGREGATE_NAMES
+from pcverify.harness.schema import CLAIM, STUDY, check_value, row_where
+from pcverify.scene import SceneError
 
-REFERENCE_KINDS = ("analytic", "extrapolated", "mesh-dependent", "same-grid", "theory", "paper")
-SENSES = ("within", "at-most", "at-least")
 STATES = ("fail", "inconclusive", "not-applicable", "pass")  # worst first
-AGGREGATES = {"max": np.max, "min": np.min, "median": np.median, "mean": np.mean}
-CELL_STATUSES = ("ok", "unstable", "skipped", "non-stationary", "defect", "failed", "missing")
+AGGREGATES = dict(zip(AGGREGATE_NAMES, (np.max, np.min, np.median, np.mean), strict=True))
 CHAOTIC = ("defect",)  # statuses of runs whose digits are a property of the arithmetic, not of the model
 SPREAD = "spread"  # uncertainty = the standard error of the mean over a case's replica rows
 MIN_REPLICAS = 3
@@ -75,70 +74,16 @@ class Claim:
     allow_skipped: bool = False  # a case whose cells were all skipped is not-applicable instead of fail
 
 
-FIELD_TYPES = {"id": "text", "text": "text", "table": "text", "metric": "text", "reference": "text", "per": "text",
-               "against_table": "text", "against_metric": "text", "aggregate": "text", "sense": "text",
-               "tolerance": "number", "target": "number", "absolute": "true/false", "select": "a table",
-               "against": "a table", "uncertainty": "a number or a column name", "statuses": "a list of statuses",
-               "allow_skipped": "true/false"}
-
-
-def _type_ok(kind: str, value: Any) -> bool:
-    number = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
-    if kind == "text":
-        return isinstance(value, str)
-    if kind == "number":
-        return number
-    if kind == "true/false":
-        return isinstance(value, bool)
-    if kind == "a table":
-        return isinstance(value, dict) and all(
-            isinstance(v, (str, int, float, bool)) or (isinstance(v, list) and all(
-                isinstance(x, (str, int, float, bool)) for x in v)) for v in value.values())
-    if kind == "a list of statuses":
-        return isinstance(value, list) and bool(value) and all(v in CELL_STATUSES for v in value)
-    return number or isinstance(value, str)
-
-
 def parse_claims(items: list[dict[str, Any]], where: str) -> list[Claim]:
-    """Validate the `[[claim]]` tables of a study file before anything runs; a bad one raises SceneError
-    naming the field, its type and the allowed values."""
-    claims = []
-    known = {f for f in Claim.__dataclass_fields__}
-    ids: set[str] = set()
-    for k, item in enumerate(items):
-        at = f"{where} claim {k + 1}"
-        if not isinstance(item, dict):
-            raise SceneError(f"{at}: {shown(item)} is not valid; allowed: a [[claim]] table")
-        unknown = sorted(set(item) - known)
-        if unknown:
-            raise SceneError(f"{at}: {unknown[0]} is not a claim field; allowed: {', '.join(sorted(known))}")
-        for name in ("id", "text", "table", "metric", "reference", "tolerance"):
-            if name not in item:
-                raise SceneError(f"{at}: {name} is missing")
-        for name, value in item.items():
-            if not _type_ok(FIELD_TYPES[name], value):
-                allowed = FIELD_TYPES[name] + (f" ({', '.join(CELL_STATUSES)})" if name == "statuses" else "")
-                raise SceneError(f"{at}: {name}={shown(value)} is not valid; allowed: {allowed}")
-        if item["id"] in ids:
-            raise SceneError(f"{at}: id={item['id']!r} is used by another claim; allowed: one id per claim")
-        ids.add(item["id"])
-        if item["reference"] not in REFERENCE_KINDS:
-            raise SceneError(f"{at}: reference={item['reference']!r} is not allowed; allowed: "
-                             f"{', '.join(REFERENCE_KINDS)}")
-        if item.get("sense", "within") not in SENSES:
-            raise SceneError(f"{at}: sense={item['sense']!r} is not allowed; allowed: {', '.join(SENSES)}")
-        if item.get("aggregate", "max") not in AGGREGATES:
-            raise SceneError(f"{at}: aggregate={item['aggregate']!r} is not allowed; allowed: {', '.join(AGGREGATES)}")
-        tol = item["tolerance"]
-        if isinstance(tol, bool) or not isinstance(tol, (int, float)) or not math.isfinite(tol) or tol < 0:
-            raise SceneError(f"{at}: tolerance={tol!r} is out of range; allowed: number in [0, inf)")
+    """The `[[claim]]` tables of a study file as claims, checked against `schema.CLAIM` before anything runs
+    (SceneError, one line, naming the claim, the field and the allowed values)."""
+    check_value(items, STUDY.field("claim"), where)
+    for number, item in enumerate(items, 1):
         if item.get("uncertainty") == SPREAD and item.get("aggregate", "max") != "mean":
+            at = row_where(where, "claim", number, item, CLAIM)
             raise SceneError(f"{at}: uncertainty=\"spread\" is the standard error of a mean; allowed: it with "
                              "aggregate = \"mean\"")
-        if "statuses" in item:
-            item = item | {"statuses": tuple(item["statuses"])}
-        claims.append(Claim(**item))
-    return claims
+    return [Claim(**item | ({"statuses": tuple(item["statuses"])} if "statuses" in item else {})) for item in items]
 
 
 def _rows(df: pd.DataFrame, select: dict[str, Any]) -> pd.DataFrame:

@@ -165,7 +165,8 @@ def test_another_metric_of_a_calibration_run_is_allowed_and_flagged(tmp_path):
     (("budget = 40", "budget = 0"), "budget=0"),
     (('metric = "q"\nerror = "absolute"\nreference = {', 'metric = "nodes.l2"\nerror = "absolute"\nreference = {'),
      "field error against the analytic solution"),
-    (("seed = 0", "seeed = 0"), "seeed is not a field of a [[calibration]]"),
+    (("seed = 0", "seeed = 0"),
+     "calibration[1] (quad): seeed is not a field of [[calibration]]; allowed: id, title, solver,"),
 ])
 def test_bad_calibration_tables_are_one_line_errors(tmp_path, change, words):
     path = _study(tmp_path)

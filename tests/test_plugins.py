@@ -339,7 +339,8 @@ def test_unknown_group_keys_are_rejected_with_the_allowed_ones(tmp_path, line, k
     path.write_text(f'name = "bad"\n[[group]]\nscene = "bar-heat-faces"\nsolvers = ["skfem"]\n{line}\n')
     out = _pcverify(sys.executable, "study", str(path), "--dry-run", cwd=tmp_path, check=False)
     assert out.returncode == 2
-    assert f"{key} is not a field of a table group; allowed: id, title, scene, scene_params" in out.stderr
+    assert f"{key} is not a field of [[group]] with analysis='table'; allowed: id, title, scene, scene_params" \
+        in out.stderr
 
 
 def test_an_order_fitted_on_errors_that_do_not_decrease_is_flagged_pre_asymptotic() -> None:

@@ -265,7 +265,7 @@ def test_a_replica_that_names_a_free_parameter_is_refused_at_load(tmp_path, caps
     path = _calibration(tmp_path, replicas="replicas = { x = [0.9] }")
     assert main(["study", str(path), "--dry-run"]) == 2
     line = _error_line(capsys)
-    assert "calibration 'quad': replicas.x names a free parameter" in line and "allowed: a fixed parameter" in line
+    assert "calibration[1] (quad): replicas.x names a free parameter" in line and "allowed: a fixed parameter" in line
     tally("calibration", "rejected")
 
 

@@ -176,8 +176,10 @@ def test_scene_table_with_source_and_interface():
         spec_from_table(table, "test").make(length=0.015)
 
 
-@pytest.mark.parametrize("interface, word", [({"flux": 1.0}, "interface="), ({"flux": 1.0, "position": 0.01, "at": 1},
-                                                                             "interface="),
+@pytest.mark.parametrize("interface, word", [({"flux": 1.0}, "interface.position is missing; allowed: number"),
+                                             ({"flux": 1.0, "position": 0.01, "at": 1},
+                                              "interface.at is not a field of interface; allowed: flux, position, "
+                                              "axis"),
                                              ({"flux": "hot", "position": 0.01}, "flux"),
                                              ({"flux": 1.0, "position": 0.5}, "position")])
 def test_bad_scene_table_interface(interface, word):

@@ -132,7 +132,7 @@ def test_stability_study_and_report(tmp_path) -> None:
 def test_unknown_probe_kind_is_a_study_error(tmp_path) -> None:
     path = tmp_path / "bad.toml"
     path.write_text(STUDY.replace('probe = "map"', 'probe = "sweep"'))
-    with pytest.raises(SceneError, match=r"probe='sweep' is unknown; allowed: one of limit, map"):
+    with pytest.raises(SceneError, match=r"probe='sweep' is not valid; allowed: one of limit, map"):
         load_study(str(path))
     assert PROBE.theory.startswith("velocity Verlet")
 

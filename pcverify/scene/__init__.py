@@ -22,7 +22,7 @@ from .geometry import EXTENT_RANGE, Box, Resolution
 from .loads import InterfaceFlux
 from .material import ALUMINIUM, DURALUMIN, MATERIALS, RESPONSES, Material, Response
 from .model import MODES, PHYSICS, Conduction, Elasticity, Scene
-from .params import Param, SceneError, resolve_params, shown
+from .params import Param, SceneError, is_real, resolve_params, shown
 from .spec import SceneSpec
 
 __all__ = [
@@ -30,5 +30,5 @@ __all__ = [
     "Conduction", "Constraint", "Contact", "Elasticity", "FaceClamp", "FaceSupport", "FaceTemperature",
     "InterfaceFlux", "Material", "Param",
     "PatchTemperature", "PointTemperature", "Resolution", "Response", "Scene", "SceneError", "SceneSpec", "Support",
-    "TemperatureConstraint", "point_patch_note", "resolve_params", "shown",
+    "TemperatureConstraint", "is_real", "point_patch_note", "resolve_params", "shown",
 ]

@@ -5,11 +5,10 @@ Faces are named x0, xW, y0, yH, z0, zL (the box's six faces, PHYSICS.md §1).
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Any
 
-from .params import SceneError, shown
+from .params import SceneError, is_real, shown
 
 Vec3 = tuple[float, float, float]
 FACES = ("x0", "xW", "y0", "yH", "z0", "zL")
@@ -37,7 +36,7 @@ class PatchTemperature:
     value: float
 
     def __post_init__(self) -> None:
-        if not (isinstance(self.radius, (int, float)) and math.isfinite(self.radius) and self.radius > 0):
+        if not (is_real(self.radius) and self.radius > 0):
             raise SceneError(f"rho={shown(self.radius)} is out of range; allowed: number in (0, inf) m")
 
 

@@ -11,18 +11,17 @@ far face by the drive, or by supports when the contact is only compressed.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from .params import SceneError, shown
+from .params import SceneError, is_real, shown
 
 AXES = ("x", "y", "z")
 
 
 def _number(name: str, v: object, low: float, high: float, unit: str, low_open: bool = False) -> None:
-    ok = isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+    ok = is_real(v)
     ok = ok and (v > low if low_open else v >= low) and v <= high
     if not ok:
         raise SceneError(f"{name}={shown(v)} is out of range; allowed: number in {'(' if low_open else '['}{low:g}, "
@@ -63,7 +62,7 @@ class Contact:
                              "sliding; allowed: both > 0 when speed > 0")
         if self.span is not None:
             ok = isinstance(self.span, tuple) and len(self.span) == 2 and all(
-                isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in self.span)
+                is_real(v) for v in self.span)
             if not ok or not 0 <= self.span[0] < self.span[1]:
                 raise SceneError(f"span={shown(self.span)} is not valid; allowed: (low, high) with 0 <= low < high m")
         for name in ("heating", "platen"):

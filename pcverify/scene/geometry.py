@@ -9,12 +9,11 @@ nodes and uses h = a / refine, so the same resolution means the same h and node 
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from .params import SceneError, shown
+from .params import SceneError, is_real, shown
 
 WHOLE = 1e-9  # relative tolerance of "a whole number of spacings"
 # The box's dimensions, m.  Below a micrometre the continuum models stop describing the body (phonon mean free
@@ -37,7 +36,7 @@ class Box:
         for name in ("width", "height", "length"):
             v = getattr(self, name)
             low, high = EXTENT_RANGE
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and low <= v <= high):
+            if not (is_real(v) and low <= v <= high):
                 raise SceneError(f"{name}={shown(v)} is out of range; allowed: number in [{low:g}, {high:g}] m")
 
     @property

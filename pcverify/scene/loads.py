@@ -6,10 +6,9 @@ is a small value of its own.)
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
-from .params import SceneError, shown
+from .params import SceneError, is_real, shown
 
 AXES = ("x", "y", "z")
 
@@ -34,7 +33,7 @@ class InterfaceFlux:
     def __post_init__(self) -> None:
         for name, unit in (("flux", "W/m^2"), ("position", "m")):
             v = getattr(self, name)
-            ok = isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and abs(v) <= 1e15
+            ok = is_real(v) and abs(v) <= 1e15
             if not ok:
                 raise SceneError(f"interface {name}={shown(v)} is out of range; allowed: number in [-1e15, 1e15] "
                                  f"{unit}")

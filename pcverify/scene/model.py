@@ -12,7 +12,6 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
-import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -23,7 +22,7 @@ from .contact import Contact
 from .geometry import Box
 from .loads import InterfaceFlux
 from .material import Material, Response
-from .params import SceneError, shown
+from .params import SceneError, is_real, shown
 
 PHYSICS = {
     "conduction": "heat conduction (a Conduction part)",
@@ -39,7 +38,7 @@ MODES = ("steady", "transient")
 
 
 def _finite(name: str, v: Any, low: float, high: float, unit: str, low_open: bool = False) -> None:
-    ok = isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+    ok = is_real(v)
     ok = ok and (v > low if low_open else v >= low) and v <= high
     if not ok:
         span = f"{'(' if low_open else '['}{low:g}, {high:g}] {unit}".rstrip()
@@ -70,7 +69,7 @@ class Conduction:
         _finite("source", self.source, -1e15, 1e15, "W/m^3")
         if self.mode == "transient":
             _finite("t_end", self.t_end, 0.0, 1e6, "s", low_open=True)
-            if not (isinstance(self.dt, (int, float)) and math.isfinite(self.dt) and 0 < self.dt <= self.t_end):
+            if not (is_real(self.dt) and 0 < self.dt <= self.t_end):
                 raise SceneError(f"dt={shown(self.dt)} is out of range; allowed: number in (0, t_end={self.t_end:g}] s")
 
 

@@ -18,6 +18,16 @@ class SceneError(ValueError):
     """A scene or solver parameter outside its allowed range (message names it)."""
 
 
+def is_real(value: Any) -> bool:
+    """A finite real number, not a bool (True is an int in Python, and TOML and JSON read NaN and inf)."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
+        return False
+    try:
+        return math.isfinite(value)
+    except OverflowError:  # an int beyond the float range
+        return False
+
+
 @dataclass(frozen=True)
 class Param:
     """Specification of one named parameter: default, unit, allowed range or choices."""
@@ -86,14 +96,9 @@ class Param:
             if not isinstance(value, str):
                 raise bad
             return value
-        if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
+        if not is_real(value):
             raise bad
-        try:
-            number = float(value)
-        except OverflowError:  # an int beyond the float range
-            raise bad from None
-        if not math.isfinite(number):
-            raise bad
+        number = float(value)
         if self.kind is int:
             if isinstance(value, (float, np.floating)) and not number.is_integer():
                 raise bad

@@ -1,0 +1,350 @@
+"""The study file's schema: every table and key of a study file declared once, and the one walk that checks
+a document against a declaration.
+
+A `Field` declares one key (its kind, range or choices, whether it is required, its default and
+description); a `Table` declares the keys of one kind of table.  `STUDY` is the top level, and its lists of
+tables are `TABLES` ([[scene]], [[group]], [[claim]], [[calibration]] with their nested tables): a new kind
+of table is one `Table` added there.  `check` walks a value against a declaration and raises, at the first
+problem, one SceneError line in one dialect that names where (the file, the table, its number from 1 and
+its id or name), the field, the value and what is allowed:
+
+    study file s.toml: group[2] (g): n=1 is not valid; allowed: integer in [2, 1000]
+
+Registries above this module (the analyses with their group options, the group figures) are passed to
+`check` by name.  Checks that need other objects (a solver's parameters, a scene name, a calibration's
+overlap guard) run after the walk, in the modules that own those objects.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+from pcverify.scene import EXTENT_RANGE, FACES, MATERIALS, MODES, Param, SceneError, is_real, shown
+
+Registries = Mapping[str, Mapping[str, Any]]
+
+
+@dataclass(frozen=True)
+class Field:
+    """One key of a table.  kind: int, real (finite, not a bool), bool, text (a `pattern` to match whole),
+    scalar (text, number or true/false), table ({ key = value }, each
+    value a `values` field if given), record (a nested `table`), tables (a list of `table` rows) or any
+    (the first of `alternatives` whose type fits).  shape: "" (one value), "list", or "value or list" (a
+    string is one value).  `registry`: the choices are the names of that registry, given to `check`.  `hint`
+    says what is allowed where the kind does not (a pattern's meaning, the name of what)."""
+
+    name: str
+    kind: str
+    description: str = ""
+    hint: str = ""
+    low: float | None = None
+    high: float | None = None
+    low_open: bool = False
+    choices: tuple[Any, ...] = ()
+    registry: str = ""
+    pattern: str = ""
+    required: bool = False
+    default: Any = None
+    shape: str = ""
+    min_items: int = 1
+    max_items: int | None = None
+    values: Field | None = None
+    table: Table | None = None
+    alternatives: tuple[Field, ...] = ()
+    unique: bool = False  # one value per row of the list of tables it is in (with the table's default_key)
+
+    def allowed(self, registries: Registries) -> str:
+        """What a valid value is, in words (the end of every error line about this field)."""
+        if self.alternatives:
+            return " or ".join(a.allowed(registries) for a in self.alternatives)
+        choices = tuple(registries[self.registry]) if self.registry else self.choices
+        if self.kind == "tables":
+            rows = f"{self.table.title} tables" if self.table.title.startswith("[[") else \
+                f"tables {{ {', '.join(f.name for f in self.table.fields)} }}"
+            return f"{'one or more' if self.min_items else 'a list of'} {rows}"
+        if self.kind == "record":
+            return f"a table {{ {', '.join(f.name for f in self.table.fields)} }}"
+        if self.kind == "table":
+            return "a table { key = value, ... }" + (f" of {self.values.allowed(registries)}" if self.values else "")
+        if choices:
+            one = "one of " + ", ".join(map(str, choices))
+        elif self.kind in ("int", "real"):
+            if self.low is None and self.high is None:
+                one = "integer" if self.kind == "int" else "number"
+            elif self.kind == "int":  # whole numbers, never in float notation (2147483647, not 2.14748e+09)
+                one = f"integer in [{self.low if self.low is not None else '-inf'}, " \
+                      f"{self.high if self.high is not None else 'inf'}]"
+            else:
+                one = Param(self.name, None, low=self.low, high=self.high, low_open=self.low_open).allowed()
+        else:
+            one = self.hint or {"bool": "true/false", "scalar": "a value"}.get(self.kind, self.kind)
+        if self.shape == "list" and self.min_items == self.max_items:
+            return f"a list of {self.min_items} values, each {one}"
+        if self.shape == "list":
+            return f"a {'non-empty ' if self.min_items else ''}list of {one}"
+        return f"{one}, or a {'non-empty ' if self.min_items else ''}list of them" if self.shape else one
+
+    def fits(self, value: Any, registries: Registries) -> bool:
+        """Whether one value (an item of a list shape) is of this field's kind, in its range and choices."""
+        ok = TYPES[self.kind](value) and (self.kind != "text" or re.fullmatch(self.pattern or "(?s).*", value))
+        if ok and self.kind in ("int", "real"):
+            ok = (self.low is None or value > self.low or (value == self.low and not self.low_open)) and (
+                self.high is None or value <= self.high)
+        choices = registries[self.registry] if self.registry else self.choices
+        return bool(ok) and (not choices or value in choices)
+
+    def type_fits(self, value: Any) -> bool:
+        """Whether the value has this field's type at all (how `alternatives` pick the one that applies)."""
+        if self.shape:
+            return isinstance(value, list) or (self.shape == "value or list" and not isinstance(value, dict))
+        return TYPES[self.kind](value)
+
+
+TYPES = {"int": lambda v: isinstance(v, int) and not isinstance(v, bool), "real": is_real,
+         "bool": lambda v: isinstance(v, bool), "text": lambda v: isinstance(v, str),
+         "scalar": lambda v: isinstance(v, (str, int, float, bool)), "table": lambda v: isinstance(v, dict),
+         "record": lambda v: isinstance(v, dict), "tables": lambda v: isinstance(v, list)}
+
+
+@dataclass(frozen=True)
+class Table:
+    """The keys of one kind of table.  `key` names a row in messages (id or name; `default_key` formatted with
+    the row's number when it has none); `variant` is a field whose registry maps each value to more fields
+    (a group's analysis and its options); `one_of` are keys of which exactly one must be given."""
+
+    title: str
+    fields: tuple[Field, ...]
+    key: str = ""
+    default_key: str = ""
+    variant: str = ""
+    one_of: tuple[str, ...] = ()
+
+    def field(self, name: str) -> Field:
+        return next(f for f in self.fields if f.name == name)
+
+
+def check(value: Any, table: Table, where: str, registries: Registries | None = None) -> None:
+    """Check `value` (a parsed TOML table) against `table`: SceneError, one line, at the first problem."""
+    if not isinstance(value, dict):
+        keys = ", ".join(f.name for f in table.fields)
+        raise SceneError(f"{where}: {shown(value)} is not valid; allowed: a table {{ {keys} }}")
+    _record(value, table, where, "", registries or {})
+
+
+def check_value(value: Any, field: Field, where: str, registries: Registries | None = None) -> Any:
+    """Check one value against one field (e.g. a name taken from a file name); the value back."""
+    _value(value, field, where, field.name, registries or {})
+    return value
+
+
+def row_where(where: str, name: str, number: int, item: Any, table: Table) -> str:
+    """Where a row of a list of tables is, as messages name it: `where: name[number] (id)`."""
+    label = item.get(table.key) if table.key and isinstance(item, dict) else None
+    if isinstance(label, str):
+        shown_label = label if label.isprintable() and len(label) <= 60 else shown(label)
+        return f"{where}: {name}[{number}] ({shown_label})"
+    return f"{where}: {name}[{number}]"
+
+
+def _invalid(where: str, path: str, value: Any, allowed: str) -> SceneError:
+    return SceneError(f"{where}: {path}={shown(value)} is not valid; allowed: {allowed}")
+
+
+def _record(item: Any, table: Table, where: str, prefix: str, reg: Registries) -> None:
+    fields = {f.name: f for f in table.fields}
+    what = table.title
+    if table.variant:
+        chosen = fields[table.variant]
+        value = item.get(table.variant, chosen.default)
+        _value(value, chosen, where, prefix + chosen.name, reg)
+        fields |= {f.name: f for f in reg[chosen.registry][value]}
+        what = f"{what} with {table.variant}={shown(value)}"
+    unknown = sorted(set(item) - set(fields), key=str)
+    if unknown:
+        raise SceneError(f"{where}: {prefix}{unknown[0]} is not a field of {what}; allowed: {', '.join(fields)}")
+    for f in fields.values():
+        if f.name in item:
+            _value(item[f.name], f, where, prefix + f.name, reg)
+        elif f.required:
+            raise SceneError(f"{where}: {prefix}{f.name} is missing; allowed: {f.allowed(reg)}")
+    given = [k for k in table.one_of if k in item]
+    if table.one_of and len(given) != 1:
+        keys = ", ".join(prefix + k for k in table.one_of)
+        raise SceneError(f"{where}: {' and '.join(prefix + k for k in given) or 'none of ' + keys} "
+                         f"{'is' if len(given) < 2 else 'are'} given; allowed: exactly one of {keys}")
+
+
+def _value(value: Any, f: Field, where: str, path: str, reg: Registries) -> None:
+    if f.alternatives:
+        fitting = next((a for a in f.alternatives if a.type_fits(value)), None)
+        if fitting is None:
+            raise _invalid(where, path, value, f.allowed(reg))
+        _value(value, fitting, where, path, reg)
+    elif f.kind == "tables":
+        _rows(value, f, where, path, reg)
+    elif f.kind in ("record", "table"):
+        if not isinstance(value, dict):
+            raise _invalid(where, path, value, f.allowed(reg))
+        if f.kind == "record":
+            _record(value, f.table, where, f"{path}.", reg)
+        for key, item in value.items() if f.values else ():
+            _value(item, f.values, where, f"{path}.{key}", reg)
+    elif f.shape:
+        items = value if isinstance(value, list) else [value] if f.shape == "value or list" else None
+        if items is None or not f.min_items <= len(items) <= (f.max_items or len(items)):
+            raise _invalid(where, path, value, f.allowed(reg))
+        for item in items:
+            if not f.fits(item, reg):
+                raise _invalid(where, path, item, f.allowed(reg))
+    elif not f.fits(value, reg):
+        raise _invalid(where, path, value, f.allowed(reg))
+
+
+def _rows(value: Any, f: Field, where: str, path: str, reg: Registries) -> None:
+    table = f.table
+    if not isinstance(value, list) or not all(isinstance(t, dict) for t in value) or len(value) < f.min_items:
+        raise _invalid(where, path, value, f.allowed(reg))
+    seen: dict[str, dict[Any, int]] = {u.name: {} for u in table.fields if u.unique}
+    for number, item in enumerate(value, 1):
+        at = row_where(where, path, number, item, table)
+        _record(item, table, at, "", reg)
+        for name, numbers in seen.items():
+            key = item.get(name, table.default_key.format(number) if name == table.key else None)
+            if key is None:
+                continue
+            if key in numbers:
+                article = "an" if name[0] in "aeiou" else "a"
+                raise SceneError(f"{at}: {name}={shown(key)} is not valid; allowed: {article} {name} no other {path} "
+                                 f"has ({path}[{numbers[key]}] has it)")
+            numbers[key] = number
+
+
+# -- the study file ----------------------------------------------------------------------------------------
+
+SAFE_NAME = r"[A-Za-z0-9][A-Za-z0-9._-]{0,79}"  # a file or folder name: no dot first, no separator
+NAME = Field("name", "text", "names the study's report folder",
+             hint="1 to 80 letters, digits, '.', '_' or '-', starting with a letter or digit", pattern=SAFE_NAME)
+ID = Field("id", "text", "names the files of its tables and figures", hint=NAME.hint, pattern=SAFE_NAME, unique=True)
+TITLE = Field("title", "text")
+TEXT_TABLE = Field("", "scalar", shape="value or list", min_items=0)  # a value of select = { column = values }
+PARAMS = "{ name = value, ... }"
+SCENE_NAME = "a scene name (see `pcverify scenes`)"
+
+REFERENCE_KINDS = ("analytic", "extrapolated", "mesh-dependent", "same-grid", "theory", "paper")
+SENSES = ("within", "at-most", "at-least")
+AGGREGATES = ("max", "min", "median", "mean")
+CELL_STATUSES = ("ok", "unstable", "skipped", "non-stationary", "defect", "failed", "missing")
+DESIGNS = ("sobol", "lhs")
+ERRORS = ("relative", "absolute")
+
+
+def _point(name: str) -> Field:
+    return Field(name, "real", shape="list", min_items=3, max_items=3)
+
+
+HELD = Table("held", (Field("face", "text", choices=FACES), _point("point"), _point("patch"), Field("radius", "real"),
+                      Field("temperature", "real", "held temperature (K)", required=True)),
+             one_of=("face", "point", "patch"))
+SUPPORT = Table("supports", (Field("face", "text", choices=FACES, required=True), Field("displacement", "real")))
+MATERIAL = Table("material", (Field("name", "text"), Field("density", "real", "kg/m^3", required=True),
+                              *(Field(k, "real") for k in ("conductivity", "heat_capacity", "youngs_modulus",
+                                                           "poisson_ratio"))))
+SCENE = Table("[[scene]]", (
+    Field("name", "text", "the name groups use", hint="text of 1 to 80 characters", pattern=r"(?s)(?=.*\S).{1,80}",
+          required=True),
+    Field("description", "text", "one line of text"),
+    Field("box", "record", "dimensions in m (default the paper's bar)", table=Table("box", tuple(
+        Field(k, "real", low=EXTENT_RANGE[0], high=EXTENT_RANGE[1]) for k in ("width", "height", "length")))),
+    Field("material", "any", alternatives=(Field("material", "text", choices=tuple(MATERIALS)),
+                                           Field("material", "record", table=MATERIAL))),
+    Field("t_max", "real", "temperature scale of the reported T / t_max (K)"),
+    Field("mode", "text", choices=MODES), Field("t_end", "real", "end time of a transient (s)"),
+    Field("dt", "real", "continuum time step of a transient (s)"),
+    Field("initial_temperature", "real", "temperature at t = 0 (K)"),
+    Field("source", "real", "uniform volumetric heat source (W/m^3)"),
+    Field("interface", "record", "a planar heat source on an internal plane", table=Table("interface", (
+        Field("flux", "real", "W/m^2", required=True), Field("position", "real", "m", required=True),
+        Field("axis", "text")))),
+    Field("held", "tables", "held temperatures", table=HELD, min_items=0),
+    Field("supports", "tables", "frictionless supports", table=SUPPORT, min_items=0),
+    Field("clamps", "text", choices=FACES, shape="list", min_items=0),
+    Field("modes", "int", "number of eigenfrequencies asked for"),
+), key="name")
+
+GROUP = Table("[[group]]", (
+    ID, TITLE, Field("scene", "text", "the scene of every cell", hint=SCENE_NAME, required=True),
+    Field("scene_params", "table", PARAMS),
+    Field("solvers", "text", "the solvers run", hint="a solver name or module:Class", shape="value or list",
+          required=True),
+    Field("n", "int", "lattice resolutions", low=2, high=1000, shape="value or list", default=[4]),
+    Field("refine", "int", "grid refinements", low=1, high=1000, shape="value or list", default=[1]),
+    Field("solver_params", "table", "{ name = value } shared, or { solver = { ... } } per solver"),
+    Field("sweep", "table", "{ parameter = [values] } (the product is run)",
+          values=Field("", "scalar", shape="value or list")),
+    Field("analysis", "text", registry="analyses", default="table"),
+    Field("serial", "bool", "timed serially after a warm-up"), Field("vtu", "bool", "write VTU point clouds"),
+    Field("figures", "text", registry="figures", shape="value or list", min_items=0),
+), key="id", default_key="group{}", variant="analysis")
+
+CLAIM = Table("[[claim]]", (
+    *(Field(k, "text", required=True, unique=k == "id") for k in ("id", "text", "table", "metric")),
+    Field("reference", "text", choices=REFERENCE_KINDS, required=True),
+    Field("tolerance", "real", low=0.0, required=True), Field("target", "real"),
+    Field("select", "table", values=TEXT_TABLE), Field("aggregate", "text", choices=AGGREGATES),
+    Field("absolute", "bool"), Field("per", "text"), Field("against", "table", values=TEXT_TABLE),
+    Field("against_table", "text"), Field("against_metric", "text"),
+    Field("uncertainty", "any", alternatives=(Field("uncertainty", "real"), Field("uncertainty", "text",
+                                                                                   hint="a column name"))),
+    Field("sense", "text", choices=SENSES), Field("statuses", "text", choices=CELL_STATUSES, shape="list"),
+    Field("allow_skipped", "bool"),
+), key="id")
+
+REFERENCE = Table("reference", (
+    Field("solver", "text", "the reference solver", hint="a solver name", required=True),
+    Field("n", "int", low=2, high=1000),
+    Field("refine", "int", low=1, high=1000, shape="value or list"), Field("solver_params", "table", PARAMS)))
+CALIBRATION_CELL = Table("[[calibration.calibrate]] or [[calibration.validate]]", (
+    Field("scene", "text", "the scene of the cell", hint=SCENE_NAME, required=True),
+    Field("scene_params", "table", PARAMS),
+    Field("n", "int", low=2, high=1000, shape="value or list", default=4),
+    Field("refine", "int", low=1, high=1000, default=1),
+    Field("metric", "text", "what is compared", hint="a summary quantity or <samples>.l2 / .linf", pattern=r"(?s).+",
+          required=True),
+    Field("reference", "any", required=True, alternatives=(
+        Field("reference", "text", choices=("analytic",)), Field("reference", "record", table=REFERENCE))),
+    Field("error", "text", choices=ERRORS, default="relative"),
+))
+PARAMETER = Table("[[calibration.parameter]]", (
+    Field("name", "text", hint="a solver parameter", required=True, unique=True), Field("low", "real", required=True),
+    Field("high", "real", required=True), Field("log", "bool")), key="name")
+CALIBRATION = Table("[[calibration]]", (
+    ID, TITLE, Field("solver", "text", "the solver calibrated", hint="a solver name", required=True),
+    Field("solver_params", "table", PARAMS),
+    Field("parameter", "tables", required=True, table=PARAMETER),
+    Field("calibrate", "tables", required=True, table=CALIBRATION_CELL),
+    Field("validate", "tables", required=True, table=CALIBRATION_CELL),
+    Field("budget", "int", "solver runs of the search", low=1, high=100_000, default=32),
+    Field("design", "text", choices=DESIGNS, default="sobol"),
+    Field("design_points", "int", low=1, high=4096, default=16),
+    Field("starts", "int", low=0, high=64, default=1), Field("seed", "int", low=0, high=2**31 - 1, default=0),
+    Field("replicas", "table", "runs at the optimum that measure the objective's noise",
+          values=Field("", "scalar", shape="value or list")),
+    Field("noise_factor", "real", low=0.0, high=100.0, default=2.0),
+    Field("noise_floor", "real", low=0.0, default=0.0),
+    Field("sensitivity_step", "real", low=1e-6, high=0.5, default=0.1),
+    Field("tolerance", "real", low=0.0),
+), key="id", default_key="calibration{}")
+
+TABLES = {"scene": SCENE, "group": GROUP, "claim": CLAIM, "calibration": CALIBRATION}  # [[<name>]] tables
+STUDY = Table("a study file", (
+    NAME, TITLE, Field("plugins", "text", "modules imported in every worker", hint="a dotted module name",
+                       shape="value or list", min_items=0),
+    *(Field(name, "tables", table=t, min_items=0) for name, t in TABLES.items())))
+
+
+def as_list(value: Any) -> list[Any]:
+    """A checked "value or list" field as a list (a string is one value, never its characters)."""
+    return value if isinstance(value, list) else [value]
