@@ -70,16 +70,6 @@ class Solution:
             }
         )
 
-    @classmethod
-    def from_dict(cls, d: dict[str, Any]) -> Solution:
-        samples = {
-            k: {"points": np.asarray(v["points"], dtype=float), "values": np.asarray(v["values"], dtype=float)}
-            for k, v in d["samples"].items()
-        }
-        keys = ("scene", "solver", "params", "resolution", "unknowns", "wall_s", "status", "reason",
-                "quantity", "work", "summary", "diagnostics")
-        return cls(**{k: d[k] for k in keys if k in d}, samples=samples)
-
 
 def _jsonable(obj: Any) -> Any:
     if isinstance(obj, dict):
