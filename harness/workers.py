@@ -36,6 +36,7 @@ from typing import Any
 
 from pcverify.harness.interrupt import STUDY_PID, ignore_sigint_in_worker
 
+STOP_SIGNALS = {signal.SIGINT, signal.SIGTERM}
 _FORK = multiprocessing.get_context("fork")  # a worker inherits the imported modules: no start-up import
 _KEEP: list[Any] = []  # a worker's inherited std streams, kept so that their buffers are never flushed twice
 
@@ -131,7 +132,13 @@ class Pool:
         mine, theirs = _FORK.Pipe()
         others = [w.conn for w in self.workers]
         process = _FORK.Process(target=_serve, args=(theirs, mine, others, os.getpid()), name="pcverify-worker")
-        process.start()
+        # Ctrl-C and SIGTERM wait until the fork is done: the study's handler raises KeyboardInterrupt, which
+        # inside the fork's own hooks (logging's at-fork lock release) is printed as a traceback and lost
+        blocked = signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS)
+        try:
+            process.start()
+        finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
         theirs.close()
         worker = _Worker(process, mine)
         self.workers.append(worker)
@@ -242,6 +249,7 @@ def _serve(conn: Connection, mine: Connection, others: list[Connection], parent:
     signal.signal(signal.SIGTERM, signal.SIG_DFL)  # not the study's handler, inherited by the fork
     os.environ[STUDY_PID] = str(parent)
     ignore_sigint_in_worker()  # Ctrl-C is the study's to handle; exit when the study's process is gone
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, STOP_SIGNALS)  # blocked by the study's process for the fork
     while True:
         try:
             seq, blob = conn.recv()
