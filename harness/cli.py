@@ -38,7 +38,7 @@ from pcverify.harness.cache import Cache
 from pcverify.harness.calibration import NotCached, calibration_section, run_calibration
 from pcverify.harness.catalogue import entries as scene_entries
 from pcverify.harness.catalogue import get_spec, make_scene
-from pcverify.harness.execution import cached_results, cell_identity, cell_time_limit, execute, plan, run_cell
+from pcverify.harness.execution import cached_results, cell_time_limit, execute, identify, plan, run_cell
 from pcverify.harness.files import read_json
 from pcverify.harness.interrupt import TERMINATED, check_interrupted, received, remember_sigint, sigterm_interrupts
 from pcverify.harness.limits import DEFAULT_TIME_LIMIT, MAX_TIME_LIMIT, check_work
@@ -267,7 +267,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         scene = make_scene(args.scene, **scene_vals)
         cell = Cell("run", scene, tuple(sorted(scene_vals.items())), args.solver, resolution.n, resolution.refine,
                     tuple(sorted(solver_vals.items())))
-        _, skip = cell_identity(cell)  # the parameters check: a bad value is one error line
+        skip = identify(cell).skip  # the parameters check: a bad value is one error line
         if skip is None:
             check_work(solver, scene, resolution, solver_vals, args.allow_large, label=args.solver)
         with working(f"{args.solver} on {scene.name} n={resolution.n} refine={resolution.refine}", not args.json):

@@ -24,7 +24,7 @@ import threading
 import time
 from collections import Counter
 from collections.abc import Iterator
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from threadpoolctl import threadpool_limits
@@ -96,6 +96,20 @@ def cell_identity(cell: Cell) -> tuple[dict[str, Any], str | None]:
     return payload | {"params": params, "code": code_fingerprint(solver),
                       "task_code": module_fingerprint(type(cell.task).__module__),
                       "compare": module_fingerprint(compare.__name__)}, None
+
+
+class CellId(NamedTuple):
+    """A cell's cache key (`cache.cell_key` of its `cell_identity` payload) and the reason it will not be
+    solved (None: it will be)."""
+
+    key: str
+    skip: str | None
+
+
+def identify(cell: Cell) -> CellId:
+    """The cache key and skip reason of `cell`: the one place a cell's key is made."""
+    payload, skip = cell_identity(cell)
+    return CellId(cell_key(payload), skip)
 
 
 def _supported(cell: Cell, solver: Any, scene: Scene) -> tuple[bool, str, str | None]:
@@ -294,8 +308,7 @@ def plan(study: Study, cache: Cache, rerun: frozenset[str] | None = None) -> lis
     """What `execute` would do, cell by cell: key, state (cached, to run, skip) and the skip reason."""
     rows = []
     for c in (c for g in study.groups for c in g.cells):
-        payload, skip = cell_identity(c)
-        key = cell_key(payload)
+        key, skip = identify(c)
         cached = cache.load(key)[0] is not None and not _rerun(c, rerun)
         rows.append({"key": key, "state": "cached" if cached else ("skip" if skip else "to run"),
                      "cell": c.describe(), "group": c.group, "solver": c.solver, "reason": skip or ""})
@@ -331,8 +344,8 @@ def _execute(study: Study, cache: Cache, jobs: int, progress: bool, scheduler: s
              rerun: frozenset[str] | None, allow_large: bool, limit: float
              ) -> tuple[list[dict[str, Any]], dict[str, int]]:
     cells = [c for g in study.groups for c in g.cells]
-    identities = [cell_identity(c) for c in cells]
-    keys = [cell_key(ident[0]) for ident in identities]
+    identities = [identify(c) for c in cells]
+    keys = [ident.key for ident in identities]
     results: list[dict[str, Any] | None] = []
     counts = {"cells": len(cells), "cached": 0, "done": 0, "failed": 0, "corrupt": 0}
     todo = []
@@ -352,7 +365,7 @@ def _execute(study: Study, cache: Cache, jobs: int, progress: bool, scheduler: s
         results.append(entry)
     refused: dict[int, str] = {}  # cells whose solver's estimate raised: failed, never solved
     for i in todo:  # the work limits, before anything starts
-        if identities[i][1] is None and isinstance(cells[i].task, SolveTask):
+        if identities[i].skip is None and isinstance(cells[i].task, SolveTask):
             try:
                 check_work(get_solver(cells[i].solver), cells[i].scene, Resolution(cells[i].n, cells[i].refine),
                            dict(cells[i].solver_params), allow_large, label=cells[i].solver)
@@ -418,7 +431,7 @@ def _execute(study: Study, cache: Cache, jobs: int, progress: bool, scheduler: s
     return done, counts
 
 
-def _run(study: Study, cells: list[Cell], identities: list[tuple[dict[str, Any], str | None]], todo: list[int],
+def _run(study: Study, cells: list[Cell], identities: list[CellId], todo: list[int],
          finish: Any, bar: Any, jobs: int, client: Any | None, refused: dict[int, str]) -> None:
     """Run the cells `todo`: the free ones in parallel, then the timed ones serially after a warm-up (one
     worker process: the first idle one, as `run_cell` takes).  A refused cell is failed with its reason."""
@@ -426,8 +439,8 @@ def _run(study: Study, cells: list[Cell], identities: list[tuple[dict[str, Any],
         finish(i, _failed(cells[i], refused[i]))
     todo = [i for i in todo if i not in refused]
     free = [i for i in todo if not cells[i].serial]
-    timed = [i for i in todo if cells[i].serial and identities[i][1] is None]
-    timed_skips = [i for i in todo if cells[i].serial and identities[i][1] is not None]
+    timed = [i for i in todo if cells[i].serial and identities[i].skip is None]
+    timed_skips = [i for i in todo if cells[i].serial and identities[i].skip is not None]
     if (jobs > 1 or client is not None) and len(free) > 1:
         for i, res in _parallel(cells, free, jobs, client):
             finish(i, res)
@@ -471,7 +484,7 @@ def cached_results(study: Study, cache: Cache) -> list[dict[str, Any]]:
     left after a cell dropped out)."""
     out = []
     for c in (c for g in study.groups for c in g.cells):
-        key = cell_key(cell_identity(c)[0])
+        key = identify(c).key
         entry, state = cache.load(key)
         out.append(as_cell(entry, c) if entry is not None else missing_result(c, key, state))
     return out
