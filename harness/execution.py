@@ -21,7 +21,6 @@ import os
 import re
 import sys
 import threading
-import time
 from collections import Counter
 from collections.abc import Iterator
 from typing import Any, NamedTuple
@@ -33,7 +32,7 @@ from tqdm import tqdm
 from pcverify.fingerprint import code_fingerprint, module_fingerprint
 from pcverify.harness import compare
 from pcverify.harness.boundary import Inadmissible
-from pcverify.harness.cache import Cache, cell_key
+from pcverify.harness.cache import CLAIMED, HELD, Cache, cell_key
 from pcverify.harness.interrupt import check_interrupted, ignore_sigint_in_worker
 from pcverify.harness.limits import DEFAULT_TIME_LIMIT, EstimateError, check_work
 from pcverify.harness.plugins import load_plugins
@@ -398,25 +397,24 @@ def _execute(study: Study, cache: Cache, jobs: int, progress: bool, scheduler: s
 
     def finish(i: int, res: dict[str, Any]) -> None:
         res["cache_key"] = keys[i]
-        cache.store(keys[i], res)
-        cache.unlock(keys[i])
+        cache.release(keys[i], res)
         share(i, res, done=True)
         check_interrupted()  # a Ctrl-C that a library swallowed stops the study here, this cell stored
 
     try:
         mine, theirs = [], []  # cells to compute here, cells another process is computing (waited for)
         for i in todo:
-            if not cache.try_lock(keys[i]):
-                theirs.append(i)
-            elif not _rerun(cells[i], rerun) and (entry := cache.load(keys[i])[0]) is not None:
-                cache.unlock(keys[i])  # another process stored it since it was looked up: not computed twice
-                share(i, entry, done=False)
-            else:
+            claim = cache.claim(keys[i], reuse=not _rerun(cells[i], rerun))
+            if claim == CLAIMED:
                 mine.append(i)
+            elif claim == HELD:
+                theirs.append(i)
+            else:  # another process stored it since it was looked up: not computed twice
+                share(i, claim, done=False)
         _run(study, cells, identities, mine, finish, bar, jobs, client, refused)
         for i in theirs:
             bar.set_description(f"{study.name}: waiting for another process: {cells[i].describe()}"[:70])
-            entry = _wait_for(cache, keys[i])
+            entry = cache.wait(keys[i], between=check_interrupted)
             if entry is not None:
                 share(i, entry, done=False)
             else:  # its computing process died or failed to store it: compute it here
@@ -455,27 +453,6 @@ def _run(study: Study, cells: list[Cell], identities: list[CellId], todo: list[i
     for i in timed:
         bar.set_description(f"{study.name}: timed {cells[i].describe()}"[:70])
         finish(i, run_cell(cells[i]) | {"timing": "serial after warm-up"})
-
-
-def _wait_for(cache: Cache, key: str, poll: float = 0.5) -> dict[str, Any] | None:
-    """The entry another process is computing, once it is stored; None if that process stops holding the
-    cell's lock without storing it (it died or failed)."""
-    while True:
-        entry, _ = cache.load(key)
-        if entry is not None:
-            return entry
-        if cache.holder(key) is None:
-            entry, _ = cache.load(key)  # stored just before the lock went
-            if entry is None and cache.try_lock(key):
-                entry, _ = cache.load(key)  # stored by a process that took the lock and let it go meanwhile
-                if entry is None:
-                    return None
-                cache.unlock(key)
-            if entry is not None:
-                return entry
-        check_interrupted()
-        cache.tell_waiting(key)  # which lock, its holder and its age, once a minute
-        time.sleep(poll)
 
 
 def cached_results(study: Study, cache: Cache) -> list[dict[str, Any]]:
