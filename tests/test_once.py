@@ -24,14 +24,7 @@ from pcverify.solvers.particles.macromolecule.simulate import energy_balance_err
 ENTRY = {"status": "ok", "group": "g", "scene": "s", "solver": "x", "n": 1, "refine": 0}
 KEY = "0123456789abcdef0123"
 
-ALPHA = """name = "alpha"
-title = "alpha: scikit-fem on the faces scene"
-[[group]]
-id = "faces"
-scene = "bar-heat-faces"
-solvers = ["skfem"]
-n = [2, 3]
-"""
+ALPHA = 'name = "alpha"\n[[group]]\nid = "faces"\nscene = "bar-heat-faces"\nsolvers = ["skfem"]\nn = [2, 3]\n'
 
 
 def _claim_compute_or_wait(root: str, start, log: str, out) -> None:
