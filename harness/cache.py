@@ -15,6 +15,9 @@ from its holder), whatever its pid (pids are reused: a week-old lock may name a 
 host (a process on another host cannot be asked whether it still runs).  Takeovers are decided one at a
 time under the folder's `.takeover.guard`, so two processes that both found a dead holder cannot both
 remove a lock (the second would remove the first's new one) and both compute the cell.
+
+Every caller follows one protocol, written here once: `claim` a cell (its lock, and the entry read again
+once the lock is taken), `release` it with its entry, or `wait` for the entry of the process that holds it.
 """
 
 from __future__ import annotations
@@ -25,6 +28,7 @@ import math
 import os
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -40,6 +44,8 @@ WAIT_FIRST_NOTICE_S = 10.0  # a wait this long is said (a shorter one is another
 WAIT_NOTICE_S = 60.0  # then again this often
 
 # the fields every cell result has (identity and status), with their types: an entry without them is corrupt
+CLAIMED, HELD = "claimed", "held"  # what `Cache.claim` answers when it does not give an entry back
+
 RESULT_FIELDS: dict[str, type | tuple[type, ...]] = {"status": str, "group": str, "scene": str, "solver": str,
                                                     "n": int, "refine": int}
 
@@ -252,6 +258,46 @@ class Cache:
                                f"{lock['host']} is {_age(lock['age'])} old, older than {_age(self.stale_after)} (twice "
                                "the cell time limit): stale, taken over", file=sys.stderr)
                 discard(str(self._lock_path(key)))
+
+    # -- the protocol every caller follows: claim, compute and release; or wait for the holder's entry
+
+    def claim(self, key: str, reuse: bool = True) -> dict[str, Any] | str:
+        """Claim `key` to compute it: CLAIMED (this process holds its lock now), HELD (a live process holds it:
+        `wait` for its entry), or the entry itself when, `reuse` allowing, it was stored since it was looked up
+        (read again once the lock is taken, then released: a cell is never computed twice)."""
+        if not self.try_lock(key):
+            return HELD
+        if reuse and (entry := self.load(key)[0]) is not None:
+            self.unlock(key)
+            return entry
+        return CLAIMED
+
+    def release(self, key: str, result: dict[str, Any]) -> None:
+        """Store the entry of a claimed `key`, then give up its lock."""
+        self.store(key, result)
+        self.unlock(key)
+
+    def wait(self, key: str, poll: float = 0.5, between: Callable[[], None] = lambda: None
+             ) -> dict[str, Any] | None:
+        """The entry of `key` once its holder stores it; None if the holder let go without storing it (it died
+        or failed): this process then holds the claim and computes it.  `between` runs between polls (the
+        caller's interrupt check); a wait that lasts is said on stderr (`tell_waiting`)."""
+        while True:
+            entry, _ = self.load(key)
+            if entry is not None:
+                return entry
+            if self.holder(key) is None:
+                entry, _ = self.load(key)  # stored just before the lock went
+                if entry is None:
+                    claim = self.claim(key)  # a process that took the lock and let it go may have stored it
+                    if claim == CLAIMED:
+                        return None
+                    entry = claim if isinstance(claim, dict) else None
+                if entry is not None:
+                    return entry
+            between()
+            self.tell_waiting(key)  # which lock, its holder and its age, once a minute
+            time.sleep(poll)
 
     def unlock(self, key: str) -> None:
         if key in self.locks:

@@ -31,9 +31,9 @@ from scipy import optimize
 from scipy.stats import qmc
 
 from pcverify.harness import figures
-from pcverify.harness.cache import Cache, cell_key
+from pcverify.harness.cache import Cache
 from pcverify.harness.calibspec import CalibCell, Calibration
-from pcverify.harness.execution import cell_identity, execute
+from pcverify.harness.execution import execute, identify
 from pcverify.harness.metrics import richardson
 from pcverify.harness.study import Cell, Group, Study
 from pcverify.harness.tables import scalars, spacing, stored_errors, work_counter
@@ -87,7 +87,7 @@ class _Evaluator:
             return []
         if not self.compute:
             for c in cells:
-                if self.cache.load(cell_key(cell_identity(c)[0]))[0] is None:
+                if self.cache.load(identify(c).key)[0] is None:
                     raise NotCached(f"calibration {self.cal.id}: {c.describe()} is not cached")
         mini = Study(f"{self.study.name}.{self.cal.id}", self.cal.title,
                      [Group(self.cal.id, self.cal.title, "table", cells)], plugins=self.study.plugins)

@@ -26,7 +26,7 @@ import signal
 import tempfile
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from typing import Any
 
 import numpy as np
@@ -38,7 +38,7 @@ from pcverify.harness.cache import Cache
 from pcverify.harness.calibration import NotCached, calibration_section, run_calibration
 from pcverify.harness.catalogue import entries as scene_entries
 from pcverify.harness.catalogue import get_spec, make_scene
-from pcverify.harness.execution import cached_results, cell_identity, cell_time_limit, execute, plan, run_cell
+from pcverify.harness.execution import cached_results, cell_time_limit, execute, identify, plan, run_cell
 from pcverify.harness.files import read_json
 from pcverify.harness.interrupt import TERMINATED, check_interrupted, received, remember_sigint, sigterm_interrupts
 from pcverify.harness.limits import DEFAULT_TIME_LIMIT, MAX_TIME_LIMIT, check_work
@@ -149,18 +149,8 @@ def cmd_scenes(args: argparse.Namespace) -> int:
         except SceneError as exc:
             rows.append({"name": name, "available": False, "origin": entry.origin, "reason": str(exc),
                          "parameters": []})
-    if args.json:
-        print(json.dumps(rows, indent=1))
-        return 0
-    for row in rows:
-        if not row["available"]:
-            print(f"{row['name']}  (unavailable: {row['reason']})")
-            continue
-        origin = "" if row["origin"] == "pcverify" else f"  [{row['origin']}]"
-        print(f"{row['name']}{origin}\n  {row['description']}")
-        for p in row["parameters"]:
-            print(f"    {p['name']:<12} default {p['default']!s:<10} {p['allowed']:<40} {p['description']}")
-    return 0
+    return _print_entries(rows, args.json, lambda row, origin: f"{row['name']}{origin}\n  {row['description']}",
+                          (12, 10))
 
 
 def cmd_solvers(args: argparse.Namespace) -> int:
@@ -176,17 +166,26 @@ def cmd_solvers(args: argparse.Namespace) -> int:
         except (SolverUnavailable, SceneError) as exc:
             rows.append({"name": name, "available": False, "origin": entry.origin, "reason": str(exc),
                          "parameters": []})
-    if args.json:
+    return _print_entries(rows, args.json,
+                          lambda row, origin: f"{row['name']}  ({row['kind']}) {row['description']}{origin}".rstrip(),
+                          (16, 14))
+
+
+def _print_entries(rows: list[dict[str, Any]], as_json: bool, headline: Callable[[dict[str, Any], str], str],
+                   widths: tuple[int, int]) -> int:
+    """The `scenes` and `solvers` listings: JSON, or per entry its headline (given the entry and its origin
+    note) and a line per parameter (name and default in columns of `widths`); an unavailable entry says why."""
+    if as_json:
         print(json.dumps(rows, indent=1))
         return 0
     for row in rows:
         if not row["available"]:
             print(f"{row['name']}  (unavailable: {row['reason']})")
             continue
-        origin = "" if row["origin"] == "pcverify" else f"  [{row['origin']}]"
-        print(f"{row['name']}  ({row['kind']}) {row['description']}{origin}".rstrip())
+        print(headline(row, "" if row["origin"] == "pcverify" else f"  [{row['origin']}]"))
         for p in row["parameters"]:
-            print(f"    {p['name']:<16} default {p['default']!s:<14} {p['allowed']:<40} {p['description']}")
+            print(f"    {p['name']:<{widths[0]}} default {p['default']!s:<{widths[1]}} {p['allowed']:<40} "
+                  f"{p['description']}")
     return 0
 
 
@@ -267,7 +266,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         scene = make_scene(args.scene, **scene_vals)
         cell = Cell("run", scene, tuple(sorted(scene_vals.items())), args.solver, resolution.n, resolution.refine,
                     tuple(sorted(solver_vals.items())))
-        _, skip = cell_identity(cell)  # the parameters check: a bad value is one error line
+        skip = identify(cell).skip  # the parameters check: a bad value is one error line
         if skip is None:
             check_work(solver, scene, resolution, solver_vals, args.allow_large, label=args.solver)
         with working(f"{args.solver} on {scene.name} n={resolution.n} refine={resolution.refine}", not args.json):

@@ -21,10 +21,9 @@ import os
 import re
 import sys
 import threading
-import time
 from collections import Counter
 from collections.abc import Iterator
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from threadpoolctl import threadpool_limits
@@ -33,7 +32,7 @@ from tqdm import tqdm
 from pcverify.fingerprint import code_fingerprint, module_fingerprint
 from pcverify.harness import compare
 from pcverify.harness.boundary import Inadmissible
-from pcverify.harness.cache import Cache, cell_key
+from pcverify.harness.cache import CLAIMED, HELD, Cache, cell_key
 from pcverify.harness.interrupt import check_interrupted, ignore_sigint_in_worker
 from pcverify.harness.limits import DEFAULT_TIME_LIMIT, EstimateError, check_work
 from pcverify.harness.plugins import load_plugins
@@ -96,6 +95,20 @@ def cell_identity(cell: Cell) -> tuple[dict[str, Any], str | None]:
     return payload | {"params": params, "code": code_fingerprint(solver),
                       "task_code": module_fingerprint(type(cell.task).__module__),
                       "compare": module_fingerprint(compare.__name__)}, None
+
+
+class CellId(NamedTuple):
+    """A cell's cache key (`cache.cell_key` of its `cell_identity` payload) and the reason it will not be
+    solved (None: it will be)."""
+
+    key: str
+    skip: str | None
+
+
+def identify(cell: Cell) -> CellId:
+    """The cache key and skip reason of `cell`: the one place a cell's key is made."""
+    payload, skip = cell_identity(cell)
+    return CellId(cell_key(payload), skip)
 
 
 def _supported(cell: Cell, solver: Any, scene: Scene) -> tuple[bool, str, str | None]:
@@ -294,8 +307,7 @@ def plan(study: Study, cache: Cache, rerun: frozenset[str] | None = None) -> lis
     """What `execute` would do, cell by cell: key, state (cached, to run, skip) and the skip reason."""
     rows = []
     for c in (c for g in study.groups for c in g.cells):
-        payload, skip = cell_identity(c)
-        key = cell_key(payload)
+        key, skip = identify(c)
         cached = cache.load(key)[0] is not None and not _rerun(c, rerun)
         rows.append({"key": key, "state": "cached" if cached else ("skip" if skip else "to run"),
                      "cell": c.describe(), "group": c.group, "solver": c.solver, "reason": skip or ""})
@@ -331,8 +343,8 @@ def _execute(study: Study, cache: Cache, jobs: int, progress: bool, scheduler: s
              rerun: frozenset[str] | None, allow_large: bool, limit: float
              ) -> tuple[list[dict[str, Any]], dict[str, int]]:
     cells = [c for g in study.groups for c in g.cells]
-    identities = [cell_identity(c) for c in cells]
-    keys = [cell_key(ident[0]) for ident in identities]
+    identities = [identify(c) for c in cells]
+    keys = [ident.key for ident in identities]
     results: list[dict[str, Any] | None] = []
     counts = {"cells": len(cells), "cached": 0, "done": 0, "failed": 0, "corrupt": 0}
     todo = []
@@ -352,7 +364,7 @@ def _execute(study: Study, cache: Cache, jobs: int, progress: bool, scheduler: s
         results.append(entry)
     refused: dict[int, str] = {}  # cells whose solver's estimate raised: failed, never solved
     for i in todo:  # the work limits, before anything starts
-        if identities[i][1] is None and isinstance(cells[i].task, SolveTask):
+        if identities[i].skip is None and isinstance(cells[i].task, SolveTask):
             try:
                 check_work(get_solver(cells[i].solver), cells[i].scene, Resolution(cells[i].n, cells[i].refine),
                            dict(cells[i].solver_params), allow_large, label=cells[i].solver)
@@ -385,25 +397,24 @@ def _execute(study: Study, cache: Cache, jobs: int, progress: bool, scheduler: s
 
     def finish(i: int, res: dict[str, Any]) -> None:
         res["cache_key"] = keys[i]
-        cache.store(keys[i], res)
-        cache.unlock(keys[i])
+        cache.release(keys[i], res)
         share(i, res, done=True)
         check_interrupted()  # a Ctrl-C that a library swallowed stops the study here, this cell stored
 
     try:
         mine, theirs = [], []  # cells to compute here, cells another process is computing (waited for)
         for i in todo:
-            if not cache.try_lock(keys[i]):
-                theirs.append(i)
-            elif not _rerun(cells[i], rerun) and (entry := cache.load(keys[i])[0]) is not None:
-                cache.unlock(keys[i])  # another process stored it since it was looked up: not computed twice
-                share(i, entry, done=False)
-            else:
+            claim = cache.claim(keys[i], reuse=not _rerun(cells[i], rerun))
+            if claim == CLAIMED:
                 mine.append(i)
+            elif claim == HELD:
+                theirs.append(i)
+            else:  # another process stored it since it was looked up: not computed twice
+                share(i, claim, done=False)
         _run(study, cells, identities, mine, finish, bar, jobs, client, refused)
         for i in theirs:
             bar.set_description(f"{study.name}: waiting for another process: {cells[i].describe()}"[:70])
-            entry = _wait_for(cache, keys[i])
+            entry = cache.wait(keys[i], between=check_interrupted)
             if entry is not None:
                 share(i, entry, done=False)
             else:  # its computing process died or failed to store it: compute it here
@@ -418,7 +429,7 @@ def _execute(study: Study, cache: Cache, jobs: int, progress: bool, scheduler: s
     return done, counts
 
 
-def _run(study: Study, cells: list[Cell], identities: list[tuple[dict[str, Any], str | None]], todo: list[int],
+def _run(study: Study, cells: list[Cell], identities: list[CellId], todo: list[int],
          finish: Any, bar: Any, jobs: int, client: Any | None, refused: dict[int, str]) -> None:
     """Run the cells `todo`: the free ones in parallel, then the timed ones serially after a warm-up (one
     worker process: the first idle one, as `run_cell` takes).  A refused cell is failed with its reason."""
@@ -426,8 +437,8 @@ def _run(study: Study, cells: list[Cell], identities: list[tuple[dict[str, Any],
         finish(i, _failed(cells[i], refused[i]))
     todo = [i for i in todo if i not in refused]
     free = [i for i in todo if not cells[i].serial]
-    timed = [i for i in todo if cells[i].serial and identities[i][1] is None]
-    timed_skips = [i for i in todo if cells[i].serial and identities[i][1] is not None]
+    timed = [i for i in todo if cells[i].serial and identities[i].skip is None]
+    timed_skips = [i for i in todo if cells[i].serial and identities[i].skip is not None]
     if (jobs > 1 or client is not None) and len(free) > 1:
         for i, res in _parallel(cells, free, jobs, client):
             finish(i, res)
@@ -444,34 +455,13 @@ def _run(study: Study, cells: list[Cell], identities: list[tuple[dict[str, Any],
         finish(i, run_cell(cells[i]) | {"timing": "serial after warm-up"})
 
 
-def _wait_for(cache: Cache, key: str, poll: float = 0.5) -> dict[str, Any] | None:
-    """The entry another process is computing, once it is stored; None if that process stops holding the
-    cell's lock without storing it (it died or failed)."""
-    while True:
-        entry, _ = cache.load(key)
-        if entry is not None:
-            return entry
-        if cache.holder(key) is None:
-            entry, _ = cache.load(key)  # stored just before the lock went
-            if entry is None and cache.try_lock(key):
-                entry, _ = cache.load(key)  # stored by a process that took the lock and let it go meanwhile
-                if entry is None:
-                    return None
-                cache.unlock(key)
-            if entry is not None:
-                return entry
-        check_interrupted()
-        cache.tell_waiting(key)  # which lock, its holder and its age, once a minute
-        time.sleep(poll)
-
-
 def cached_results(study: Study, cache: Cache) -> list[dict[str, Any]]:
     """The results of a study's cells as the cache holds them; a cell whose entry is missing or corrupt is a
     result of status `missing` that says so (a report rebuilt from the cache never judges a claim on what is
     left after a cell dropped out)."""
     out = []
     for c in (c for g in study.groups for c in g.cells):
-        key = cell_key(cell_identity(c)[0])
+        key = identify(c).key
         entry, state = cache.load(key)
         out.append(as_cell(entry, c) if entry is not None else missing_result(c, key, state))
     return out

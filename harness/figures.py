@@ -141,10 +141,13 @@ def describe(fig: Any) -> dict[str, Any]:
     return {"suptitle": fig.get_suptitle(), "axes": out}
 
 
-def _save(fig: Any, path: Path, layout: str = "constrained") -> bool:
-    """Lay out (constrained: room for the title and for legends outside the axes; "tight" for 3-D panels
-    with colour bars), describe (path.json) and write path.png (a 256-colour palette: a third of the
-    bytes, the same picture) and path.svg."""
+def _save(fig: Any, path: Path, title: str | None = None, layout: str = "constrained") -> bool:
+    """Title the figure (`title`, wrapped to its width; None: the axes carry their own), lay out
+    (constrained: room for the title and for legends outside the axes; "tight" for 3-D panels with colour
+    bars), describe (path.json) and write path.png (a 256-colour palette: a third of the bytes, the same
+    picture) and path.svg."""
+    if title is not None:
+        fig.suptitle(_wrap(title, fig), fontsize=9)
     if layout == "tight":
         title = fig.get_suptitle()
         room = (0.17 * (title.count("\n") + 1) + 0.08) / fig.get_figheight() if title else 0.0
@@ -162,6 +165,28 @@ def _save(fig: Any, path: Path, layout: str = "constrained") -> bool:
         small = im.convert("RGB").quantize(colors=256, method=Image.Quantize.MEDIANCUT, dither=Image.Dither.NONE)
     atomic_write(path.with_suffix(".png"), lambda fh: small.save(fh, format="PNG", optimize=True))
     return True
+
+
+def log_axes(ax: Any, xlabel: str, ylabel: str, logx: bool = True, legend: float | None = 6.5) -> None:
+    """The skeleton of every log-log figure (semi-log in y when not `logx`): log scales, the axis labels, a
+    grid on major and minor ticks, and the legend outside the data (`legend`: its font size; None: none)."""
+    if logx:
+        ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.grid(True, which="both", alpha=0.3)
+    if legend is not None:
+        legend_outside(ax, legend)
+
+
+def _lines(ax: Any, groups: Any, x: str, y: str, label: Any = lambda name, seq: str(name), along: bool = True
+           ) -> None:
+    """One marked line ("o-") per group of a DataFrame groupby, points in the order of `x` (as given when not
+    `along`), labelled `label(name, group)`."""
+    for name, seq in groups:
+        seq = seq.sort_values(x) if along else seq
+        plot_once(ax, seq[x], seq[y], "o-", label(name, seq))
 
 
 def _label(r: dict[str, Any], varying: list[str]) -> str:
@@ -217,15 +242,9 @@ def convergence(levels: pd.DataFrame, columns: list[str], path: Path, title: str
             order = orders.get((solver, params, cols[0]))
             slope = f" (fitted order {order:.2f})" if order is not None else ""
             plot_once(ax, seq["h"], y, "o-", f"{solver} {params} {_columns(cols)}{slope}".replace("  ", " "))
-    ax.set_xscale("log")
-    ax.set_yscale("log")
-    ax.set_xlabel("h [m]")
     errors = any(c.endswith(("l2", "linf")) or c.startswith("err.") for c in columns)
-    ax.set_ylabel("error (relative for err.*)" if errors else "|value|")
-    fig.suptitle(_wrap(title, fig), fontsize=9)
-    ax.grid(True, which="both", alpha=0.3)
-    legend_outside(ax)
-    return _save(fig, path)
+    log_axes(ax, "h [m]", "error (relative for err.*)" if errors else "|value|")
+    return _save(fig, path, title)
 
 
 def _columns(cols: list[str]) -> str:
@@ -240,17 +259,9 @@ def _columns(cols: list[str]) -> str:
 def cost(df: pd.DataFrame, path: Path, title: str) -> bool:
     """Wall time against unknowns per solver."""
     fig, ax = plt.subplots(figsize=(8, 4))
-    for solver, seq in df.groupby("solver"):
-        seq = seq.sort_values("unknowns")
-        plot_once(ax, seq["unknowns"], seq["wall_s"], "o-", str(solver))
-    ax.set_xscale("log")
-    ax.set_yscale("log")
-    ax.set_xlabel("unknowns")
-    ax.set_ylabel("wall time [s]")
-    fig.suptitle(_wrap(title, fig), fontsize=9)
-    ax.grid(True, which="both", alpha=0.3)
-    legend_outside(ax)
-    return _save(fig, path)
+    _lines(ax, df.groupby("solver"), "unknowns", "wall_s")
+    log_axes(ax, "unknowns", "wall time [s]")
+    return _save(fig, path, title)
 
 
 def work_precision(df: pd.DataFrame, error: str, path: Path, title: str) -> bool:
@@ -258,21 +269,11 @@ def work_precision(df: pd.DataFrame, error: str, path: Path, title: str) -> bool
     if df.empty:
         return False
     fig, (left, right) = plt.subplots(1, 2, figsize=(12, 4))
-    for solver, seq in df.groupby("solver"):
-        seq = seq.sort_values("wall_s")
-        plot_once(left, seq["wall_s"], seq[error], "o-", str(solver))
-        seq = seq.sort_values("work")
-        plot_once(right, seq["work"], seq[error], "o-", f"{solver} ({seq['work_kind'].iloc[0]})")
-    left.set_xlabel("wall time [s]")
-    right.set_xlabel("work (pair-steps or unknowns x time steps)")
-    for ax in (left, right):
-        ax.set_xscale("log")
-        ax.set_yscale("log")
-        ax.set_ylabel(error)
-        ax.grid(True, which="both", alpha=0.3)
-    legend_outside(right)
-    fig.suptitle(_wrap(title, fig), fontsize=9)
-    return _save(fig, path)
+    _lines(left, df.groupby("solver"), "wall_s", error)
+    _lines(right, df.groupby("solver"), "work", error, lambda solver, seq: f"{solver} ({seq['work_kind'].iloc[0]})")
+    log_axes(left, "wall time [s]", error, legend=None)
+    log_axes(right, "work (pair-steps or unknowns x time steps)", error)
+    return _save(fig, path, title)
 
 
 PHASE_MARKERS = {"design": "o", "local": "s", "replica": "^", "sensitivity": "D"}
@@ -286,21 +287,16 @@ def calibration_trace(trace: pd.DataFrame, path: Path, title: str) -> bool:
     fig, ax = plt.subplots(figsize=(9, 4))
     ok = trace[trace["status"] == "ok"]
     for phase, part in ok.groupby("phase", sort=False):
-        ax.semilogy(part["evaluation"], part["objective"], PHASE_MARKERS.get(phase, "o"), ms=5, label=phase,
-                    alpha=0.8)
+        ax.plot(part["evaluation"], part["objective"], PHASE_MARKERS.get(phase, "o"), ms=5, label=phase, alpha=0.8)
     if "best_so_far" in trace and trace["best_so_far"].notna().any():
-        ax.semilogy(trace["evaluation"], trace["best_so_far"], "k-", lw=1, label="best so far (search)")
+        ax.plot(trace["evaluation"], trace["best_so_far"], "k-", lw=1, label="best so far (search)")
     bad = trace[trace["status"] != "ok"]
     if not bad.empty:
         top = ok["objective"].max() if not ok.empty else 1.0
-        ax.semilogy(bad["evaluation"], np.full(len(bad), top * 1.5), "rx", label="failed set (" + ", ".join(
+        ax.plot(bad["evaluation"], np.full(len(bad), top * 1.5), "rx", label="failed set (" + ", ".join(
             sorted(bad["status"].unique())) + ")")
-    ax.set_xlabel("evaluation")
-    ax.set_ylabel("objective (calibrated on)")
-    ax.grid(True, which="both", alpha=0.3)
-    legend_outside(ax)
-    fig.suptitle(_wrap(title, fig), fontsize=9)
-    return _save(fig, path)
+    log_axes(ax, "evaluation", "objective (calibrated on)", logx=False)
+    return _save(fig, path, title)
 
 
 def calibration_work_precision(trace: pd.DataFrame, path: Path, title: str) -> bool:
@@ -311,16 +307,11 @@ def calibration_work_precision(trace: pd.DataFrame, path: Path, title: str) -> b
     fig, (left, right) = plt.subplots(1, 2, figsize=(11, 4))
     for phase, part in ok.groupby("phase", sort=False):
         marker = PHASE_MARKERS.get(phase, "o")
-        left.loglog(part["wall_s"], part["objective"], marker, label=phase, alpha=0.8)
-        right.loglog(part["work"], part["objective"], marker, label=phase, alpha=0.8)
-    left.set_xlabel("wall time of the set's cells [s]")
-    right.set_xlabel(f"work ({ok['work_kind'].iloc[0]})")
-    for ax in (left, right):
-        ax.set_ylabel("objective (calibrated on)")
-        ax.grid(True, which="both", alpha=0.3)
-        legend_outside(ax)
-    fig.suptitle(_wrap(title, fig), fontsize=9)
-    return _save(fig, path)
+        left.plot(part["wall_s"], part["objective"], marker, label=phase, alpha=0.8)
+        right.plot(part["work"], part["objective"], marker, label=phase, alpha=0.8)
+    log_axes(left, "wall time of the set's cells [s]", "objective (calibrated on)")
+    log_axes(right, f"work ({ok['work_kind'].iloc[0]})", "objective (calibrated on)")
+    return _save(fig, path, title)
 
 
 def calibration_validation(table: pd.DataFrame, tolerance: float, path: Path, title: str) -> bool:
@@ -342,8 +333,7 @@ def calibration_validation(table: pd.DataFrame, tolerance: float, path: Path, ti
     ax.set_ylabel("error")
     ax.set_yscale("symlog", linthresh=1e-3)
     legend_outside(ax)
-    fig.suptitle(_wrap(title, fig), fontsize=9)
-    return _save(fig, path)
+    return _save(fig, path, title)
 
 
 def edge_profiles(results: list[dict[str, Any]], path: Path, title: str) -> bool:
@@ -374,8 +364,7 @@ def edge_profiles(results: list[dict[str, Any]], path: Path, title: str) -> bool
             ax.set_ylabel("relative value")
             ax.grid(True, alpha=0.3)
         _share_legend(axes[row, 0], axes[row, 1])
-    fig.suptitle(_wrap(title, fig), fontsize=9)
-    return _save(fig, path)
+    return _save(fig, path, title)
 
 
 def _share_legend(source: Any, target: Any) -> None:
@@ -418,8 +407,7 @@ def render_3d(results: list[dict[str, Any]], path: Path, title: str) -> bool:
         ax.set_title(f"{r['solver']} n={n} ({len(vals)} particles), {r['status']}", fontsize=8)
         quantity = r.get("quantity") or "T/t_max"
         fig.colorbar(sc, ax=ax, shrink=0.6, label="relative hotness" if quantity == "T/t_max" else quantity)
-    fig.suptitle(_wrap(title, fig), fontsize=9)
-    return _save(fig, path, layout="tight")
+    return _save(fig, path, title, layout="tight")
 
 
 STATUS_STYLE = {"ok": ("o", "tab:green"), "unstable": ("x", "tab:red"), "defect": ("s", "tab:orange"),
@@ -489,8 +477,7 @@ def stability_limits(limits: pd.DataFrame, meta: dict[tuple[str, str], dict[str,
         ax.set_title(f"{solver} on {scene}", fontsize=8)
         ax.grid(True, alpha=0.3)
         legend_outside(ax)
-    fig.suptitle(_wrap(title, fig), fontsize=9)
-    return _save(fig, path)
+    return _save(fig, path, title)
 
 
 def stability_map(part: pd.DataFrame, path: Path, title: str) -> bool:
@@ -518,8 +505,7 @@ def stability_map(part: pd.DataFrame, path: Path, title: str) -> bool:
     if handles:
         axes[0][-1].legend(list(handles.values()), list(handles), fontsize=6, loc="upper left",
                            bbox_to_anchor=(1.04, 1.0), borderaxespad=0.0)
-    fig.suptitle(_wrap(title, fig), fontsize=9)
-    return _save(fig, path)
+    return _save(fig, path, title)
 
 
 GROUP_FIGURES = {"edge-profiles": edge_profiles, "render-3d": render_3d}
@@ -530,14 +516,9 @@ def benchmark_history(runs: pd.DataFrame, path: Path) -> bool:
     if runs.empty:
         return False
     fig, ax = plt.subplots(figsize=(10, 4))
-    for name, seq in runs.groupby("benchmark"):
-        plot_once(ax, seq["run"], seq["mean_s"], "o-", str(name))
-    ax.set_yscale("log")
-    ax.set_xlabel("saved run")
-    ax.set_ylabel("mean time [s]")
+    _lines(ax, runs.groupby("benchmark"), "run", "mean_s", along=False)
     ax.set_title("Benchmark history (tox -e bench)", fontsize=9)
-    ax.grid(True, which="both", alpha=0.3)
-    legend_outside(ax, fontsize=5)
+    log_axes(ax, "saved run", "mean time [s]", logx=False, legend=5)
     return _save(fig, path)
 
 
@@ -550,14 +531,7 @@ def benchmark_scaling(runs: pd.DataFrame, path: Path) -> bool:
     if last.empty:
         return False
     fig, ax = plt.subplots(figsize=(8.5, 4))
-    for family, seq in last.groupby(last["benchmark"].str.split("[").str[0]):
-        seq = seq.sort_values("particles")
-        plot_once(ax, seq["particles"], seq["ns_per_pair_step"], "o-", str(family))
-    ax.set_xscale("log")
-    ax.set_yscale("log")
-    ax.set_xlabel("particles N")
-    ax.set_ylabel("ns per pair-step")
+    _lines(ax, last.groupby(last["benchmark"].str.split("[").str[0]), "particles", "ns_per_pair_step")
     ax.set_title("Particle kernels: cost per pair-step against N (latest benchmark run)", fontsize=9)
-    ax.grid(True, which="both", alpha=0.3)
-    legend_outside(ax)
+    log_axes(ax, "particles N", "ns per pair-step")
     return _save(fig, path)

@@ -35,9 +35,8 @@ import pytest
 from red_team import COMMAND, ENV, TALLY, cli, popen, tally
 
 from pcverify.harness import cache as cache_module
-from pcverify.harness.cache import cell_key
 from pcverify.harness.cli import main
-from pcverify.harness.execution import cell_identity, execute
+from pcverify.harness.execution import execute, identify
 from pcverify.harness.limits import DEFAULT_TIME_LIMIT
 from pcverify.harness.study import load_study
 
@@ -196,7 +195,7 @@ def work(template, tmp_path, monkeypatch) -> Path:
 def _alpha_key(work: Path, n: int) -> str:
     study = load_study(str(work / "alpha.toml"))
     cell = next(c for c in study.groups[0].cells if c.n == n)
-    return cell_key(cell_identity(cell)[0])
+    return identify(cell).key
 
 
 def _write_lock(cache: Path, key: str, pid: int, host: str, since: float) -> Path:

@@ -15,6 +15,8 @@ from typing import Any
 import numba
 import numpy as np
 
+from pcverify.solvers.energy import balance_error
+
 from . import codes
 from .fixes import Fixes
 from .force import SevenRoot
@@ -111,12 +113,11 @@ ENERGY_TOL = 1e-2  # relative energy-balance error above which a run is not inte
 
 
 def energy_balance_error(r: RunResult) -> float:
-    """|E_end - E_start + dissipated - work in| relative to the largest energy flow."""
+    """|E_end - E_start + dissipated - work in| relative to the largest energy flow (`energy.balance_error`)."""
     e = r.energy
     start, end, diss, drive, bath = e[[codes.E_START, codes.E_END, codes.E_DISS, codes.E_DRIVE, codes.E_BATH]]
-    resid = end - start + diss - drive - bath
-    scale = max(abs(start), abs(end), abs(drive), abs(bath), diss, 1e-300)
-    return float(abs(resid) / scale)
+    return balance_error(end - start + diss, (drive, bath),
+                         max(abs(start), abs(end), abs(drive), abs(bath), diss, 1e-300))
 
 
 def run_status(run: RunResult, H: np.ndarray, free: np.ndarray, p: dict[str, Any]) -> tuple[str, str, dict]:

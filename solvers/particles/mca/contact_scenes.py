@@ -48,6 +48,7 @@ import numpy as np
 from scipy.special import erfc
 
 from pcverify.scene import Contact, FaceClamp, FaceSupport, Scene, SceneError
+from pcverify.solvers.energy import balance_error
 from pcverify.solvers.protocol import heat_summary
 
 from . import contact as ct
@@ -437,10 +438,10 @@ def _friction_summary(window: np.ndarray, st: mk.State, law: ct.ContactLaw, cont
         return r[mk.H_KE] + r[mk.H_U] + r[mk.H_FRIC] + r[mk.H_DISS]
 
     work = supplied(last) - supplied(first)
-    drift = (window[:, mk.H_KE] + window[:, mk.H_U] + window[:, mk.H_FRIC] + window[:, mk.H_DISS] - held(first)) - \
-        (window[:, mk.H_WORK] + window[:, mk.H_LOAD] - supplied(first))
+    stored = window[:, mk.H_KE] + window[:, mk.H_U] + window[:, mk.H_FRIC] + window[:, mk.H_DISS] - held(first)
+    put_in = window[:, mk.H_WORK] + window[:, mk.H_LOAD] - supplied(first)
     out.update(drive_work_J=float(work), friction_dissipation_J=float(last[mk.H_FRIC] - first[mk.H_FRIC]),
-               energy_balance_error=float(np.max(np.abs(drift)) / abs(work)) if work != 0 else math.nan)
+               energy_balance_error=balance_error(stored, (put_in,), abs(work)))
     return out
 
 

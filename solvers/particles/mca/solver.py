@@ -51,6 +51,7 @@ from pcverify.scene import (
     SceneError,
     point_patch_note,
 )
+from pcverify.solvers.energy import balance_error
 from pcverify.solvers.modes import classify, lowest_of_each_kind
 from pcverify.solvers.protocol import Solution, WorkEstimate, effective_params, heat_summary
 
@@ -356,8 +357,8 @@ def _fracture(scene: Scene, aut: Automata, p: dict[str, Any]) -> dict[str, Any]:
     if len(h):
         summary["linked_fraction"] = float(h[-1, mk.H_LINKED] / n_pairs)
         if energy_check and len(elastic):
-            bal = elastic[:, mk.H_KE] + elastic[:, mk.H_U] - ke0 - elastic[:, mk.H_WORK]
-            summary["energy_error"] = float(np.max(np.abs(bal)) / max(np.max(elastic[:, mk.H_U]), 1e-300))
+            summary["energy_error"] = balance_error(elastic[:, mk.H_KE] + elastic[:, mk.H_U] - ke0,
+                                                    (elastic[:, mk.H_WORK],), max(np.max(elastic[:, mk.H_U]), 1e-300))
         if math.isfinite(peak_r):
             stress = h[:, mk.H_R1] / area
             before = h[:, mk.H_T] < (peak_step + 0.5) * model.dt
