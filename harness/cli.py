@@ -9,7 +9,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from pcverify.harness.interrupt import exit_on_sigterm_at_start_up
+from pcverify.harness.run.interrupt import exit_on_sigterm_at_start_up
 
 # the imports below take seconds: as the command (not imported by a test), a SIGTERM meanwhile is the one
 # "terminated" line and exit 143, never a silent death
@@ -34,18 +34,26 @@ import pandas as pd
 from tqdm import tqdm
 
 from pcverify import __version__
-from pcverify.harness.cache import Cache
-from pcverify.harness.calibration import NotCached, calibration_section, run_calibration
-from pcverify.harness.catalogue import entries as scene_entries
-from pcverify.harness.catalogue import get_spec, make_scene
-from pcverify.harness.execution import cached_results, cell_time_limit, execute, identify, plan, run_cell
-from pcverify.harness.files import read_json
-from pcverify.harness.interrupt import TERMINATED, check_interrupted, received, remember_sigint, sigterm_interrupts
-from pcverify.harness.limits import DEFAULT_TIME_LIMIT, MAX_TIME_LIMIT, check_work
-from pcverify.harness.report import benchmark_problem, manifests, study_verdicts, warn, write_index, write_study_report
-from pcverify.harness.reproduce import claim_groups, select_groups
-from pcverify.harness.study import MAX_CELLS, Cell, declared_name, load_study, study_files
-from pcverify.harness.workers import describe_exception, output_to_stderr
+from pcverify.harness.report.calibration_section import calibration_section
+from pcverify.harness.report.reproduce import claim_groups, select_groups
+from pcverify.harness.report.write import (
+    benchmark_problem,
+    manifests,
+    study_verdicts,
+    warn,
+    write_index,
+    write_study_report,
+)
+from pcverify.harness.run.cache import Cache
+from pcverify.harness.run.calibration import NotCached, run_calibration
+from pcverify.harness.run.execution import cached_results, cell_time_limit, execute, identify, plan, run_cell
+from pcverify.harness.run.files import read_json
+from pcverify.harness.run.interrupt import TERMINATED, check_interrupted, received, remember_sigint, sigterm_interrupts
+from pcverify.harness.run.limits import DEFAULT_TIME_LIMIT, MAX_TIME_LIMIT, check_work
+from pcverify.harness.run.workers import describe_exception, output_to_stderr
+from pcverify.harness.spec.catalogue import entries as scene_entries
+from pcverify.harness.spec.catalogue import get_spec, make_scene
+from pcverify.harness.spec.study import MAX_CELLS, Cell, declared_name, load_study, study_files
 from pcverify.scene import Param, Resolution, SceneError, shown
 from pcverify.solvers.protocol import skipped
 from pcverify.solvers.registry import SolverUnavailable, get_solver

@@ -14,7 +14,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from pcverify.harness.figures import same_series
+from pcverify.harness.report.figures import same_series
 
 
 def problems(description: dict[str, Any]) -> list[str]:

@@ -19,9 +19,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from pcverify.harness.catalogue import make_scene
 from pcverify.harness.cli import main
-from pcverify.harness.metrics import field_errors
+from pcverify.harness.judge.metrics import field_errors
+from pcverify.harness.spec.catalogue import make_scene
 from pcverify.references import analytic
 from pcverify.scene import Resolution
 

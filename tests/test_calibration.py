@@ -16,10 +16,11 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from pcverify.harness.cache import Cache
-from pcverify.harness.calibration import CALIBRATED, VALIDATED, NotCached, calibration_section, run_calibration
-from pcverify.harness.reproduce import select_groups
-from pcverify.harness.study import load_study
+from pcverify.harness.report.calibration_section import calibration_section
+from pcverify.harness.report.reproduce import select_groups
+from pcverify.harness.run.cache import Cache
+from pcverify.harness.run.calibration import CALIBRATED, VALIDATED, NotCached, run_calibration
+from pcverify.harness.spec.study import load_study
 from pcverify.scene import SceneError
 
 TESTS = Path(__file__).resolve().parent

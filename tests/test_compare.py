@@ -17,14 +17,14 @@ from lint_imports import installed_layout
 
 from pcverify import references
 from pcverify.fingerprint import module_fingerprint
-from pcverify.harness import compare
-from pcverify.harness.cache import Cache
-from pcverify.harness.catalogue import make_scene
 from pcverify.harness.cli import main
-from pcverify.harness.execution import cell_identity, execute
-from pcverify.harness.reproduce import run_command, select_groups
-from pcverify.harness.study import Group, Study, load_study
-from pcverify.harness.tables import cells_table
+from pcverify.harness.judge import compare
+from pcverify.harness.judge.tables import cells_table
+from pcverify.harness.report.reproduce import run_command, select_groups
+from pcverify.harness.run.cache import Cache
+from pcverify.harness.run.execution import cell_identity, execute
+from pcverify.harness.spec.catalogue import make_scene
+from pcverify.harness.spec.study import Group, Study, load_study
 
 REPO = Path(__file__).resolve().parent.parent
 TIMES = ("wall_s", "kernel_s", "kernel_cpu_s", "kernel_wall_s")
@@ -187,7 +187,7 @@ def test_the_cell_key_covers_the_compare_step_and_the_references(tmp_path) -> No
     payload, skip = cell_identity(paper.cells[0])
     assert skip is None and payload["compare"] == module_fingerprint(compare.__name__)
     copy = installed_layout(REPO, tmp_path / "copy")
-    probe = ("import json, pcverify.harness.compare as c; from pcverify.fingerprint import "
+    probe = ("import json, pcverify.harness.judge.compare as c; from pcverify.fingerprint import "
              "module_fingerprint as f; print(json.dumps([c.__file__, f(c.__name__)]))")
 
     def fingerprint() -> tuple[str, str]:

@@ -25,11 +25,11 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from pcverify.harness import cache as cache_module
-from pcverify.harness.cache import Cache
 from pcverify.harness.cli import main
-from pcverify.harness.execution import execute
-from pcverify.harness.study import load_study
+from pcverify.harness.run import cache as cache_module
+from pcverify.harness.run.cache import Cache
+from pcverify.harness.run.execution import execute
+from pcverify.harness.spec.study import load_study
 
 SLOW_STUDY = """name = "killme"
 title = "FiPy cells of a fraction of a second each"
@@ -270,8 +270,8 @@ def test_swallowed_ctrl_c_still_stops_the_study(fast_study, tmp_path, monkeypatc
     """FiPy evaluates variables under bare `except:`, so a KeyboardInterrupt raised inside it is lost
     (seen as a flaky Ctrl-C: the study ran to the end).  The runner remembers the SIGINT and stops
     after the cell in progress, which is stored: here the second cell swallows the interrupt."""
-    import pcverify.harness.execution as st
-    from pcverify.harness.interrupt import remember_sigint
+    import pcverify.harness.run.execution as st
+    from pcverify.harness.run.interrupt import remember_sigint
 
     real = st.run_cell
     calls = {"n": 0}

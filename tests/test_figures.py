@@ -12,7 +12,7 @@ import pandas as pd
 import pytest
 from figure_checks import problems
 
-from pcverify.harness import figures
+from pcverify.harness.report import figures
 
 
 def _described(fig):

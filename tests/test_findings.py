@@ -2,7 +2,7 @@
 
 import math
 
-from pcverify.harness.findings import findings, orders_text, sentence, severity, summary_lines
+from pcverify.harness.report.findings import findings, orders_text, sentence, severity, summary_lines
 
 
 def _record(claim, case, solver, value, target, verdict, **over):

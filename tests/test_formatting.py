@@ -4,7 +4,7 @@ import math
 
 import pytest
 
-from pcverify.harness.formatting import GROUP, cell, digits_for, measured, number, unit_of
+from pcverify.harness.report.formatting import GROUP, cell, digits_for, measured, number, unit_of
 
 
 @pytest.mark.parametrize("value, unit, digits, text", [

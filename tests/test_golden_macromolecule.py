@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from pcverify.harness.catalogue import make_scene
+from pcverify.harness.spec.catalogue import make_scene
 from pcverify.scene import Resolution
 from pcverify.solvers.particles.macromolecule import codes
 from pcverify.solvers.particles.macromolecule.setup import prepare

@@ -17,7 +17,7 @@ import math
 import numpy as np
 import pytest
 
-from pcverify.harness.catalogue import make_scene
+from pcverify.harness.spec.catalogue import make_scene
 from pcverify.references import analytic
 from pcverify.scene import Box, Contact, Resolution, SceneError
 from pcverify.solvers.particles.mca import contact as ct

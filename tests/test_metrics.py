@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from pcverify.harness.metrics import classify, field_errors, observed_order, richardson
+from pcverify.harness.judge.metrics import classify, field_errors, observed_order, richardson
 
 # the lattice family's own spacings a = W / (n - 1): non-uniform refinement ratios 1.5, 1.33, 1.67, ...
 H = 0.01 / (np.array([3, 4, 6, 8, 11]) - 1)

@@ -13,10 +13,10 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from pcverify.harness.cache import CLAIMED, HELD, Cache
 from pcverify.harness.cli import main
-from pcverify.harness.execution import cached_results, identify, plan
-from pcverify.harness.study import load_study
+from pcverify.harness.run.cache import CLAIMED, HELD, Cache
+from pcverify.harness.run.execution import cached_results, identify, plan
+from pcverify.harness.spec.study import load_study
 from pcverify.solvers.energy import balance_error
 from pcverify.solvers.particles.macromolecule import codes
 from pcverify.solvers.particles.macromolecule.simulate import energy_balance_error

@@ -24,8 +24,9 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from pcverify.harness import tables
-from pcverify.harness.verdict import parse_claims, verdicts
+from pcverify.harness.judge import tables
+from pcverify.harness.judge.verdict import verdicts
+from pcverify.harness.spec.claims import parse_claims
 
 REPO = Path(__file__).resolve().parent.parent
 EXAMPLE = REPO / "examples" / "fd-heat-plugin"

@@ -34,11 +34,11 @@ from pathlib import Path
 import pytest
 from red_team import COMMAND, ENV, TALLY, cli, popen, tally
 
-from pcverify.harness import cache as cache_module
 from pcverify.harness.cli import main
-from pcverify.harness.execution import execute, identify
-from pcverify.harness.limits import DEFAULT_TIME_LIMIT
-from pcverify.harness.study import load_study
+from pcverify.harness.run import cache as cache_module
+from pcverify.harness.run.execution import execute, identify
+from pcverify.harness.run.limits import DEFAULT_TIME_LIMIT
+from pcverify.harness.spec.study import load_study
 
 TESTS = Path(__file__).resolve().parent
 sys.path.insert(0, str(TESTS))  # calib_synthetic: the synthetic solver (and its sleep) as a study plugin

@@ -15,10 +15,10 @@ from pathlib import Path
 import pytest
 from red_team import TALLY, tally
 
-from pcverify.harness.catalogue import make_scene
 from pcverify.harness.cli import main
-from pcverify.harness.limits import check_work
-from pcverify.harness.study import load_study
+from pcverify.harness.run.limits import check_work
+from pcverify.harness.spec.catalogue import make_scene
+from pcverify.harness.spec.study import load_study
 from pcverify.scene import PatchTemperature, PointTemperature, Resolution, Scene, SceneError
 from pcverify.solvers.registry import get_solver
 

@@ -10,7 +10,7 @@ import time
 import pytest
 from red_team import TALLY, cli, one_line_error, tally
 
-from pcverify.harness.catalogue import make_scene
+from pcverify.harness.spec.catalogue import make_scene
 from pcverify.scene import Resolution
 from pcverify.solvers.registry import get_solver
 

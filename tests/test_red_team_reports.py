@@ -33,9 +33,9 @@ from hypothesis import strategies as st
 from PIL import Image
 from red_team import ENV, TALLY, cli, tally
 
-from pcverify.harness import files
 from pcverify.harness.cli import main
-from pcverify.harness.report import write_index
+from pcverify.harness.report.write import write_index
+from pcverify.harness.run import files
 
 STUDIES = {  # small studies of cheap continuum cells: tables, a claim, figures, VTU files
     "alpha": """name = "alpha"
@@ -436,7 +436,7 @@ DRIVER = r"""
 import contextlib, io, json, os, sys, traceback
 from pathlib import Path
 from pcverify.harness.cli import main
-from pcverify.harness.report import write_index
+from pcverify.harness.report.write import write_index
 
 def forked(argv, log):
     pid = os.fork()

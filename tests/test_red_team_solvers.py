@@ -14,7 +14,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from red_team import TALLY, cli, one_line_error, tally
 
-from pcverify.harness.catalogue import make_scene
+from pcverify.harness.spec.catalogue import make_scene
 from pcverify.scene import Resolution, SceneError
 from pcverify.solvers.protocol import STATUSES
 from pcverify.solvers.registry import get_solver

@@ -12,7 +12,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from red_team import TALLY, cli, one_line_error, tally
 
-from pcverify.harness.study import load_study
+from pcverify.harness.spec.study import load_study
 from pcverify.scene import SceneError
 
 GROUP = 'scene = "bar-heat-faces"\nsolvers = ["skfem"]\nn = [2]\n'

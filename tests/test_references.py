@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from pcverify.harness.catalogue import make_scene
+from pcverify.harness.spec.catalogue import make_scene
 from pcverify.references import analytic, heat_faces
 from pcverify.references.slab import Slab, effusivity, effusivity_shares, semi_infinite_rise
 from pcverify.scene import ALUMINIUM, Box, Conduction, FaceTemperature, InterfaceFlux, Scene

@@ -12,9 +12,10 @@ import pytest
 from figure_checks import report_problems
 
 from pcverify.harness.cli import main
-from pcverify.harness.provenance import source_commit
-from pcverify.harness.verdict import parse_claims, verdicts
-from pcverify.harness.vtu import write_vtu
+from pcverify.harness.judge.verdict import verdicts
+from pcverify.harness.report.provenance import source_commit
+from pcverify.harness.report.vtu import write_vtu
+from pcverify.harness.spec.claims import parse_claims
 from pcverify.scene import SceneError
 
 REPO = Path(__file__).resolve().parents[1]

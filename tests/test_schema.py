@@ -10,11 +10,10 @@ import re
 import numpy as np
 import pytest
 
-from pcverify.harness.analyses import ANALYSES
-from pcverify.harness.figures import GROUP_FIGURES
-from pcverify.harness.schema import CALIBRATION, NAME, STUDY, TABLES, Field, Table, check, check_value
-from pcverify.harness.study import study_files
-from pcverify.harness.studyfile import read_study_document
+from pcverify.harness.spec.analyses import REGISTRIES
+from pcverify.harness.spec.schema import CALIBRATION, NAME, STUDY, TABLES, Field, Table, check, check_value
+from pcverify.harness.spec.study import study_files
+from pcverify.harness.spec.studyfile import read_study_document
 from pcverify.scene import SceneError, is_real
 
 TOY = Table("[[toy]]", (
@@ -127,7 +126,7 @@ def test_a_unique_field_names_the_row_that_has_it() -> None:
 
 def test_a_variant_field_adds_the_fields_of_its_value() -> None:
     """A group's analysis adds that analysis's options (the registry is given to the walk by name)."""
-    registries = {"analyses": {name: a.options for name, a in ANALYSES.items()}, "figures": GROUP_FIGURES}
+    registries = REGISTRIES
     group = {"scene": "bar-heat-faces", "solvers": "skfem"}
     check({"group": [group | {"analysis": "stability", "probe": "map"}]}, STUDY, "study file s.toml", registries)
     assert _error({"group": [group | {"probe": "map"}]}, STUDY, registries).startswith(
@@ -145,7 +144,7 @@ def test_a_calibration_error_names_every_level() -> None:
 
 
 def test_every_shipped_study_fits_the_schema_and_every_table_is_a_top_level_key() -> None:
-    registries = {"analyses": {name: a.options for name, a in ANALYSES.items()}, "figures": GROUP_FIGURES}
+    registries = REGISTRIES
     for path in study_files().values():
         check(read_study_document(path), STUDY, f"study file {path.name}", registries)
     assert set(TABLES) <= {f.name for f in STUDY.fields}

@@ -20,9 +20,9 @@ import json
 import numpy as np
 import pytest
 
-from pcverify.harness import tables
-from pcverify.harness.catalogue import make_scene
-from pcverify.harness.metrics import richardson
+from pcverify.harness.judge import tables
+from pcverify.harness.judge.metrics import richardson
+from pcverify.harness.spec.catalogue import make_scene
 from pcverify.references import elasticity as ref
 from pcverify.scene import FaceSupport, Resolution, SceneError
 from pcverify.solvers.registry import get_solver

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from pcverify.harness.catalogue import make_scene
+from pcverify.harness.spec.catalogue import make_scene
 from pcverify.references.heat_faces import transient
 from pcverify.scene import Elasticity, Material, Resolution, SceneError
 from pcverify.solvers.continuum.assembly import assemble_q1, split_free, tensor_csr

@@ -11,12 +11,12 @@ import math
 import pandas as pd
 import pytest
 
-from pcverify.harness.cache import Cache
-from pcverify.harness.catalogue import make_scene
-from pcverify.harness.execution import execute
-from pcverify.harness.report import write_study_report
-from pcverify.harness.stability import StabilityTask, measure_limit, probe_of, split_params
-from pcverify.harness.study import load_study
+from pcverify.harness.report.write import write_study_report
+from pcverify.harness.run.cache import Cache
+from pcverify.harness.run.execution import execute
+from pcverify.harness.spec.catalogue import make_scene
+from pcverify.harness.spec.stability import StabilityTask, measure_limit, probe_of, split_params
+from pcverify.harness.spec.study import load_study
 from pcverify.scene import Resolution, SceneError
 from pcverify.solvers.registry import get_solver
 

@@ -5,10 +5,10 @@ import json
 import pandas as pd
 import pytest
 
-from pcverify.harness.cache import Cache
 from pcverify.harness.cli import main
-from pcverify.harness.execution import execute
-from pcverify.harness.study import load_study
+from pcverify.harness.run.cache import Cache
+from pcverify.harness.run.execution import execute
+from pcverify.harness.spec.study import load_study
 
 STUDY = """
 name = "tiny"
@@ -119,7 +119,7 @@ def test_unreachable_scheduler_is_a_clear_error(study_file, tmp_path, capsys):
 
 def test_timing_groups_run_serially_after_warm_up(tmp_path, monkeypatch):
     """A timing group's cells are keyed apart from the same cells elsewhere and run after a warm-up solve."""
-    import pcverify.harness.execution as st
+    import pcverify.harness.run.execution as st
 
     path = tmp_path / "timed.toml"
     path.write_text(STUDY + '[[group]]\nid = "cost"\nanalysis = "timing"\nscene = "bar-heat-faces"\n'

@@ -17,8 +17,9 @@ import pandas as pd
 import pytest
 
 from pcverify.harness.cli import main
-from pcverify.harness.metrics import fit_order
-from pcverify.harness.verdict import decide, parse_claims, verdicts
+from pcverify.harness.judge.metrics import fit_order
+from pcverify.harness.judge.verdict import decide, verdicts
+from pcverify.harness.spec.claims import parse_claims
 from pcverify.solvers.registry import SOLVERS, Entry
 
 TOY = '''

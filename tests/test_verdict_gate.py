@@ -135,7 +135,7 @@ def test_a_group_run_never_removes_the_other_groups_verdicts(study, tmp_path, ca
 
 
 def test_run_command_only_for_what_every_pcverify_process_knows():
-    from pcverify.harness.reproduce import run_command
+    from pcverify.harness.report.reproduce import run_command
 
     cell = {"scene": "bar-heat-patch", "solver": "fipy", "n": 3, "refine": 4, "scene_params": {"rho": 0.002},
             "solver_params": {}}

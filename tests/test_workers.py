@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import signal
 
-from pcverify.harness import workers
+from pcverify.harness.run import workers
 
 
 def _mask() -> set[int]:

@@ -4,7 +4,7 @@ A study file has a `name`, a `title`, optional `plugins` (modules imported in ev
 its cells) and `[[scene]]` tables (scenes built from the shipped building blocks), `[[group]]` tables,
 `[[claim]]` tables and `[[calibration]]` tables (`calibspec`).  Each group names a scene (with
 `scene_params`), `solvers`, lists `n` and `refine`, `solver_params`, a `sweep`, and the `analysis`
-applied to its cells (the registry in `pcverify.harness.analyses`).  The whole file is checked before any
+applied to its cells (the registry in `pcverify.harness.spec.analyses`).  The whole file is checked before any
 cell is built (`studyfile`).
 """
 
@@ -17,14 +17,14 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from pcverify.harness.analyses import ANALYSES
-from pcverify.harness.calibspec import Calibration, parse_calibrations
-from pcverify.harness.catalogue import make_scene, register_scene, spec_from_table
-from pcverify.harness.plugins import load_plugins
-from pcverify.harness.schema import NAME, SCENE, as_list, check_value, row_where
-from pcverify.harness.studyfile import check_groups, check_study_document, read_study_document, solver_params_of
-from pcverify.harness.tasks import SOLVE, CellTask
-from pcverify.harness.verdict import Claim, parse_claims
+from pcverify.harness.spec.analyses import ANALYSES
+from pcverify.harness.spec.calibspec import Calibration, parse_calibrations
+from pcverify.harness.spec.catalogue import make_scene, register_scene, spec_from_table
+from pcverify.harness.spec.claims import Claim, parse_claims
+from pcverify.harness.spec.plugins import load_plugins
+from pcverify.harness.spec.schema import NAME, SCENE, as_list, check_value, row_where
+from pcverify.harness.spec.studyfile import check_groups, check_study_document, read_study_document, solver_params_of
+from pcverify.harness.spec.tasks import SOLVE, CellTask
 from pcverify.scene import Scene, SceneError
 from pcverify.solvers.registry import SolverUnavailable, get_solver
 

@@ -14,7 +14,7 @@ from typing import Any
 
 import pandas as pd
 
-from pcverify.harness.findings import (
+from pcverify.harness.report.findings import (
     STATES,
     by_claim,
     claim_state,
@@ -25,7 +25,7 @@ from pcverify.harness.findings import (
     tolerance_text,
     value_text,
 )
-from pcverify.harness.formatting import cell, measured, number
+from pcverify.harness.report.formatting import cell, measured, number
 
 MAX_TABLE_ROWS = 200  # rows shown in a collapsed table; the CSV beside it has all of them
 

@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from pcverify.harness.metrics import field_errors
+from pcverify.harness.judge.metrics import field_errors
 from pcverify.references import analytic
 from pcverify.scene import Scene
 

@@ -7,7 +7,7 @@ overlap (the same metric of the same run as the solver sees it: what it reads of
 and refine only for a solver that uses it) is refused with the cells named: a number the parameters were
 fitted to is not a validation.  Another metric of a calibration cell's run
 (torsion beside the bending frequency it was fitted to) is allowed, and the validation table says that
-it shares the run.  `pcverify.harness.calibration`
+it shares the run.  `pcverify.harness.run.calibration`
 runs what this module describes; everything here is checked before any cell runs, with one-line
 SceneErrors like the other study-file errors: also a budget below the number of calibration cells (it
 would evaluate nothing) and replicas that name a free parameter (the optimum would override them).
@@ -19,8 +19,16 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
-from pcverify.harness.catalogue import make_scene
-from pcverify.harness.schema import CALIBRATION, CALIBRATION_CELL, PARAMETER, STUDY, as_list, check_value, row_where
+from pcverify.harness.spec.catalogue import make_scene
+from pcverify.harness.spec.schema import (
+    CALIBRATION,
+    CALIBRATION_CELL,
+    PARAMETER,
+    STUDY,
+    as_list,
+    check_value,
+    row_where,
+)
 from pcverify.scene import Scene, SceneError, shown
 from pcverify.solvers.protocol import effective_params, uses_refine
 from pcverify.solvers.registry import SolverUnavailable, get_solver

@@ -2,7 +2,7 @@
 
 Input is the list of JSON-ready results a study produced; output is pandas DataFrames
 that the report writes as CSV, Markdown and plots.  Nothing here runs a solver or evaluates a reference:
-the errors are those the compare step stored with each cell (`pcverify.harness.compare`).
+the errors are those the compare step stored with each cell (`pcverify.harness.judge.compare`).
 """
 
 from __future__ import annotations
@@ -13,8 +13,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from pcverify.harness.catalogue import make_scene
-from pcverify.harness.metrics import fit_order, richardson
+from pcverify.harness.judge.metrics import fit_order, richardson
+from pcverify.harness.spec.catalogue import make_scene
 
 
 def spacing(result: dict[str, Any]) -> float:

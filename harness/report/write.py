@@ -20,14 +20,16 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from pcverify.harness import figures, page, verdict
-from pcverify.harness.analyses import group_report
-from pcverify.harness.files import atomic_write, exclusive, read_json, remove_stray_files
-from pcverify.harness.findings import STATES, findings, summary_lines
-from pcverify.harness.provenance import command, provenance
-from pcverify.harness.reproduce import study_command, table_group, verdict_commands
-from pcverify.harness.tables import cells_table
-from pcverify.harness.vtu import write_vtu
+from pcverify.harness.judge import verdict
+from pcverify.harness.judge.tables import cells_table
+from pcverify.harness.report import figures, page
+from pcverify.harness.report.findings import STATES, findings, summary_lines
+from pcverify.harness.report.group_figures import group_report
+from pcverify.harness.report.provenance import command, provenance
+from pcverify.harness.report.reproduce import study_command, table_group, verdict_commands
+from pcverify.harness.report.vtu import write_vtu
+from pcverify.harness.run.files import atomic_write, exclusive, read_json, remove_stray_files
+from pcverify.harness.spec.claims import Claim
 from pcverify.scene import is_real
 
 
@@ -73,7 +75,7 @@ def _orders(study: Any, tables: dict[str, pd.DataFrame]) -> list[dict[str, Any]]
     return out
 
 
-def _lattice_nodes(study: Any, claims: list[verdict.Claim], table: pd.DataFrame) -> list[float]:
+def _lattice_nodes(study: Any, claims: list[Claim], table: pd.DataFrame) -> list[float]:
     """Lattice nodes (particles) of each verdict whose case is n=K, from its group's scene box."""
     boxes = {g.id: g.cells[0].scene.box for g in study.groups if g.cells}
     by_claim = {c.id: c for c in claims}

@@ -30,15 +30,15 @@ from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
 from pcverify.fingerprint import code_fingerprint, module_fingerprint
-from pcverify.harness import compare
-from pcverify.harness.boundary import Inadmissible
-from pcverify.harness.cache import CLAIMED, HELD, Cache, cell_key
-from pcverify.harness.interrupt import check_interrupted, ignore_sigint_in_worker
-from pcverify.harness.limits import DEFAULT_TIME_LIMIT, EstimateError, check_work
-from pcverify.harness.plugins import load_plugins
-from pcverify.harness.study import Cell, Study
-from pcverify.harness.tasks import SolveTask
-from pcverify.harness.workers import Outcome, describe_exception, pool
+from pcverify.harness.judge import compare
+from pcverify.harness.run.cache import CLAIMED, HELD, Cache, cell_key
+from pcverify.harness.run.interrupt import check_interrupted, ignore_sigint_in_worker
+from pcverify.harness.run.limits import DEFAULT_TIME_LIMIT, EstimateError, check_work
+from pcverify.harness.run.workers import Outcome, describe_exception, pool
+from pcverify.harness.spec.boundary import Inadmissible
+from pcverify.harness.spec.plugins import load_plugins
+from pcverify.harness.spec.study import Cell, Study
+from pcverify.harness.spec.tasks import SolveTask
 from pcverify.scene import Resolution, Scene, SceneError, shown
 from pcverify.solvers.registry import SolverUnavailable, get_solver, named, snapshot
 

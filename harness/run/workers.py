@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 from multiprocessing.connection import Connection, wait
 from typing import Any
 
-from pcverify.harness.interrupt import STUDY_PID, ignore_sigint_in_worker
+from pcverify.harness.run.interrupt import STUDY_PID, ignore_sigint_in_worker
 
 STOP_SIGNALS = {signal.SIGINT, signal.SIGTERM}
 _FORK = multiprocessing.get_context("fork")  # a worker inherits the imported modules: no start-up import

@@ -1,15 +1,15 @@
 """What a study cell computes: a cell task takes a solver, a scene, a resolution and parameters and returns
-the cell's JSON-ready result.  Every cell runs through one path (`pcverify.harness.execution`); the
+the cell's JSON-ready result.  Every cell runs through one path (`pcverify.harness.run.execution`); the
 task is the only thing that differs: a solve (this module) or a stability measurement
-(`pcverify.harness.stability.StabilityTask`)."""
+(`pcverify.harness.spec.stability.StabilityTask`)."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 from typing import Any, Protocol
 
-from pcverify.harness.boundary import admitted
-from pcverify.harness.stability import StabilityTask
+from pcverify.harness.spec.boundary import admitted
+from pcverify.harness.spec.stability import StabilityTask
 from pcverify.scene import Resolution, Scene
 from pcverify.solvers.protocol import Solver, effective_params
 

@@ -10,8 +10,8 @@ import math
 from collections.abc import Iterable
 from typing import Any
 
-from pcverify.harness.formatting import measured, number, to_float, unit_of
-from pcverify.harness.verdict import STATES
+from pcverify.harness.judge.verdict import STATES
+from pcverify.harness.report.formatting import measured, number, to_float, unit_of
 
 REFERENCE_WORDS = {"analytic": "analytic solution", "extrapolated": "extrapolated continuum",
                    "mesh-dependent": "mesh-dependent continuum", "same-grid": "continuum on the same grid",

@@ -5,7 +5,7 @@ fail in one line that names the file, the group, the field and the allowed value
 with a traceback halfway through a study.  Its keys, types and ranges are declared in `schema` and checked
 by its one walk (unknown keys are errors: a misspelt key would otherwise be ignored and the wrong study
 run); this module adds what needs other objects: the scenes and the solvers' own parameters.
-`pcverify.harness.study.load_study` calls these functions, then builds cells from a document it can
+`pcverify.harness.spec.study.load_study` calls these functions, then builds cells from a document it can
 trust.
 """
 
@@ -15,10 +15,9 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
-from pcverify.harness.analyses import ANALYSES
-from pcverify.harness.catalogue import make_scene
-from pcverify.harness.figures import GROUP_FIGURES
-from pcverify.harness.schema import GROUP, STUDY, as_list, check, row_where
+from pcverify.harness.spec.analyses import ANALYSES, REGISTRIES
+from pcverify.harness.spec.catalogue import make_scene
+from pcverify.harness.spec.schema import GROUP, STUDY, as_list, check, row_where
 from pcverify.scene import SceneError
 from pcverify.solvers.registry import SolverUnavailable, get_solver
 
@@ -46,7 +45,7 @@ def check_study_document(doc: dict[str, Any], path: Path) -> None:
     """Keys, types and values of the whole file against the schema (`schema.STUDY`); a study has groups unless
     it calibrates."""
     where = f"study file {path.name}"
-    check(doc, STUDY, where, {"analyses": {name: a.options for name, a in ANALYSES.items()}, "figures": GROUP_FIGURES})
+    check(doc, STUDY, where, REGISTRIES)
     if not doc.get("group") and "calibration" not in doc:
         raise SceneError(f"{where}: no [[group]] tables; allowed: one or more [[group]] tables")
 

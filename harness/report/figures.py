@@ -29,7 +29,7 @@ from matplotlib.lines import Line2D  # noqa: E402
 from mpl_toolkits.mplot3d import Axes3D  # noqa: E402
 from PIL import Image  # noqa: E402
 
-from pcverify.harness.files import atomic_write  # noqa: E402
+from pcverify.harness.run.files import atomic_write  # noqa: E402
 
 EDGES = ("front_top_edge", "bottom_back_edge")
 CONTINUUM_STYLES = tuple(dict(lw=2.0, color=c, ls=ls, alpha=0.75)

@@ -13,7 +13,7 @@ import importlib
 import math
 from typing import Any
 
-from pcverify.harness.schema import SCENE, check
+from pcverify.harness.spec.schema import SCENE, check
 from pcverify.scene import (
     ALUMINIUM,
     DURALUMIN,

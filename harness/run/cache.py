@@ -34,7 +34,15 @@ from typing import Any
 
 from tqdm import tqdm
 
-from pcverify.harness.files import HOST, atomic_write, discard, exclusive, parse_json, process_alive, remove_stray_files
+from pcverify.harness.run.files import (
+    HOST,
+    atomic_write,
+    discard,
+    exclusive,
+    parse_json,
+    process_alive,
+    remove_stray_files,
+)
 from pcverify.scene import SceneError
 from pcverify.solvers.protocol import STATUSES
 

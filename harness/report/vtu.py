@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pcverify.harness.files import atomic_write
+from pcverify.harness.run.files import atomic_write
 
 VTK_VERTEX = 1
 

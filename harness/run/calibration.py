@@ -4,7 +4,7 @@ The search is a space-filling design (`scipy.stats.qmc`, Sobol or Latin hypercub
 parameters (log-scaled where asked), then bounded Nelder-Mead (`scipy.optimize.minimize`) in the unit
 cube from the best design points, until the `budget` of solver runs is spent or the simplex converges.
 Every evaluation is a study cell run through the harness's one execution path
-(`pcverify.harness.execution.execute`) and its cache: an interrupted calibration resumes from the
+(`pcverify.harness.run.execution.execute`) and its cache: an interrupted calibration resumes from the
 cache, and a rerun takes the same path through the same cached values and computes nothing.  A run
 whose status is not ok (defect, unstable, non-stationary, failed) is a failure of that parameter set:
 it is shown in the trace and steers the search away (a penalty), never enters an objective, a range
@@ -22,7 +22,6 @@ from __future__ import annotations
 import math
 import sys
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -30,13 +29,12 @@ import pandas as pd
 from scipy import optimize
 from scipy.stats import qmc
 
-from pcverify.harness import figures
-from pcverify.harness.cache import Cache
-from pcverify.harness.calibspec import CalibCell, Calibration
-from pcverify.harness.execution import execute, identify
-from pcverify.harness.metrics import richardson
-from pcverify.harness.study import Cell, Group, Study
-from pcverify.harness.tables import scalars, spacing, stored_errors, work_counter
+from pcverify.harness.judge.metrics import richardson
+from pcverify.harness.judge.tables import scalars, spacing, stored_errors, work_counter
+from pcverify.harness.run.cache import Cache
+from pcverify.harness.run.execution import execute, identify
+from pcverify.harness.spec.calibspec import CalibCell, Calibration
+from pcverify.harness.spec.study import Cell, Group, Study
 from pcverify.scene import SceneError
 
 PENALTY = 1e6  # objective handed to the local search for a failed parameter set (steers it away; never data)
@@ -422,23 +420,3 @@ def _validation(ev: _Evaluator, cal: Calibration, best: dict[str, Any] | None
                      "within_tolerance": bool(calibrated.get("status") == "ok" and ce <= cal.tolerance),
                      "shares_calibration_run": role == VALIDATED and cc.key() in fitted_runs})
     return pd.DataFrame(rows), scalars(results[0])
-
-
-def calibration_section(outcome: Outcome, folder: Path) -> tuple[dict[str, Any], dict[str, pd.DataFrame]]:
-    """The report section of a calibration (title, figures drawn into `folder`) and its tables."""
-    cal, t = outcome.calibration, outcome.tables
-    folder.mkdir(parents=True, exist_ok=True)
-    figs = []
-    trace = t[f"{cal.id}-trace"]
-    if figures.calibration_trace(trace, folder / f"{cal.id}-trace", f"{cal.title}: objective against evaluation"):
-        figs.append(f"{cal.id}-trace.png")
-    if figures.calibration_work_precision(trace, folder / f"{cal.id}-work-precision",
-                                          f"{cal.title}: objective against cost of each evaluated set"):
-        figs.append(f"{cal.id}-work-precision.png")
-    if figures.calibration_validation(t[f"{cal.id}-validation"], cal.tolerance, folder / f"{cal.id}-validation",
-                                      f"{cal.title}: error per cell, calibrated and default parameters"):
-        figs.append(f"{cal.id}-validation.png")
-    title = (f"Calibration {cal.id} ({cal.solver}): {cal.title}. Calibrated on: "
-             f"{'; '.join(c.describe() for c in cal.calibrate)}. Validated on: "
-             f"{'; '.join(c.describe() for c in cal.validate)}")
-    return {"id": cal.id, "title": title, "figures": figs}, t

@@ -1,0 +1,52 @@
+"""The analyses a study group can ask for (`analysis = ...`), as declarations.
+
+An analysis says what its cells compute (a cell task), whether its cells are timed (run serially after a
+warm-up) and which group options it reads (schema fields); how its cells' results become tables
+(`pcverify.harness.judge.group_tables`) and figures (`pcverify.harness.report.group_figures`) is written there,
+under the same name.  The study loader and the study-file schema look analyses up here; a new analysis is one
+entry here and one in each of those two tables.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from pcverify.harness.spec.schema import Field
+from pcverify.harness.spec.stability import PROBE_KINDS
+from pcverify.harness.spec.tasks import SOLVE, TASKS, CellTask
+
+# the figures a group can ask for by name (its `figures` list), drawn by `report.figures.GROUP_FIGURES`
+GROUP_FIGURE_KINDS = ("edge-profiles", "render-3d")
+
+
+@dataclass(frozen=True)
+class Analysis:
+    """One kind of group analysis (see the module docstring)."""
+
+    name: str
+    description: str
+    options: tuple[Field, ...] = ()  # the group keys it reads (`schema`: a group's fields by its analysis)
+    serial: bool = False
+    task: Callable[[dict[str, Any]], CellTask] = field(default=lambda options: SOLVE)
+
+
+ANALYSES: dict[str, Analysis] = {a.name: a for a in (
+    Analysis("table", "one row per cell: status and every summary scalar"),
+    Analysis("convergence", "values or errors against h per solver sequence, fitted orders, Richardson and GCI",
+             options=(
+                 Field("quantities", "text", "summary quantities to follow (default volume_mean, bulk_median)",
+                       shape="list"),
+                 Field("reference_table", "text", "an earlier group's fits table whose values are the reference"),
+                 Field("reference_metric", "text", "the column of reference_table taken (default extrapolated)"))),
+    Analysis("timing", "wall time against unknowns per solver (timed serially after a warm-up)", serial=True),
+    Analysis("work-precision", "error against wall time and work per solver (timed serially after a warm-up)",
+             serial=True, options=(Field("error", "text", "the error column (default nodes.l2)"),)),
+    Analysis("stability", "measured time-step limits (probe = limit) or a stability map (probe = map)",
+             options=(Field("probe", "text", "limit or map (default limit)", choices=PROBE_KINDS),),
+             task=lambda options: TASKS[f"stability-{options.get('probe', 'limit')}"]),
+)}
+
+# what the study-file schema's registries name: each analysis's options, and the figure kinds
+REGISTRIES = {"analyses": {name: a.options for name, a in ANALYSES.items()}, "figures": GROUP_FIGURE_KINDS}
