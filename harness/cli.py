@@ -21,6 +21,7 @@ import contextlib
 import dataclasses
 import itertools
 import json
+import os
 import re
 import signal
 import tempfile
@@ -721,6 +722,10 @@ def main(argv: list[str] | None = None) -> int:
             raise
         report_error(str(exc))
         return 2
+    except BrokenPipeError:  # the reader of stdout has gone (`pcverify scenes | head`): not an error of ours
+        with contextlib.suppress(OSError):
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no second error at exit's flush
+        return 141  # as a shell reports a process ended by SIGPIPE
     except OSError as exc:  # a read-only or full output folder, a path that is a file, ...
         if args.debug:
             raise

@@ -1,6 +1,8 @@
 """The command line as a newcomer uses it: help, scenes, errors as one line with exit code 2."""
 
 import json
+import subprocess
+import sys
 
 import pytest
 
@@ -67,3 +69,15 @@ def test_run_json_contract_end_to_end(solver):
     # the steady profile is linear: both discretisations are exact for it, up to round-off
     assert np.max(np.abs(np.asarray(edge["values"]) - (1 - z / 0.03))) < 1e-9
     assert out["summary"]["volume_mean"] == pytest.approx(0.5, abs=1e-9)
+
+
+def test_a_reader_that_stops_early_is_not_an_error() -> None:
+    """`pcverify study stability --dry-run | head -1` (~95 kB, more than a pipe holds): the reader closes the pipe
+    after the first bytes.  Before: 'pcverify: error: [Errno 32] Broken pipe' on stderr and exit 2; now nothing on
+    stderr and 141, as a shell reports a SIGPIPE."""
+    proc = subprocess.Popen([sys.executable, "-m", "pcverify.harness.cli", "study", "stability", "--dry-run"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, bufsize=0)
+    assert proc.stdout.read(1)  # the first byte is there: the reader leaves
+    proc.stdout.close()
+    err = proc.stderr.read().decode()
+    assert proc.wait(timeout=60) == 141 and err == "", err
