@@ -5,8 +5,13 @@
 - a cache entry that is valid JSON with a valid checksum but not a cell result is recomputed; two
   processes running the same study at once compute no cell twice and write the serial run's tables;
 - SIGTERM stops a study like Ctrl-C (message, exit 143, finished cells kept); after SIGTERM or SIGKILL of a
-  --jobs 2 study no process of it is alive 10 s later; a dead writer's temporary file is removed;
-- --jobs 1 and --jobs 2 give byte-identical tables for the shipped macromolecule study's groups.
+  --jobs 2 study no process of it is alive 10 s later; a dead writer's temporary file is removed.
+
+That --jobs 1 and --jobs 2 give byte-identical tables (the shipped macromolecule study's groups among them) is
+tests/test_determinism.py::test_shipped_tables_are_the_same_on_one_and_two_workers.
+
+The command runs in this process (`run`) except where the process matters: signals, two processes sharing a
+cache, and a Dask client (its event-loop thread and a possible hang stay out of the test process).
 """
 
 from __future__ import annotations
@@ -23,7 +28,7 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
-from red_team import ENV, TALLY, cli, one_line_error, popen, processes_with, tally
+from red_team import ENV, check_tally, cli, one_line_error, popen, processes_with, run, tally
 
 SMALL = """
 name = "small"
@@ -54,9 +59,10 @@ def small(tmp_path) -> Path:
 # ----------------------------------------------------------------------------- family 6: the scheduler
 @pytest.mark.parametrize("address", ["", "localhost", "tcp://", "tcp://host", "http://127.0.0.1:8786", "8786",
                                      "tcp://127.0.0.1:8786/extra", "x" * 100_000])
-def test_a_malformed_scheduler_address_is_one_line(small, address) -> None:
+def test_a_malformed_scheduler_address_is_one_line(small, address, capfd) -> None:
     t0 = time.perf_counter()
-    line = one_line_error(cli("study", "small.toml", "--out", "out", "--scheduler", address, cwd=small))
+    line = one_line_error(run("study", "small.toml", "--out", "out", "--scheduler", address, cwd=small, capfd=capfd,
+                              seconds=60))
     assert "scheduler=" in line and "allowed: the address of a running Dask scheduler" in line
     assert time.perf_counter() - t0 < 60 and not (small / "out" / "cache").exists()
     tally("scheduler", "rejected")
@@ -91,7 +97,7 @@ def test_a_scheduler_that_is_not_dask_is_one_line_within_seconds(small, reply) -
     """A silent endpoint (accepts, never answers), an HTTP server and garbage that decodes as a huge
     message length: one line after a bounded wait, never a hang or a multi-EiB allocation."""
     pytest.importorskip("distributed")
-    srv, port = _server(reply)
+    srv, port = _server(reply)  # a subprocess: a Dask client's threads, and a hang, stay out of the test process
     try:
         t0 = time.perf_counter()
         out = cli("study", "small.toml", "--out", "out", "--scheduler", f"tcp://127.0.0.1:{port}", cwd=small,
@@ -104,14 +110,14 @@ def test_a_scheduler_that_is_not_dask_is_one_line_within_seconds(small, reply) -
 
 
 # ----------------------------------------------------------------------------- family 8: a shared cache
-def test_a_cache_entry_that_is_not_a_result_is_recomputed(small) -> None:
-    run = cli("study", "small.toml", "--out", "out", "--json", cwd=small)
-    assert run.returncode == 0, run.stderr[-1500:]
-    first = json.loads(run.stdout)[0]
+def test_a_cache_entry_that_is_not_a_result_is_recomputed(small, capfd) -> None:
+    done = run("study", "small.toml", "--out", "out", "--json", cwd=small, capfd=capfd)
+    assert done.returncode == 0, done.stderr[-1500:]
+    first = json.loads(done.stdout)[0]
     entry = sorted((small / "out" / "cache").glob("*.json"))[0]
     body = json.dumps({}, sort_keys=True)
     entry.write_text(json.dumps({"key": entry.stem, "sha256": hashlib.sha256(body.encode()).hexdigest(), "result": {}}))
-    again = cli("study", "small.toml", "--out", "out", "--json", cwd=small)
+    again = run("study", "small.toml", "--out", "out", "--json", cwd=small, capfd=capfd)
     summary = json.loads(again.stdout)[0]
     assert first["done"] == 4 and summary["corrupt"] == 1 and summary["done"] == 1 and summary["cached"] == 3
     assert "result has no status" in again.stderr
@@ -126,9 +132,9 @@ def _tables(folder: Path) -> dict[str, pd.DataFrame]:
     return out
 
 
-def test_two_copies_of_a_study_at_once_compute_no_cell_twice(tmp_path) -> None:
+def test_two_copies_of_a_study_at_once_compute_no_cell_twice(tmp_path, capfd) -> None:
     """Two processes start the same 12-cell study on one --out at the same moment: together they compute
-    each cell once (the other waits for it), both succeed, and the tables equal a serial run's."""
+    each cell once (the other waits for it), both succeed, and the tables equal a serial run's (in process)."""
     (tmp_path / "slow.toml").write_text(SLOW)
     procs = [popen("study", "slow.toml", "--out", "shared", "--json", cwd=tmp_path) for _ in range(2)]
     outs = [p.communicate(timeout=600) for p in procs]
@@ -136,7 +142,7 @@ def test_two_copies_of_a_study_at_once_compute_no_cell_twice(tmp_path) -> None:
     summaries = [json.loads(o[0])[0] for o in outs]
     assert sum(s["done"] for s in summaries) == 12, summaries
     assert all(s["done"] + s["cached"] == 12 for s in summaries)
-    serial = cli("study", "slow.toml", "--out", "serial", "--json", cwd=tmp_path)
+    serial = run("study", "slow.toml", "--out", "serial", "--json", cwd=tmp_path, capfd=capfd)
     assert json.loads(serial.stdout)[0]["done"] == 12
     shared, alone = _tables(tmp_path / "shared" / "slow"), _tables(tmp_path / "serial" / "slow")
     assert shared.keys() == alone.keys()
@@ -157,7 +163,7 @@ def _gone_within(marker: str, seconds: float) -> bool:
 
 
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGKILL])
-def test_a_killed_study_leaves_no_process_and_keeps_its_cells(tmp_path, sig) -> None:
+def test_a_killed_study_leaves_no_process_and_keeps_its_cells(tmp_path, sig, capfd) -> None:
     """A --jobs 2 study signalled mid-run (its main process only, as `kill PID` does): SIGTERM exits 143 with
     a message; after either signal every process of the study (workers, resource trackers) is gone
     within 10 s, and the cells finished before the signal are in the cache."""
@@ -177,40 +183,20 @@ def test_a_killed_study_leaves_no_process_and_keeps_its_cells(tmp_path, sig) -> 
         assert "pcverify: terminated (finished cells are kept in the cache)" in err
     assert _gone_within(marker.split("=")[1], 10.0), processes_with(marker.split("=")[1])
     kept = len(list(cache.glob("*.json")))
-    resumed = json.loads(cli("study", "slow.toml", "--out", "out", "--json", cwd=tmp_path).stdout)[0]
+    resumed = json.loads(run("study", "slow.toml", "--out", "out", "--json", cwd=tmp_path, capfd=capfd).stdout)[0]
     assert resumed["cached"] >= kept and resumed["done"] == 12 - resumed["cached"]
     tally("shutdown", "accepted")
 
 
-def test_a_dead_writers_temporary_file_is_removed(small) -> None:
+def test_a_dead_writers_temporary_file_is_removed(small, capfd) -> None:
     cache = small / "out" / "cache"
     cache.mkdir(parents=True)
     stray = cache / ".0123456789abcdef0123.999999999.abc.tmp"  # pid 999999999 does not exist
     stray.write_text("half a")
-    assert cli("study", "small.toml", "--out", "out", cwd=small).returncode == 0
+    assert run("study", "small.toml", "--out", "out", cwd=small, capfd=capfd).returncode == 0
     assert not stray.exists()
     tally("shutdown", "accepted")
 
 
-# ----------------------------------------------------------------------------- family 10: --jobs
-def test_jobs_1_and_2_give_byte_identical_macromolecule_tables(tmp_path) -> None:
-    """The shipped macromolecule study (paper runs, damping x drive sweep, Fourier's law on the faces) with
-    --jobs 1 and --jobs 2: every table byte-identical, timing columns aside.  Before BLAS was pinned the
-    set-up's LAPACK calls ran on 1 or 2 threads depending on --jobs and results differed by up to 1.5e-8."""
-    runs = {}
-    for jobs in ("1", "2"):
-        out = cli("study", "macromolecule", "--out", f"jobs{jobs}", "--jobs", jobs, "--json", cwd=tmp_path,
-                  timeout=1200)
-        assert out.returncode == 0, out.stderr[-1500:]
-        runs[jobs] = _tables(tmp_path / f"jobs{jobs}" / "macromolecule")
-    assert runs["1"].keys() == runs["2"].keys() and len(runs["1"]) >= 5
-    for name in runs["1"]:
-        pd.testing.assert_frame_equal(runs["1"][name], runs["2"][name], check_exact=True)
-    tally("determinism", "accepted")
-
-
 def test_zz_execution_tally() -> None:
-    for family in ("scheduler", "shared cache", "shutdown", "determinism"):
-        tried, rejected, accepted = (TALLY[f"{family} {k}"] for k in ("tried", "rejected", "accepted"))
-        print(f"\n{family}: tried {tried}, rejected cleanly {rejected}, accepted correctly {accepted}")
-        assert tried == rejected + accepted
+    check_tally({"scheduler": 12, "shared cache": 2, "shutdown": 3})

@@ -32,7 +32,7 @@ import time
 from pathlib import Path
 
 import pytest
-from red_team import COMMAND, ENV, TALLY, cli, popen, tally
+from red_team import COMMAND, ENV, check_tally, cli, deadline, popen, tally
 
 from pcverify.harness.cli import main
 from pcverify.harness.run import cache as cache_module
@@ -146,28 +146,6 @@ def _run(argv: list[str], capsys) -> tuple[int, str, str]:
 
 def _warnings(err: str) -> list[str]:
     return [line for line in err.splitlines() if line.startswith("pcverify: warning: ")]
-
-
-class Hung(BaseException):
-    """A command that did not finish within its deadline (the bug this file's hang cases guard against)."""
-
-
-class deadline:
-    """Raise Hung in the main thread after `seconds` (SIGALRM): a hang fails the test instead of the suite."""
-
-    def __init__(self, seconds: float) -> None:
-        self.seconds = seconds
-
-    def __enter__(self) -> None:
-        def fire(signum, frame):  # noqa: ARG001 - the signal-handler signature
-            raise Hung(f"still running after {self.seconds:g} s")
-
-        self.previous = signal.signal(signal.SIGALRM, fire)
-        signal.setitimer(signal.ITIMER_REAL, self.seconds)
-
-    def __exit__(self, *exc: object) -> None:
-        signal.setitimer(signal.ITIMER_REAL, 0)
-        signal.signal(signal.SIGALRM, self.previous)
 
 
 @pytest.fixture(scope="module")
@@ -539,11 +517,7 @@ def test_a_benchmark_regression_is_one_line_naming_it(work) -> None:
 
 
 def test_zz_files_tally() -> None:
-    expected = {"caches and report folders": 18, "signals": 4}
-    for family, cases in expected.items():
-        tried, rejected, accepted = (TALLY[f"{family} {k}"] for k in ("tried", "rejected", "accepted"))
-        print(f"\n{family}: tried {tried}, rejected cleanly {rejected}, accepted correctly {accepted}")
-        assert tried == rejected + accepted == cases, (family, tried, rejected, accepted)
+    check_tally({"caches and report folders": 18, "signals": 4})
 
 
 def test_a_lock_is_stale_only_after_twice_the_cell_time_limit(tmp_path) -> None:

@@ -229,8 +229,9 @@ def test_bench_kernel_floor(benchmark) -> None:
              "full_pass": timed(lambda: _pair_passes(KERNEL_STEPS, *pass_args)),
              "full_step": lambda: _run(s, w).cpu_s}
     cases["full_step"]()
+    timed_run = not getattr(benchmark, "disabled", False)  # untimed (the test suite): each case runs once
     best = dict.fromkeys(cases, np.inf)
-    for _ in range(5):
+    for _ in range(5 if timed_run else 1):
         for name, fn in cases.items():
             best[name] = min(best[name], fn())
     benchmark.pedantic(_run, args=(s, w), rounds=1, iterations=1)
@@ -243,4 +244,5 @@ def test_bench_kernel_floor(benchmark) -> None:
         full_step_over_inlined_floor=best["full_step"] / best["floor_inlined"],
         full_step_over_accumulated_floor=best["full_step"] / best["floor_accumulated"], pairs=pairs, slots=ns,
         particles=n)
-    assert best["full_pass"] > best["floor_inlined"]  # the full pass does strictly more work on the same slots
+    if timed_run:  # the full pass does strictly more work on the same slots (a timing: only when timing is on)
+        assert best["full_pass"] > best["floor_inlined"]
