@@ -26,12 +26,12 @@ from typing import Any
 import pandas as pd
 import pytest
 
-from pcverify.harness.cache import Cache
 from pcverify.harness.cli import main
-from pcverify.harness.execution import execute
-from pcverify.harness.report import write_study_report
-from pcverify.harness.reproduce import select_groups
-from pcverify.harness.study import load_study, study_files
+from pcverify.harness.report.reproduce import select_groups
+from pcverify.harness.report.write import write_study_report
+from pcverify.harness.run.cache import Cache
+from pcverify.harness.run.execution import execute
+from pcverify.harness.spec.study import load_study, study_files
 
 # study: cells the dry run plans, by state (stability's map skips the cells beyond its probe; elasticity skips
 # the one fracture cell scikit-fem cannot run); the calibration study's cells follow from the values found
