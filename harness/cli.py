@@ -232,11 +232,20 @@ def split_settings(settings: list[str], scene_params: tuple[Param, ...], solver_
     return scene_vals, solver_vals
 
 
+def _isatty(stream: Any) -> bool:
+    try:
+        return bool(stream.isatty())
+    except (AttributeError, ValueError, OSError):  # a closed or replaced stream
+        return False
+
+
 @contextlib.contextmanager
 def working(label: str, enabled: bool = True) -> Iterator[None]:
-    """An elapsed-time indicator on stderr for a solve that runs in one call (shown after 2 s)."""
-    bar = tqdm(total=None, desc=label, bar_format="{desc}: {elapsed} elapsed", delay=2.0, disable=not enabled,
-               leave=False)
+    """An elapsed-time indicator on stderr for a solve that runs in one call (shown after 2 s), on a terminal
+    only: where stderr is a pipe or a log, the indicator could not be erased and would stand in front of the
+    one-line error or the result that follows."""
+    bar = tqdm(total=None, desc=label, bar_format="{desc}: {elapsed} elapsed", delay=2.0,
+               disable=not (enabled and _isatty(sys.stderr)), leave=False)
     done = threading.Event()
 
     def tick() -> None:

@@ -1,8 +1,10 @@
 """The command line as a newcomer uses it: help, scenes, errors as one line with exit code 2."""
 
 import json
+import os
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -81,3 +83,15 @@ def test_a_reader_that_stops_early_is_not_an_error() -> None:
     proc.stdout.close()
     err = proc.stderr.read().decode()
     assert proc.wait(timeout=60) == 141 and err == "", err
+
+
+def test_a_slow_run_into_a_pipe_leaves_no_progress_text_on_stderr() -> None:
+    """A run of 2.5 s with stderr a pipe (a log, a CI job): the elapsed-time indicator, shown on a terminal after
+    2 s, stood in front of what followed (the result's messages, a one-line error) as 'calib-quadratic on ...:
+    00:02 elapsed' and a carriage return.  Now it is shown on a terminal only."""
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).parent)}
+    out = subprocess.run([sys.executable, "-m", "pcverify.harness.cli", "run", "bar-heat-faces", "--solver",
+                          "calib_synthetic:Quadratic", "--n", "2", "--set", "solver.sleep=2.5"],
+                         capture_output=True, text=True, env=env, timeout=300, check=False)
+    assert out.returncode == 0, out.stderr[-1500:]
+    assert "elapsed" not in out.stderr and "\r" not in out.stderr, out.stderr
