@@ -20,6 +20,7 @@ SIGTERM and leaves no cell lock; a benchmark regression is one line naming the b
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import shutil
@@ -153,12 +154,8 @@ def template(tmp_path_factory) -> Path:
     """alpha run once into out/ (two cached cells, its report), copied by each test."""
     root = tmp_path_factory.mktemp("files-template")
     (root / "alpha.toml").write_text(ALPHA)
-    cwd = Path.cwd()
-    os.chdir(root)
-    try:
+    with contextlib.chdir(root):
         assert main(["study", "alpha.toml", "--out", "out"]) == 0
-    finally:
-        os.chdir(cwd)
     assert len(list((root / "out" / "cache").glob("*.json"))) == 2
     return root
 
@@ -290,12 +287,8 @@ def calibrated(tmp_path_factory) -> Path:
     """The synthetic calibration study run once: its cells cached, its report with the calibration's claim."""
     root = tmp_path_factory.mktemp("files-calibration")
     (root / "calib.toml").write_text(CALIBRATION)
-    cwd = Path.cwd()
-    os.chdir(root)
-    try:
+    with contextlib.chdir(root):
         assert main(["study", "calib.toml", "--out", "out", "--json"]) == 0
-    finally:
-        os.chdir(cwd)
     records = json.loads((root / "out" / "calib" / "verdicts.json").read_text())
     assert [r["verdict"] for r in records] == ["pass"]  # with every cell cached
     return root

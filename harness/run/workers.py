@@ -20,7 +20,6 @@ from __future__ import annotations
 import atexit
 import contextlib
 import ctypes
-import ctypes.util
 import io
 import multiprocessing
 import os
@@ -276,11 +275,12 @@ PR_SET_PDEATHSIG = 1  # prctl(2): the signal this process gets when the thread t
 
 def _die_with(parent: int) -> None:
     """In a worker: be killed (SIGKILL) the moment the study's process ends, even by SIGKILL, so that no solve
-    goes on computing (and writing) for a study that is gone.  Linux's prctl; elsewhere a worker notices only
-    when it next talks to the study's process."""
-    with contextlib.suppress(Exception):
-        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True)
-        libc.prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+    goes on computing (and writing) for a study that is gone, even one in compiled code that holds the
+    interpreter lock.  Linux's prctl (libc's, through the process's own symbols: no library search per fork);
+    elsewhere the worker's watchdog thread (`interrupt.ignore_sigint_in_worker`) notices once it gets to run."""
+    if sys.platform.startswith("linux"):
+        with contextlib.suppress(Exception):
+            ctypes.CDLL(None).prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
     if os.getppid() != parent:  # the study's process ended before the request was made
         os._exit(0)
 
