@@ -70,7 +70,7 @@ examples:
   pcverify study default                            run the default studies, write reports/
   pcverify study default --dry-run                  show what is cached and what would run
   pcverify study stability --group limit-mca-heat   run one group of a study (from the cache where it can)
-  pcverify study my.toml --strict                   exit 1 when a claim fails (a CI gate)
+  pcverify study my.toml --strict                   exit 1 unless every verdict passes (a CI gate)
   pcverify verdict heat-particles mca-steady-line   judge one claim, print its value (from the cache)
   pcverify report                                   rebuild reports/index.html from the cache
   pcverify bench                                    benchmarks, saved and compared with the previous run
