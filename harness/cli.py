@@ -330,9 +330,13 @@ def cmd_study(args: argparse.Namespace) -> int:
             if args.dry_run:
                 with output_to_stderr():
                     rows = plan(study, cache, rerun)
-                summary.append({"study": study.name, "cells": rows})
+                unplanned = [{"group": g.id, "solver": u.solver, "cells": u.cells, "reason": u.reason}
+                             for g in study.groups for u in g.unplanned]
+                summary.append({"study": study.name, "cells": rows, "not_planned": unplanned})
                 for r in [] if args.json else rows:
                     print(f"{r['state']:<8} {r['key']}  {r['cell']}" + (f"  ({r['reason']})" if r["reason"] else ""))
+                for u in [] if args.json else unplanned:
+                    print(f"not planned: group {u['group']}, {u['solver']} ({u['cells']} cells): {u['reason']}")
                 for cal in [] if args.json else study.calibrations:  # adaptive: its cells follow from the values
                     print(f"calibration {cal.id}: {cal.solver}, search of at most {cal.budget} solver runs, then "
                           f"replicas, sensitivity and {len(cal.calibrate) + len(cal.validate)} cells x 2 (cells "

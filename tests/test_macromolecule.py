@@ -434,3 +434,47 @@ def test_probe_runs_are_the_solvers_solves() -> None:
         assert (run.status, run.steps, run.details["hops"]) == (sol.status, sol.summary["steps"], sol.summary["hops"])
         assert run.blown is blown and not run.undetected
         assert (run.status == "unstable") is blown
+
+
+# ---------------------------------------------------------------- stationarity stop
+FACES = make_scene("bar-heat-faces")
+DRIVEN = {"hot_face": "driven", "face_drive_direction": "z", "drive_amplitude": 0.02}
+
+
+def _faces(n: int, **given):
+    return SOLVER.solve(FACES, Resolution(n), **(DRIVEN | given))
+
+
+def test_a_stationary_run_stops_at_the_first_window_whose_halves_agree() -> None:
+    """The driven-face bar at n = 3 over 15 s with stop_tol 0.03: the run stops at a mark of the doubling window
+    (measured: 7.5 s, halves 2.0 % apart), and the run of that length without a stop gives the same hotness (the
+    same window; only the summation order of the halves differs); the window before it was not yet stationary
+    (measured 4.2 %)."""
+    stopped = _faces(3, t_end=15.0, stop_tol=0.03)
+    s = stopped.summary
+    assert s["stationary_at_step"] == s["steps"] > 0 and s["status"] == "ok"
+    full = round(15.0 / s["dt"])
+    assert s["steps"] in {full >> k for k in range(1, 4)}  # a mark: L/2, L/4 or L/8 (the first test is at L/8)
+    assert s["stationarity"] <= 0.03
+    window = s["steps"] * s["dt"]
+    plain = _faces(3, t_end=window, stop_tol=0.0)
+    assert plain.summary["stationary_at_step"] == -1 and plain.summary["steps"] == s["steps"]
+    for key in stopped.samples:
+        np.testing.assert_allclose(stopped.samples[key]["values"], plain.samples[key]["values"], rtol=1e-12)
+    before = _faces(3, t_end=window / 2, stop_tol=0.0)  # an independent run of the previous window
+    assert before.summary["stationarity"] > 0.03
+
+
+def test_a_run_that_is_not_stationary_runs_to_t_end_and_stop_tol_0_never_stops() -> None:
+    """bar-heat-paper at n = 2: its halves differ by 5.6 % of the hottest over 15 s (measured), so the stop at 2 %
+    never fires and the run is the paper's 15 s; stop_tol = 0 gives the same steps on a stationary scene."""
+    r = SOLVER.solve(PAPER, Resolution(2), stop_tol=0.02)
+    assert r.summary["stationary_at_step"] == -1 and r.summary["steps"] == round(15.0 / r.summary["dt"])
+    assert r.summary["stationarity"] > 0.02
+    whole = _faces(3, t_end=15.0, stop_tol=0.0)
+    assert whole.summary["steps"] == round(15.0 / whole.summary["dt"]) and whole.summary["stationary_at_step"] == -1
+
+
+def test_stop_tol_outside_its_range_is_one_error() -> None:
+    with pytest.raises(SceneError, match=r"stop_tol.*allowed"):
+        SOLVER.solve(PAPER, Resolution(2), stop_tol=1.5)

@@ -28,6 +28,7 @@ function, the command that reproduces its number.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable
 from typing import Any
@@ -164,15 +165,44 @@ def _basis(rows: pd.DataFrame) -> str:
     return f"{len(rows)} rows" if len(rows) > 1 else ""
 
 
-def judge(study: str, claim: Claim, tables: dict[str, pd.DataFrame], command: Command | None = None
-          ) -> list[dict[str, Any]]:
-    """Verdict rows for one claim (one per `per` value)."""
+def _unplanned_of(claim: Claim, unplanned: dict[str, dict[str, str]]) -> dict[str, str]:
+    """The solvers (with why) whose cells the group of the claim's table did not plan: its table is named
+    `<group id>-...`; the claim's `solver` selection, if any, limits them."""
+    groups = [g for g in unplanned if claim.table.startswith(f"{g}-")]
+    out = unplanned[max(groups, key=len)] if groups else {}
+    want = claim.select.get("solver")
+    wanted = None if want is None else set(want if isinstance(want, list) else [want])
+    return {s: r for s, r in out.items() if wanted is None or s in wanted}
+
+
+def judge(study: str, claim: Claim, tables: dict[str, pd.DataFrame], command: Command | None = None,
+          unplanned: dict[str, dict[str, str]] | None = None) -> list[dict[str, Any]]:
+    """Verdict rows for one claim (one per `per` value).  `unplanned`: per group, the solvers whose cells the
+    study did not plan (and why); a claim on them is judged as on skipped cells: not-applicable where the claim
+    allows skips and names only such cells (a case of its own with `per = "solver"`), fail otherwise."""
     base = {"study": study, "claim": claim.id, "statement": claim.text, "reference": claim.reference,
             "metric": claim.metric, "tolerance": claim.tolerance, "sense": claim.sense, "basis": ""}
 
-    def whole(note: str) -> list[dict[str, Any]]:
-        cmd = command(claim, "", pd.DataFrame(), None) if command else ""
-        return [base | {"case": "", "verdict": "fail", "note": note, "command": cmd}]
+    def whole(note: str, state: str = "fail", case: str = "") -> list[dict[str, Any]]:
+        cmd = command(claim, case, pd.DataFrame(), None) if command else ""
+        return [base | {"case": case, "verdict": state, "note": note, "command": cmd}]
+
+    hit = _unplanned_of(claim, unplanned or {})
+    if hit:
+        skip_state = "not-applicable" if claim.allow_skipped else "fail"
+        want = claim.select.get("solver")
+        left = [w for w in (want if isinstance(want, list) else [want]) if w not in hit] if want is not None else None
+        if claim.per == "solver":
+            rows = [r for s, why in sorted(hit.items())
+                    for r in whole(f"its cells are not planned ({s}: {why})", skip_state, f"solver={s}")]
+            if left == []:
+                return rows
+            narrowed = claim if left is None else dataclasses.replace(claim, select=claim.select | {"solver": left})
+            return judge(study, narrowed, tables, command) + rows
+        note = "; ".join(f"{s}: {why}" for s, why in sorted(hit.items()))
+        if left == []:
+            return whole(f"its cells are not planned ({note})", skip_state)
+        return whole(f"some of its cells are not planned ({note})")
 
     df = tables.get(claim.table)
     if df is None or df.empty:
@@ -260,10 +290,10 @@ def _judge_case(claim: Claim, base: dict[str, Any], rows: pd.DataFrame, others: 
                   "verdict": verdict, "note": "; ".join(notes)}
 
 
-def verdicts(study: str, claims: list[Claim], tables: dict[str, pd.DataFrame], command: Command | None = None
-             ) -> pd.DataFrame:
-    """All verdict rows of a study, in the fixed column order."""
-    rows = [r for c in claims for r in judge(study, c, tables, command)]
+def verdicts(study: str, claims: list[Claim], tables: dict[str, pd.DataFrame], command: Command | None = None,
+             unplanned: dict[str, dict[str, str]] | None = None) -> pd.DataFrame:
+    """All verdict rows of a study, in the fixed column order (`unplanned`: as `judge` takes it)."""
+    rows = [r for c in claims for r in judge(study, c, tables, command, unplanned)]
     return pd.DataFrame(rows, columns=list(VERDICT_COLUMNS))
 
 

@@ -111,11 +111,12 @@ def write_study_report(study: Any, results: list[dict[str, Any]], out: Path, run
         res = [r for r in results if r.get("group") == g.id]
         group_cells.append(cells_table(res))
         tables, figs = group_report(g, res, group_cells[-1], folder, all_tables)
-        skipped = [r for r in res if r.get("status") in ("skipped", "failed")]
+        skipped = [{"solver": r["solver"], "n": r["n"], "refine": r["refine"], "status": r["status"],
+                    "reason": r.get("reason", "")} for r in res if r.get("status") in ("skipped", "failed")]
+        skipped += [{"solver": u.solver, "n": "", "refine": "", "status": "not planned",
+                     "reason": f"{u.cells} cells: {u.reason}"} for u in getattr(g, "unplanned", [])]
         if skipped:
-            tables[f"{g.id}-skipped"] = pd.DataFrame(
-                [{"solver": r["solver"], "n": r["n"], "refine": r["refine"], "status": r["status"],
-                  "reason": r.get("reason", "")} for r in skipped])
+            tables[f"{g.id}-skipped"] = pd.DataFrame(skipped)
         section: dict[str, Any] = {"id": g.id, "title": g.title, "tables": [], "figures": figs, "vtu": []}
         for name, df in tables.items():
             _write_table(df, folder / name)
@@ -137,7 +138,8 @@ def write_study_report(study: Any, results: list[dict[str, Any]], out: Path, run
     manifest["orders"] = _orders(study, all_tables)
     table = None
     if study.claims:
-        table = verdict.verdicts(study.name, study.claims, all_tables, verdict_commands(study, results))
+        unplanned = {g.id: {u.solver: u.reason for u in getattr(g, "unplanned", [])} for g in study.groups}
+        table = verdict.verdicts(study.name, study.claims, all_tables, verdict_commands(study, results), unplanned)
         table["nodes"] = _lattice_nodes(study, study.claims, table)
     if study.selected:  # --group: the rest of the study's report stays as it was
         manifest, cells, table = _merged(folder, study, manifest, cells, table)

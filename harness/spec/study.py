@@ -10,12 +10,15 @@ cell is built (`studyfile`).
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import itertools
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from pcverify.harness.spec.analyses import ANALYSES
 from pcverify.harness.spec.calibspec import Calibration, parse_calibrations
@@ -26,7 +29,7 @@ from pcverify.harness.spec.schema import NAME, SCENE, as_list, check_value, row_
 from pcverify.harness.spec.studyfile import check_groups, check_study_document, read_study_document, solver_params_of
 from pcverify.harness.spec.tasks import SOLVE, CellTask
 from pcverify.scene import Scene, SceneError
-from pcverify.solvers.registry import SolverUnavailable, get_solver
+from pcverify.solvers.registry import SolverUnavailable, get_solver, named
 
 MAX_CELLS = 10_000  # a larger study needs --allow-large
 
@@ -54,6 +57,16 @@ class Cell:
         return f"{self.scene.name} / {self.solver} n={self.n} refine={self.refine}" + (f" [{extra}]" if extra else "")
 
 
+@dataclass(frozen=True)
+class Unplanned:
+    """A solver a group names whose cells are not planned: its task does not support the group's scene (the
+    reason), so each of its `cells` would only be skipped."""
+
+    solver: str
+    reason: str
+    cells: int
+
+
 @dataclass
 class Group:
     id: str
@@ -61,6 +74,7 @@ class Group:
     analysis: str
     cells: list[Cell]
     options: dict[str, Any] = field(default_factory=dict)
+    unplanned: list[Unplanned] = field(default_factory=list)
 
 
 @dataclass
@@ -175,13 +189,35 @@ def _group(g: dict[str, Any], gi: int, plugins: tuple[str, ...]) -> Group:
     sweep = g.get("sweep", {})
     keys = sorted(sweep)
     combos = list(itertools.product(*[as_list(sweep[k]) for k in keys])) or [()]
-    cells = []
-    for solver, n, refine, combo in itertools.product(
-        as_list(g["solvers"]), as_list(g.get("n", [4])), as_list(g.get("refine", [1])), combos,
-    ):
+    cells, unplanned = [], []
+    ns, refines = as_list(g.get("n", [4])), as_list(g.get("refine", [1]))
+    solvers = []
+    for solver in as_list(g["solvers"]):
+        why = _unsupported(task, solver, scene)
+        if why is None:
+            solvers.append(solver)
+        else:
+            unplanned.append(Unplanned(solver, why, len(ns) * len(refines) * len(combos)))
+    for solver, n, refine, combo in itertools.product(solvers, ns, refines, combos):
         params = solver_params_of(g.get("solver_params", {}), solver) | dict(zip(keys, combo, strict=True))
         cells.append(Cell(gid, scene, tuple(sorted(scene_params.items())), solver, int(n), int(refine),
                           tuple(sorted(params.items())), task=task, plugins=plugins))
     if bool(g.get("serial", analysis.serial)):
         cells = [dataclasses.replace(c, serial=True) for c in cells]
-    return Group(gid, g.get("title", gid), analysis.name, cells, options)
+    return Group(gid, g.get("title", gid), analysis.name, cells, options, unplanned)
+
+
+def _unsupported(task: CellTask, solver_name: str, scene: Scene) -> str | None:
+    """Why `solver_name`'s cells of a group on `scene` would all be skipped (its task does not support the
+    scene), or None: planned.  A solver that cannot be loaded, or whose `supports` raises or answers something
+    other than (bool, text), is planned: its cells then fail (or skip) with the reason, one by one."""
+    try:
+        solver = get_solver(solver_name)
+        ok, reason = task.supports(named(solver, solver_name), copy.deepcopy(scene))
+    except KeyboardInterrupt:
+        raise
+    except BaseException:  # noqa: BLE001 - a plugin's failure belongs to its cells, which report it
+        return None
+    if isinstance(ok, (bool, np.bool_)) and not ok and isinstance(reason, str):
+        return reason or "the solver does not support this scene"
+    return None

@@ -22,5 +22,6 @@ STATUS_TEXT = {
 
 E_START, E_END, E_DISS, E_DRIVE, E_BATH, E_KIN_END, E_POT_END = range(7)  # energy output slots
 K_STEPS, K_HOP_EVENTS, K_HOP_PAIRS, K_FIRST_HOP, K_STATUS, K_STOP_STEP, K_HOT_STEPS, K_HALF1, K_HALF2 = range(9)
+K_STATIONARY = 9  # the step at which a run with a stationarity stop ended stationary (-1: it did not)
 H_T, H_KIN, H_POT, H_DISS, H_DRIVE, H_BATH = range(6)  # columns of the coarse energy history
-N_ENERGY, N_COUNTERS, N_HISTORY_COLUMNS = 8, 9, 6  # sizes of the outputs (energy, counters, history rows)
+N_ENERGY, N_COUNTERS, N_HISTORY_COLUMNS = 8, 10, 6  # sizes of the outputs (energy, counters, history rows)

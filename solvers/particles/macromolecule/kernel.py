@@ -29,7 +29,19 @@ import llvmlite.binding as llvm
 import numpy as np
 from numba import njit
 
-from .codes import E_START, FREE, FROZEN, GROUP, K_FIRST_HOP, K_HALF1, K_HALF2, K_HOT_STEPS, K_STATUS, RUNNING
+from .codes import (
+    E_START,
+    FREE,
+    FROZEN,
+    GROUP,
+    K_FIRST_HOP,
+    K_HALF1,
+    K_HALF2,
+    K_HOT_STEPS,
+    K_STATIONARY,
+    K_STATUS,
+    RUNNING,
+)
 from .computes import check, finish, hops, hot_sums, neighbourhood, potential_any, potential_p2, record, sum8
 from .fixes import bath_kick, drive_positions, fix_work, held_kick, start_velocity
 from .force import C_A, C_P, C_ROOTS, C_X0, C_X1, pair_force
@@ -47,13 +59,17 @@ llvm.set_option("", "-vectorize-memory-check-threshold=4096")
 # frequency, whether the red pair's centre moves freely, the seed.  RunParams: force coefficients, damping, dt,
 # steps, hotness window [n_start, n_end), check interval, blow-up rule (kinetic energy above blowup_factor times
 # the energy supplied plus e_scale), the bar's box, the neighbourhood check (contact fraction of a, largest rest
-# distance listed, skin).  RunOutputs: hot (3, N) sums of KE dt over the window and its halves, energy (codes.E_*),
-# counters (codes.K_*), history (codes.H_*), ever (P,): 1 for pairs that ever hopped.
+# distance listed, skin), the window's marks and the stationarity stop: the window [n_start, marks[k]) is split in
+# halves at marks[k - 1]; at each mark after the first the run ends if the halves' hotness agrees within stop_tol
+# (relative to the hottest free particle; 0: never), else the halves merge into the first and the window grows to
+# the next mark (marks [n_mid, n_end] with stop_tol 0: the plain window and its two halves).  RunOutputs: hot
+# (3, N) sums of KE dt over the window and its halves, energy (codes.E_*), counters (codes.K_*), history
+# (codes.H_*), ever (P,): 1 for pairs that ever hopped.
 RunState = namedtuple("RunState", "x v")
 LatticeArrays = namedtuple("LatticeArrays", "x_rest mass a pi pj g_off g_base g_lo g_hi g_r0 mask r0s slot")
 FixArrays = namedtuple("FixArrays", "kind amp phase gamma kt omega free_centre seed")
 RunParams = namedtuple("RunParams", "coeffs delta dt n_steps n_start n_end check_every blowup_factor e_scale box_lo "
-                                    "box_hi contact_fraction cutoff_rest skin")
+                                    "box_hi contact_fraction cutoff_rest skin marks stop_tol")
 RunOutputs = namedtuple("RunOutputs", "hot energy counters history ever")
 
 
@@ -149,6 +165,18 @@ def pair_pass(pos, vel, lattice, rt, shape, delta, dt, qk, dk, out, ever, step, 
         fx[i], fy[i], fz[i] = fix[i] + fjx[i], fiy[i] + fjy[i], fiz[i] + fjz[i]
 
 
+@njit(inline="always")
+def _stationary(hot1, hot2, c1, c2, kind, gamma, tol):
+    """Whether the halves' mean hotness (sums hot1 over c1 steps, hot2 over c2) of every free particle (no fix,
+    no bath) agree within tol of the hottest free particle's mean over the whole window."""
+    hmax = diff = 0.0
+    for i in range(hot1.shape[0]):
+        if kind[i] == FREE and gamma[i] == 0.0:
+            hmax = max(hmax, (hot1[i] + hot2[i]) / (c1 + c2))
+            diff = max(diff, abs(hot1[i] / c1 - hot2[i] / c2))
+    return hmax > 0.0 and diff <= tol * hmax
+
+
 @njit(cache=True)
 def _xyz(n):
     """x, y and z vectors of length n, zero (structure of arrays: three separate allocations)."""
@@ -185,9 +213,10 @@ def _run(state, lattice, fixes, params, out, square, potential):
     vc, cpos = np.zeros(3), np.zeros(3)  # the red pair's centre: velocity, displacement
     hot1, hot2 = np.zeros(n), np.zeros(n)
     counters[:] = 0
-    counters[K_FIRST_HOP], counters[K_STATUS] = -1, RUNNING  # no hop yet, running
+    counters[K_FIRST_HOP], counters[K_STATUS], counters[K_STATIONARY] = -1, RUNNING, -1  # no hop yet, running
     energy[:] = 0.0
-    n_mid, half_m, dtm = (n_start + n_end) // 2, 0.5 * mass, dt / mass
+    marks, mark = params.marks, 0  # the window's next mark: marks[mark]
+    half_m, dtm = 0.5 * mass, dt / mass
     vpx, vpy, vpz = vp
     for i in range(n):
         vpx[i], vpy[i], vpz[i] = v0[i, 0], v0[i, 1], v0[i, 2]
@@ -236,11 +265,23 @@ def _run(state, lattice, fixes, params, out, square, potential):
                 hrow += 1
             if status != RUNNING:
                 break
-        # --- hotness at t_n from v_n = (v_{n-1/2} + v_{n+1/2}) / 2
+        # --- hotness at t_n from v_n = (v_{n-1/2} + v_{n+1/2}) / 2; at a mark, the stationarity stop
         if n_start <= step < n_end:
+            if mark < marks.shape[0] and step == marks[mark]:
+                if mark > 0:
+                    if params.stop_tol > 0.0 and _stationary(hot1, hot2, counters[K_HALF1], counters[K_HALF2], kind,
+                                                             gamma, params.stop_tol):
+                        counters[K_STATIONARY] = step
+                        break
+                    for i in range(n):
+                        hot1[i] += hot2[i]
+                        hot2[i] = 0.0
+                    counters[K_HALF1] += counters[K_HALF2]
+                    counters[K_HALF2] = 0
+                mark += 1
             counters[K_HOT_STEPS] += 1
-            counters[K_HALF1 if step < n_mid else K_HALF2] += 1
-            hot_sums(hot1 if step < n_mid else hot2, vm, vp)
+            counters[K_HALF1 if mark == 0 else K_HALF2] += 1
+            hot_sums(hot1 if mark == 0 else hot2, vm, vp)
         # --- drift to t_{n+1}: all particles (frozen ones have v = 0), then the driven ones by their fix
         for i in range(n):
             px[i], py[i], pz[i] = px[i] + dt * vpx[i], py[i] + dt * vpy[i], pz[i] + dt * vpz[i]

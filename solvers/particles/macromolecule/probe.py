@@ -56,7 +56,7 @@ class MacromoleculeProbe:
         p, s, scene, resolution, given = setup.state
         lat, fx = s.lattice, s.fixes
         dt = dt_ratio * setup.dt_theory
-        sol = self.solver.solve(scene, resolution, **(given | {"dt": dt, "dt_guard": False}))
+        sol = self.solver.solve(scene, resolution, **(given | {"dt": dt, "dt_guard": False, "stop_tol": 0.0}))
         w = 2 * math.pi * p["drive_frequency"]
         e, x = sol.diagnostics["energy"], sol.diagnostics["positions_end"]
         finite = bool(np.isfinite(x).all() and np.isfinite(list(e.values())).all())

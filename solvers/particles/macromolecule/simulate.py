@@ -25,6 +25,16 @@ from .lattice import Lattice
 from .setup import Setup
 
 N_HISTORY = 400
+STOP_DOUBLINGS = 4  # a stationarity stop first compares the halves of the window's first eighth
+
+
+def window_marks(n_start: int, n_end: int, stop_tol: float) -> np.ndarray:
+    """The kernel's window marks: without a stop the midpoint and the end; with one, the window's lengths
+    L / 16, L / 8, L / 4, L / 2 and L (L = n_end - n_start), so that each tested window is twice the last."""
+    if stop_tol <= 0:
+        return np.array([(n_start + n_end) // 2, n_end], dtype=np.int64)
+    length = n_end - n_start
+    return np.array([n_start + (length >> k) for k in range(STOP_DOUBLINGS, -1, -1)], dtype=np.int64)
 
 
 @dataclass
@@ -49,9 +59,12 @@ class RunResult:
 
 def simulate(lat: Lattice, model: SevenRoot, fx: Fixes, delta: float, dt: float, t_end: float, t_start: float = 0.0,
              omega: float = 0.0, v0: np.ndarray | None = None, seed: int = 0, blowup_factor: float = 10.0,
-             contact_fraction: float = 0.5, check_every: int | None = None, x0: np.ndarray | None = None) -> RunResult:
+             contact_fraction: float = 0.5, check_every: int | None = None, x0: np.ndarray | None = None,
+             stop_tol: float = 0.0) -> RunResult:
     """Run the kernel from rest (or from positions x0 and velocities v0; held particles start on their fix)
-    and return averaged hotness and diagnostics.
+    and return averaged hotness and diagnostics.  With `stop_tol` > 0 the averaging window grows by doubling
+    from a sixteenth of [t_start, t_end] and the run ends at the first window whose halves agree within
+    stop_tol (the mean hotness of every free particle, relative to the hottest free one), or at t_end.
 
     The kernel is compiled or loaded from numba's cache before the clock starts: wall_s and cpu_s are
     the integration alone."""
@@ -77,7 +90,8 @@ def simulate(lat: Lattice, model: SevenRoot, fx: Fixes, delta: float, dt: float,
                   n_end=n_steps, check_every=int(check_every or max(1, n_steps // N_HISTORY)),
                   blowup_factor=float(blowup_factor), e_scale=float(e_scale), box_lo=-lat.a * np.ones(3),
                   box_hi=lat.positions.max(axis=0) + lat.a, contact_fraction=float(contact_fraction),
-                  cutoff_rest=float(cutoff), skin=float(unlisted - contact_fraction * lat.a)),
+                  cutoff_rest=float(cutoff), skin=float(unlisted - contact_fraction * lat.a),
+                  marks=window_marks(n_start, n_steps, stop_tol), stop_tol=float(stop_tol)),
         RunOutputs(hot=np.zeros((3, N)), energy=np.zeros(codes.N_ENERGY),
                    counters=np.zeros(codes.N_COUNTERS, dtype=np.int64),
                    history=np.full((N_HISTORY + 2, codes.N_HISTORY_COLUMNS), np.nan),
@@ -106,7 +120,8 @@ def run_setup(s: Setup, p: dict[str, Any], dt: float | None = None, **given: Any
     """`simulate` a prepared run with the solver's parameters `p` (at its dt, or at `dt`)."""
     return simulate(s.lattice, s.model, s.fixes, s.delta, dt or s.dt, p["t_end"], p["t_start"],
                     2 * np.pi * p["drive_frequency"], v0=initial_velocities(s, p), seed=p["seed"],
-                    blowup_factor=p["blowup_factor"], contact_fraction=p["contact_fraction"], **given)
+                    blowup_factor=p["blowup_factor"], contact_fraction=p["contact_fraction"], stop_tol=p["stop_tol"],
+                    **given)
 
 
 ENERGY_TOL = 1e-2  # relative energy-balance error above which a run is not integrated (shipped runs: <= 3e-4)
@@ -132,6 +147,7 @@ def run_status(run: RunResult, H: np.ndarray, free: np.ndarray, p: dict[str, Any
         "stationarity": stat, "hops": hops, "hopped_pairs": int(run.counters[codes.K_HOP_PAIRS]),
         "first_hop_step": int(run.counters[codes.K_FIRST_HOP]),
         "stopped_at_step": int(run.counters[codes.K_STOP_STEP]) if code != codes.DONE else -1,
+        "stationary_at_step": int(run.counters[codes.K_STATIONARY]),
         "kernel_status": codes.STATUS_TEXT[code],
         "running_integral_linearity": _linearity(run.history),
     }

@@ -65,6 +65,11 @@ PARAMETERS: tuple[Param, ...] = (
     Param("perturbation", 0.0, "a 2 pi f_top", "random initial velocities of the free particles (normal, seeded by "
           "seed), in units of a 2 pi f_top: replicas of a run whose trajectory is chaotic (defect regime) differ by "
           "it, so their spread measures how much of a value is the arithmetic's", low=0.0, high=1e-3),
+    Param("stop_tol", 0.02, "", "stationarity stop: the averaging window grows by doubling from a sixteenth of "
+          "[t_start, t_end] and the run ends at the first window whose halves agree within this (every free "
+          "particle's mean hotness, relative to the hottest free one); the window mean is then within about half "
+          "of it of its long-time value (a start-up transient decays as 1/t in it); 0 runs to t_end", low=0.0,
+          high=1.0),
     Param("stationarity_tol", 0.1, "", "non-stationary if the hotness of a free particle changes by more than this "
           "(relative to the hottest free one) between the halves of the window", low=0.0, high=10.0, low_open=True),
     Param("blowup_factor", 10.0, "", "unstable if the kinetic energy exceeds this times the energy supplied",
