@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import json
 import math
 import multiprocessing
 import os
@@ -145,3 +146,29 @@ def test_balance_error_gives_each_solver_its_former_value_to_the_bit():
     scale = max(abs(start), abs(end), abs(drive), abs(bath), dis, 1e-300)
     old = float(abs(end - start + dis - drive - bath) / scale)
     assert balance_error(end - start + dis, (drive, bath), scale) == old
+
+
+TWINS = ALPHA + ('[[group]]\nid = "timed"\nanalysis = "work-precision"\nscene = "bar-heat-faces"\nsolvers = ["skfem"]\n'
+                 'n = [2, 3]\nerror = "nodes.l2"\n')
+
+
+def test_a_cell_a_timed_group_also_solves_is_solved_once(tmp_path, capsys):
+    """The faces group asks for the two cells the timed group solves: two solves, not four; the untimed cells
+    carry the timed results under their own keys, so a rerun reads all four back."""
+    path = tmp_path / "alpha.toml"
+    path.write_text(TWINS)
+    args = ["study", str(path), "--out", str(tmp_path / "out"), "--json"]
+    assert main(args) == 0
+    (entry,) = json.loads(capsys.readouterr().out)
+    assert (entry["cells"], entry["done"], entry["cached"]) == (4, 2, 2)
+    study = load_study(str(path))
+    cache = Cache(tmp_path / "out" / "cache")
+    results = cached_results(study, cache)
+    by = {(r["group"], r["n"]): r for r in results}
+    for n in (2, 3):
+        assert by[("faces", n)]["summary"] == by[("timed", n)]["summary"]
+        assert by[("faces", n)]["cache_key"] != by[("timed", n)]["cache_key"]
+    assert len(list((tmp_path / "out" / "cache").glob("*.json"))) == 4
+    assert main(args) == 0
+    (entry,) = json.loads(capsys.readouterr().out)
+    assert (entry["done"], entry["cached"]) == (0, 4)

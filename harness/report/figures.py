@@ -141,6 +141,9 @@ def describe(fig: Any) -> dict[str, Any]:
     return {"suptitle": fig.get_suptitle(), "axes": out}
 
 
+PNG_DPI = 100
+
+
 def _save(fig: Any, path: Path, title: str | None = None, layout: str = "constrained") -> bool:
     """Title the figure (`title`, wrapped to its width; None: the axes carry their own), lay out
     (constrained: room for the title and for legends outside the axes; "tight" for 3-D panels with colour
@@ -156,12 +159,16 @@ def _save(fig: Any, path: Path, title: str | None = None, layout: str = "constra
         fig.set_layout_engine(layout)
     try:
         atomic_write(path.with_suffix(".json"), json.dumps(describe(fig)))
+        # describe drew the figure on its Agg canvas: at 100 dpi that picture is the PNG, not drawn again
+        drawn = Image.fromarray(np.asarray(fig.canvas.buffer_rgba())) if fig.dpi == PNG_DPI else None
         atomic_write(path.with_suffix(".svg"), lambda fh: fig.savefig(fh, format="svg"))
-        buffer = io.BytesIO()
-        fig.savefig(buffer, format="png", dpi=100)
+        if drawn is None:
+            buffer = io.BytesIO()
+            fig.savefig(buffer, format="png", dpi=PNG_DPI)
+            drawn = Image.open(buffer)
     finally:
         plt.close(fig)
-    with Image.open(buffer) as im:
+    with drawn as im:
         small = im.convert("RGB").quantize(colors=256, method=Image.Quantize.MEDIANCUT, dither=Image.Dither.NONE)
     atomic_write(path.with_suffix(".png"), lambda fh: small.save(fh, format="PNG", optimize=True))
     return True

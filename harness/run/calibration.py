@@ -355,11 +355,20 @@ def _outcome(ev: _Evaluator, cal: Calibration, best: dict[str, Any] | None, nois
                 "max_default_error_ok_cells [validated on]": _max(held["default_error"]),
                 "evaluations": len(ev.ledger), "search_runs": ev.search_runs, "budget": cal.budget,
                 "failed_sets": int((trace["status"] != "ok").sum()) if not trace.empty else 0,
-                "solver_runs": ev.runs, "cache_hits": ev.hits}
+                "solver_runs": ev.runs, "cache_hits": ev.hits,
+                "wall_s per search evaluation": _search_cost(trace, "wall_s"),
+                "work per search evaluation": _search_cost(trace, "work")}
     tables = {f"{cal.id}-summary": pd.DataFrame([summary]), f"{cal.id}-parameters": pd.DataFrame(params_rows),
               f"{cal.id}-trace": trace, f"{cal.id}-noise": pd.DataFrame(noise_rows),
               f"{cal.id}-validation": validation}
     return Outcome(cal, tables, ev.runs, ev.hits, {p.name: best[p.name] for p in cal.parameters} if best else {})
+
+
+def _search_cost(trace: pd.DataFrame, column: str) -> float:
+    """The mean cost (solver wall time or work) of one evaluation of the search (design and local phases)."""
+    if trace.empty:
+        return math.nan
+    return float(trace.loc[trace["phase"].isin(["design", "local"]), column].mean())
 
 
 def _rms(errors: pd.Series) -> float:

@@ -97,6 +97,13 @@ def cell_identity(cell: Cell) -> tuple[dict[str, Any], str | None]:
                       "compare": module_fingerprint(compare.__name__)}, None
 
 
+def untimed_key(cell: Cell) -> str:
+    """The cache key `cell` would have outside a timed group: a cell of another group with this key computes
+    the same solution, so it takes the timed cell's result instead of being solved twice."""
+    payload = {k: v for k, v in cell_identity(cell)[0].items() if k != "timing"}
+    return cell_key(payload)
+
+
 class CellId(NamedTuple):
     """A cell's cache key (`cache.cell_key` of its `cell_identity` payload) and the reason it will not be
     solved (None: it will be)."""
@@ -330,7 +337,8 @@ def execute(study: Study, cache: Cache, jobs: int = 1, progress: bool = True, sc
     Every computed cell runs in a worker process and is killed after `time_limit` seconds (default: the
     `cell_time_limit` in force); a cached cell that failed on a shorter limit is computed again.
     Cells of timed groups run last, one at a time in one worker process, after a warm-up solve per solver
-    there; the others run on `jobs` worker processes, or a Dask cluster at `scheduler`.
+    there; the others run on `jobs` worker processes, or a Dask cluster at `scheduler`.  A cell of another group
+    that a timed cell also solves (its untimed twin) takes the timed cell's result: each solution once.
     Each finished cell is written to the cache at once, so an interrupted study loses nothing.
     """
     limit = _TIME_LIMIT.get() if time_limit is None else float(time_limit)
@@ -384,6 +392,10 @@ def _execute(study: Study, cache: Cache, jobs: int, progress: bool, scheduler: s
             first[keys[i]] = i
             same[i] = []
     todo = [i for i in todo if first[keys[i]] == i]
+    timed = {untimed_key(cells[i]): i for i in todo if cells[i].serial and identities[i].skip is None}
+    for i in [i for i in todo if not cells[i].serial and keys[i] in timed]:  # solved once, in the timed pass
+        same[timed[keys[i]]] += [i, *same.pop(i)]
+        todo.remove(i)
 
     def share(i: int, res: dict[str, Any], done: bool) -> None:
         results[i] = as_cell(res, cells[i])
@@ -391,6 +403,8 @@ def _execute(study: Study, cache: Cache, jobs: int, progress: bool, scheduler: s
         for j in same[i]:
             results[j] = as_cell(res, cells[j])
             counts["cached"] += 1
+            if keys[j] != keys[i]:  # the untimed twin of a timed cell: its own entry
+                cache.store(keys[j], res | {"cache_key": keys[j]})
         counts["failed"] += (res.get("status") == "failed") * (1 + len(same[i]))
         bar.set_postfix(done=counts["done"], cached=counts["cached"], failed=counts["failed"])
         bar.update(1 + len(same[i]))
