@@ -35,6 +35,7 @@ import pandas as pd
 from tqdm import tqdm
 
 from pcverify import __version__
+from pcverify.harness.report.batch import ReportJob, write_reports
 from pcverify.harness.report.calibration_section import calibration_section
 from pcverify.harness.report.reproduce import claim_groups, select_groups
 from pcverify.harness.report.write import (
@@ -325,7 +326,7 @@ def cmd_study(args: argparse.Namespace) -> int:
         out = Path(args.out)
         cache = Cache(args.cache or out / "cache")
         rerun = None if args.rerun is None else frozenset(args.rerun)
-        summary = []
+        summary, computed = [], []  # computed: (study, counts, seconds, its report job) of each study run
         for study in studies:
             if args.dry_run:
                 with output_to_stderr():
@@ -344,19 +345,28 @@ def cmd_study(args: argparse.Namespace) -> int:
                 continue
             t0 = time.perf_counter()
             shown_bar = not args.json and any(g.cells for g in study.groups)  # a calibration-only study: no bar
-            with output_to_stderr():
-                results, counts = execute(study, cache, jobs=args.jobs, progress=shown_bar,
-                                          scheduler=args.scheduler, rerun=rerun, allow_large=args.allow_large)
-            extra = []
-            for cal in study.calibrations:
+            try:
                 with output_to_stderr():
-                    outcome = run_calibration(study, cal, cache, jobs=args.jobs, rerun=rerun,
-                                              allow_large=args.allow_large, progress=not args.json)
-                extra.append(calibration_section(outcome, out / study.name))
+                    results, counts = execute(study, cache, jobs=args.jobs, progress=shown_bar,
+                                              scheduler=args.scheduler, rerun=rerun, allow_large=args.allow_large)
+                    outcomes = [run_calibration(study, cal, cache, jobs=args.jobs, rerun=rerun,
+                                                allow_large=args.allow_large, progress=not args.json)
+                                for cal in study.calibrations]
+            except KeyboardInterrupt:
+                if computed:  # the studies that finished keep their reports
+                    print(f"interrupted: writing the reports of the {len(computed)} studies that finished "
+                          "(Ctrl-C again stops now)", file=sys.stderr)
+                    with output_to_stderr():
+                        write_reports([job for *_, job in computed], out)
+                raise
+            for outcome in outcomes:
                 counts["calibration_runs"] = counts.get("calibration_runs", 0) + outcome.runs
                 counts["calibration_cached"] = counts.get("calibration_cached", 0) + outcome.hits
-            write_study_report(study, results, out, extra=extra)
-            summary.append({"study": study.name, **counts, "wall_s": round(time.perf_counter() - t0, 3),
+            computed.append((study, counts, time.perf_counter() - t0, ReportJob(study, results, outcomes)))
+        with output_to_stderr():  # every study computed: the reports at once, one core each
+            seconds = write_reports([job for *_, job in computed], out, processes=args.jobs)
+        for (study, counts, compute_s, _), report_s in zip(computed, seconds, strict=True):
+            summary.append({"study": study.name, **counts, "wall_s": round(compute_s + report_s, 3),
                             "verdicts": study_verdicts(out, study.name)})
             if not args.json:
                 calib = (f", calibrations: {counts['calibration_runs']} solver runs, {counts['calibration_cached']} "
