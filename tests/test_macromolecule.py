@@ -478,3 +478,46 @@ def test_a_run_that_is_not_stationary_runs_to_t_end_and_stop_tol_0_never_stops()
 def test_stop_tol_outside_its_range_is_one_error() -> None:
     with pytest.raises(SceneError, match=r"stop_tol.*allowed"):
         SOLVER.solve(PAPER, Resolution(2), stop_tol=1.5)
+
+
+def _contact_brute_force(x: np.ndarray, x_rest: np.ndarray, lim: float, cut2: float) -> bool:
+    d2 = ((x[:, None, :] - x[None, :, :]) ** 2).sum(-1)
+    r2 = ((x_rest[:, None, :] - x_rest[None, :, :]) ** 2).sum(-1)
+    upper = np.triu(np.ones_like(d2, dtype=bool), 1)
+    return bool(np.any(upper & (r2 > cut2) & (d2 < lim**2)))
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_the_cell_list_finds_an_unlisted_contact_exactly_when_the_all_pairs_search_does(seed: int) -> None:
+    """Lattices of bar-heat-paper shaken by up to 0.6 a (6 of the 40 with a contact closer than 0.5 a): the O(N)
+    cell list of the neighbourhood check answers as the all-pairs search does, also at a contact distance far below
+    a (the cell side doubles) and with every particle in one cell."""
+    from pcverify.solvers.particles.macromolecule.computes import unlisted_contact
+
+    rng = np.random.default_rng(seed)
+    lat = build_lattice(PAPER.box, int(rng.integers(2, 5)), PAPER.material.density)
+    a = lat.a
+    x = lat.positions + rng.uniform(0.0, 0.6) * a * rng.standard_normal(lat.positions.shape)
+    cut2 = (2.0 * a * (1 + 1e-9)) ** 2
+    for lim in (0.5 * a, 1e-4 * a, 50.0 * a):
+        want = _contact_brute_force(x, lat.positions, lim, cut2)
+        got = unlisted_contact(*(np.ascontiguousarray(x[:, d]) for d in range(3)), lat.positions, lim, cut2)
+        assert got == want
+
+
+def test_the_cell_list_finds_a_single_unlisted_contact_in_any_direction() -> None:
+    """One particle moved to within 0.4 a of an unlisted one (rest distance beyond 2 a), in 300 random directions
+    and pairs: the only contact closer than 0.5 a, found whichever neighbouring cell it falls in."""
+    from pcverify.solvers.particles.macromolecule.computes import unlisted_contact
+
+    rng = np.random.default_rng(7)
+    lat = build_lattice(PAPER.box, 3, PAPER.material.density)
+    a, rest = lat.a, lat.positions
+    cut2 = (2.0 * a * (1 + 1e-9)) ** 2
+    far = np.argwhere(((rest[:, None, :] - rest[None, :, :]) ** 2).sum(-1) > cut2)
+    for i, j in far[rng.choice(len(far), 300, replace=False)]:
+        x = rest.copy()
+        e = rng.standard_normal(3)
+        x[i] = rest[j] + 0.4 * a * e / np.linalg.norm(e)
+        assert _contact_brute_force(x, rest, 0.5 * a, cut2)
+        assert unlisted_contact(*(np.ascontiguousarray(x[:, d]) for d in range(3)), rest, 0.5 * a, cut2)

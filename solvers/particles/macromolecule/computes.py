@@ -89,15 +89,56 @@ def neighbourhood(px, py, pz, x_rest, kind, pi, pj, a, cutoff_rest, contact_frac
         dmax2 = max(dmax2, (px[i] - x_rest[i, 0]) ** 2 + (py[i] - x_rest[i, 1]) ** 2 + (pz[i] - x_rest[i, 2]) ** 2)
     if 4.0 * dmax2 < skin * skin:
         return codes.RUNNING
-    lim2 = (contact_fraction * a) ** 2
-    cut2 = cutoff_rest * cutoff_rest
-    xr = x_rest
-    for i in range(n):
-        for j in range(i + 1, n):
-            rest2 = (xr[j, 0] - xr[i, 0]) ** 2 + (xr[j, 1] - xr[i, 1]) ** 2 + (xr[j, 2] - xr[i, 2]) ** 2
-            if rest2 > cut2 and (px[j] - px[i]) ** 2 + (py[j] - py[i]) ** 2 + (pz[j] - pz[i]) ** 2 < lim2:
-                return codes.CONTACT
+    if unlisted_contact(px, py, pz, x_rest, contact_fraction * a, cutoff_rest * cutoff_rest):
+        return codes.CONTACT
     return codes.RUNNING
+
+
+@njit(cache=True, boundscheck=False)
+def unlisted_contact(px, py, pz, x_rest, lim, cut2):
+    """Whether two particles not listed as a pair (rest distance squared above cut2) are closer than lim.  A cell
+    list of side h >= lim (doubled until there are at most 8 cells per particle): only particles in the same or
+    adjacent cells can be that close, so the answer is the all-pairs search's in O(N) (counting sort by cell)."""
+    n = px.shape[0]
+    lo_x, lo_y, lo_z = px.min(), py.min(), pz.min()
+    h = lim
+    while True:
+        nx, ny, nz = (int((px.max() - lo_x) / h) + 1, int((py.max() - lo_y) / h) + 1,
+                      int((pz.max() - lo_z) / h) + 1)
+        if nx * ny * nz <= 8 * n + 64:
+            break
+        h *= 2.0
+    cell = np.empty(n, dtype=np.int64)
+    start = np.zeros(nx * ny * nz + 1, dtype=np.int64)
+    for i in range(n):
+        cell[i] = (int((px[i] - lo_x) / h) * ny + int((py[i] - lo_y) / h)) * nz + int((pz[i] - lo_z) / h)
+        start[cell[i] + 1] += 1
+    for c in range(nx * ny * nz):
+        start[c + 1] += start[c]
+    fill = start[:-1].copy()
+    order = np.empty(n, dtype=np.int64)
+    for i in range(n):
+        order[fill[cell[i]]] = i
+        fill[cell[i]] += 1
+    lim2 = lim * lim
+    for i in range(n):
+        cx, rest = divmod(cell[i], ny * nz)
+        cy, cz = divmod(rest, nz)
+        for ax in range(max(cx - 1, 0), min(cx + 2, nx)):
+            for ay in range(max(cy - 1, 0), min(cy + 2, ny)):
+                for az in range(max(cz - 1, 0), min(cz + 2, nz)):
+                    c = (ax * ny + ay) * nz + az
+                    for k in range(start[c], start[c + 1]):
+                        j = order[k]
+                        if j <= i:
+                            continue
+                        d2 = (px[j] - px[i]) ** 2 + (py[j] - py[i]) ** 2 + (pz[j] - pz[i]) ** 2
+                        if d2 < lim2:
+                            rest2 = ((x_rest[j, 0] - x_rest[i, 0]) ** 2 + (x_rest[j, 1] - x_rest[i, 1]) ** 2
+                                     + (x_rest[j, 2] - x_rest[i, 2]) ** 2)
+                            if rest2 > cut2:
+                                return True
+    return False
 
 
 @njit(cache=True, boundscheck=False)
