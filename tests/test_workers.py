@@ -8,9 +8,14 @@ on to finish the cell before it stopped).  These tests pin the mechanism that ru
 
 from __future__ import annotations
 
+import os
 import signal
+import time
+
+import pytest
 
 from pcverify.harness.run import workers
+from pcverify.harness.run.interrupt import deferred_interrupts, received, remember_sigint
 
 
 def _mask() -> set[int]:
@@ -46,3 +51,20 @@ def test_a_worker_dies_by_sigterm_and_the_pool_names_it() -> None:
     finally:
         pool.close()
     assert outcome.kind == "died" and "killed by signal 15, SIGTERM" in outcome.reason
+
+
+def test_a_signal_inside_a_deferring_block_is_raised_when_the_block_ends() -> None:
+    """A fork's at-fork hooks run inside `deferred_interrupts`: a SIGTERM there (delivered to any thread) must not
+    raise inside them, where Python prints the exception as a traceback and loses it; it stops the study right
+    after.  Outside the block the same signal raises at once."""
+    with remember_sigint():
+        reached = False
+        with pytest.raises(KeyboardInterrupt):
+            with deferred_interrupts():
+                os.kill(os.getpid(), signal.SIGTERM)
+                time.sleep(0.2)  # the handler has run by now
+                reached = True
+        assert reached and received() == signal.SIGTERM
+        with pytest.raises(KeyboardInterrupt):
+            os.kill(os.getpid(), signal.SIGTERM)
+            time.sleep(5)

@@ -6,13 +6,13 @@ from __future__ import annotations
 
 import multiprocessing
 import time
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from pcverify.harness.report.calibration_section import calibration_section
 from pcverify.harness.report.write import write_study_report
+from pcverify.harness.run.interrupt import deferred_interrupts, undeferred
 
 
 @dataclass
@@ -46,8 +46,14 @@ def write_reports(jobs: list[ReportJob], out: Path, processes: int = 1) -> list[
         return [_write(job, out) for job in jobs]
     _JOBS[:] = jobs
     try:
-        with ProcessPoolExecutor(max_workers=min(processes, len(jobs)),
-                                 mp_context=multiprocessing.get_context("fork")) as writers:
-            return list(writers.map(_write_job, range(len(jobs)), [out] * len(jobs)))
+        with deferred_interrupts():  # the writers are forked here: a signal meanwhile stops us after the forks
+            writers = multiprocessing.get_context("fork").Pool(min(processes, len(jobs)), _writer_start)
+        with writers:
+            return writers.starmap(_write_job, [(k, out) for k in range(len(jobs))], chunksize=1)
     finally:
         _JOBS.clear()
+
+
+def _writer_start() -> None:
+    """A forked writer: Ctrl-C and SIGTERM stop it at once (not deferred, as they were while it was forked)."""
+    undeferred()

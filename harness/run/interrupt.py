@@ -29,13 +29,36 @@ INTERRUPTED = threading.Event()
 STUDY_PID = "PCVERIFY_STUDY_PID"
 _RECEIVED: list[int] = []  # the signal that interrupted the study
 _WATCHING: list[int] = []  # the study pid a worker's watchdog follows
+_DEFERRING: list[bool] = []  # inside `deferred_interrupts`: a signal is remembered, raised at the block's end
 
 
 def _interrupt(signum, frame):  # noqa: ARG001 - the signal-handler signature
-    """Remember the signal and stop the main thread with KeyboardInterrupt."""
+    """Remember the signal and stop the main thread with KeyboardInterrupt (at the end of a deferring block)."""
     _RECEIVED.append(signum)
     INTERRUPTED.set()
-    raise KeyboardInterrupt
+    if not _DEFERRING:
+        raise KeyboardInterrupt
+
+
+@contextlib.contextmanager
+def deferred_interrupts() -> Iterator[None]:
+    """Within the block Ctrl-C and SIGTERM are only remembered, and KeyboardInterrupt is raised when it ends: for a
+    fork, whose at-fork hooks (logging's lock release) would print the exception as a traceback and lose it.
+    Blocking the signals is not enough: the kernel may deliver them to another thread of the process (tqdm's
+    monitor), and Python then runs the handler in the main thread wherever it is."""
+    before = len(_RECEIVED)
+    _DEFERRING.append(True)
+    try:
+        yield
+    finally:
+        _DEFERRING.pop()
+        if len(_RECEIVED) > before and not _DEFERRING:
+            raise KeyboardInterrupt
+
+
+def undeferred() -> None:
+    """In a process forked inside `deferred_interrupts`: its signals raise at once again."""
+    _DEFERRING.clear()
 
 
 def _exit_at_start_up(signum, frame):  # noqa: ARG001 - the signal-handler signature

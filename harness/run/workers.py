@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 from multiprocessing.connection import Connection, wait
 from typing import Any
 
-from pcverify.harness.run.interrupt import STUDY_PID, ignore_sigint_in_worker
+from pcverify.harness.run.interrupt import STUDY_PID, deferred_interrupts, ignore_sigint_in_worker
 
 STOP_SIGNALS = {signal.SIGINT, signal.SIGTERM}
 _FORK = multiprocessing.get_context("fork")  # a worker inherits the imported modules: no start-up import
@@ -133,9 +133,11 @@ class Pool:
         process = _FORK.Process(target=_serve, args=(theirs, mine, others, os.getpid()), name="pcverify-worker")
         # Ctrl-C and SIGTERM wait until the fork is done: the study's handler raises KeyboardInterrupt, which
         # inside the fork's own hooks (logging's at-fork lock release) is printed as a traceback and lost
+        # (and, delivered to another thread, they are only remembered until the fork is done)
         blocked = signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS)
         try:
-            process.start()
+            with deferred_interrupts():
+                process.start()
         finally:
             signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
         theirs.close()
