@@ -105,20 +105,23 @@ sweep = { dt_ratio = [0.5, 1.2], drive_amplitude = [0.01, 0.05] }
 
 
 def test_stability_study_and_report(tmp_path) -> None:
-    """The study runs probe cells, skips models without a probe (or not registered) with the reason,
-    and the report writes the limit table, the map table and their figures."""
+    """The study runs probe cells, does not plan the models without a probe (skfem) or whose scene has no time
+    stepping (MCA's steady heat), with the reason one line each, and the report writes the limit table, the map
+    table and their figures."""
     path = tmp_path / "stab.toml"
     path.write_text(STUDY)
     study = load_study(str(path))
     results, counts = execute(study, Cache(tmp_path / "cache"), progress=False)
-    assert counts["cells"] == 10 and counts["failed"] == 0
-    skipped = {r["solver"]: r["reason"] for r in results if r["status"] == "skipped"}
-    assert "no stability probe" in skipped["skfem"]
-    assert "mca" in skipped and "steady mca heat is a direct solve" in skipped["mca"]
+    assert counts["cells"] == 6 and counts["failed"] == 0  # the macromolecule's 2 limits and 4 map runs
+    unplanned = {u.solver: u for u in study.groups[0].unplanned}
+    assert set(unplanned) == {"mca", "skfem"} and all(u.cells == 2 for u in unplanned.values())
+    assert "no stability probe" in unplanned["skfem"].reason
+    assert "steady mca heat is a direct solve" in unplanned["mca"].reason
     folder = write_study_report(study, results, tmp_path / "out")
+    skipped = pd.read_csv(folder / "limit-skipped.csv")
+    assert skipped[["solver", "status"]].values.tolist() == [["mca", "not planned"], ["skfem", "not planned"]]
     limits = pd.read_csv(folder / "limit-limits.csv")
-    assert set(limits[limits["status"] == "skipped"]["solver"]) == {"skfem", "mca"}  # rows with the reason
-    limits = limits[limits["status"] == "ok"]
+    assert set(limits["solver"]) == {"macromolecule"} and (limits["status"] == "ok").all()
     assert list(limits["damping_ratio"]) == [0.0, 0.2]
     theory = [1.0, math.sqrt(1.04) - 0.2]
     assert limits["safety_theory"].tolist() == pytest.approx(theory, rel=1e-9)
