@@ -174,7 +174,7 @@ class Runner:
         return [done[i] for i in range(len(prepared))]
 
     def stop(self) -> None:
-        """Stop every mutant's process: SIGTERM (its study stops cleanly), SIGKILL after STOP_GRACE_S."""
+        """Stop every mutant's process (and keep new ones from starting)."""
         self.stopping.set()
         with self.lock:
             live = list(self.live)
@@ -183,12 +183,7 @@ class Runner:
                 os.killpg(proc.pid, signal.SIGTERM)
         deadline = time.monotonic() + STOP_GRACE_S
         for proc in live:
-            try:
-                proc.wait(max(0.0, deadline - time.monotonic()))
-            except subprocess.TimeoutExpired:
-                with contextlib.suppress(OSError):
-                    os.killpg(proc.pid, signal.SIGKILL)
-                proc.wait()
+            _stop(proc, max(0.0, deadline - time.monotonic()))
 
     def one(self, p: Prepared) -> dict[str, Any]:
         """Run one mutant and say what came of it."""
@@ -215,45 +210,17 @@ class Runner:
         roots = {p.original.parent, *(Path(s.origin).parent for s in _pcverify_specs())}
         _copy_numba_cache(p.folder / "numba", roots)
         outcome_file = p.folder / "outcome.json"
-        outcome_file.unlink(missing_ok=True)
         common = [str(self.study.path), "--out", str(p.folder / "report"), "--cache", str(results), "--json",
                   "--time-limit", f"{self.time_limit:g}"] + (["--allow-large"] if self.allow_large else [])
-        job = {"module": m.module(), "source": str(source), "original": str(p.original), "sys_path": sys.path,
-               "parent": os.getpid(), "outcome": str(outcome_file), "plan": ["study", *common, "--dry-run"],
-               "study": ["study", *common, "--jobs", "1"]}
-        (p.folder / "job.json").write_text(json.dumps(job, indent=1), encoding="utf-8")
-        code, timed_out = self._spawn(p.folder)
+        code, timed_out = overlaid(m.module(), source, p.original, [["study", *common, "--dry-run"],
+                                                                    ["study", *common, "--jobs", "1"]],
+                                   p.folder, self.mutant_time_limit, self.live, self.lock)
         doc, _ = read_json(outcome_file)
         out = base | self._classify(doc if isinstance(doc, dict) else {}, code, timed_out, p.folder, Cache(results), t0)
         out["seeded"] = seeded
         if out["status"] != "crashed":
             shutil.rmtree(p.folder / "numba", ignore_errors=True)  # 18 MB each; a crashed run keeps it to resume
         return out
-
-    def _spawn(self, folder: Path) -> tuple[int | None, bool]:
-        """Run the mutant's process (its own session, output to run.log); (exit code, timed out)."""
-        env = dict(os.environ, NUMBA_CACHE_DIR=str(folder / "numba"))
-        with open(folder / "run.log", "wb") as log:
-            proc = subprocess.Popen([sys.executable, "-c", BOOT, overlay.__file__, str(folder / "job.json")],
-                                    stdin=subprocess.DEVNULL, stdout=log, stderr=log, env=env, start_new_session=True)
-            with self.lock:
-                self.live.add(proc)
-            try:
-                proc.wait(self.mutant_time_limit)
-                return proc.returncode, False
-            except subprocess.TimeoutExpired:
-                with contextlib.suppress(OSError):
-                    os.killpg(proc.pid, signal.SIGTERM)
-                try:
-                    proc.wait(STOP_GRACE_S)
-                except subprocess.TimeoutExpired:
-                    with contextlib.suppress(OSError):
-                        os.killpg(proc.pid, signal.SIGKILL)
-                    proc.wait()
-                return proc.returncode, True
-            finally:
-                with self.lock:
-                    self.live.discard(proc)
 
     def _outcome(self, status: str, reason: str, t0: float, **extra: Any) -> dict[str, Any]:
         return {"status": status, "reason": reason, "caught_by": [], "claims": {}, "cells": {},
@@ -263,15 +230,15 @@ class Runner:
                   t0: float) -> dict[str, Any]:
         if "invalid" in doc:
             return self._outcome("invalid", str(doc["invalid"]), t0)
-        summary = doc.get("summary")
-        if timed_out or not isinstance(summary, list) or not summary or doc.get("exit") != 0:
+        results_ = doc.get("results") or []
+        plan, summary = (r.get("json") for r in (results_ + [{}, {}])[:2])
+        if timed_out or not isinstance(summary, list) or not summary or len(results_) < 2 or results_[1]["exit"]:
             why = (f"exceeded the mutant time limit of {self.mutant_time_limit:g} s (finished cells are kept: a rerun "
                    "resumes)" if timed_out else f"its study ended without verdicts ({exit_description(code)}): "
                    f"{_last_line(folder / 'run.log')}")
             return self._outcome("crashed", why, t0)
         counts = {k: summary[0].get(k, 0) for k in ("cells", "cached", "done", "failed")}
-        plan = doc.get("plan") or [{}]
-        changed = [r["key"] for r in plan[0].get("cells", []) if r.get("key") not in self.keys]
+        changed = [r["key"] for r in (plan or [{}])[0].get("cells", []) if r.get("key") not in self.keys]
         failed = [(results.load(k)[0] or {}) for k in changed]
         claims = judge(self.baseline, summary[0].get("verdicts") or [])
         extra = {"claims": claims, "cells": counts, "cells_changed": len(changed), "recomputed": counts["done"]}
@@ -287,6 +254,48 @@ class Runner:
         why = (f"every claim that passes on the original passes on it ({len(passing)} claims)" if passing else
                "no claim passes on the original: none can catch it")
         return self._outcome("survived", why, t0, **extra)
+
+
+def overlaid(module: str, source: Path, original: Path, commands: list[list[str]], folder: Path,
+             time_limit: float, live: set[subprocess.Popen] | None = None, lock: threading.Lock | None = None
+             ) -> tuple[int | None, bool]:
+    """Run pcverify `commands` in one process of their own in which `module` is loaded from `source` (`overlay`),
+    with `folder`/numba as its numba cache; its output goes to `folder`/run.log, its outcome (`overlay.main`) to
+    `folder`/outcome.json.  The process has a session of its own (stopped as a group) and is registered in `live`
+    while it runs.  (exit code, whether it ran past `time_limit` seconds and was stopped)."""
+    job = {"module": module, "source": str(source), "original": str(original), "sys_path": sys.path,
+           "parent": os.getpid(), "outcome": str(folder / "outcome.json"), "commands": commands}
+    (folder / "job.json").write_text(json.dumps(job, indent=1), encoding="utf-8")
+    (folder / "outcome.json").unlink(missing_ok=True)
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(folder / "numba"))
+    live = set() if live is None else live
+    lock = threading.Lock() if lock is None else lock
+    with open(folder / "run.log", "wb") as log:
+        proc = subprocess.Popen([sys.executable, "-c", BOOT, overlay.__file__, str(folder / "job.json")],
+                                stdin=subprocess.DEVNULL, stdout=log, stderr=log, env=env, start_new_session=True)
+        with lock:
+            live.add(proc)
+        try:
+            proc.wait(time_limit)
+            return proc.returncode, False
+        except subprocess.TimeoutExpired:
+            _stop(proc)
+            return proc.returncode, True
+        finally:
+            with lock:
+                live.discard(proc)
+
+
+def _stop(proc: subprocess.Popen, grace: float = STOP_GRACE_S) -> None:
+    """SIGTERM to the process's group (its study stops cleanly, its workers with it), SIGKILL after `grace`."""
+    with contextlib.suppress(OSError):
+        os.killpg(proc.pid, signal.SIGTERM)
+    try:
+        proc.wait(grace)
+    except subprocess.TimeoutExpired:
+        with contextlib.suppress(OSError):
+            os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
 
 
 def _last_line(log: Path) -> str:

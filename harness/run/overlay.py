@@ -6,9 +6,9 @@ calls `main`.  It puts a finder first on `sys.meta_path` that maps the mutated m
 (a package's `__init__.py` keeps its folder as search path and resource folder), so that Python, forked workers
 and the code fingerprint (which resolves names through these finders) all see the mutant, and compiled numba
 code stamped with a closure fingerprint recompiles exactly where the mutated module is reached.  It imports the
-mutated module first (one that does not import is the mutant's `invalid` outcome), then runs the command line,
-in this process, twice: `study --dry-run --json` (each cell's key) and `study --json` (cells, verdicts); the
-outcome is a JSON file for the process that started this one.  The command line is imported by name once the
+mutated module first (one that does not import is the mutant's `invalid` outcome), then runs command lines in
+this process (for a study: `study --dry-run --json`, each cell's key, then `study --json`, cells and verdicts);
+the outcome is a JSON file for the process that started this one.  The command line is imported by name once the
 finder is in place: the one point where the import order is the whole purpose.
 """
 
@@ -99,7 +99,9 @@ def _command(main: Any, argv: list[str]) -> tuple[int, Any]:
 
 def main(argv: list[str]) -> int:
     """The mutant's process: argv[0] is a JSON file with `module`, `source`, `original`, `sys_path`, `parent`,
-    `outcome` (where the outcome is written), `plan` and `study` (the command lines)."""
+    `outcome` (where the outcome is written) and `commands` (command lines run in turn while each exits 0).
+    The outcome: `invalid` (why the mutated module does not import) or `results`, per command run its `exit`
+    code and the `json` it printed."""
     with open(argv[0], encoding="utf-8") as f:
         job = json.load(f)
     sys.path[:] = job["sys_path"]
@@ -112,12 +114,15 @@ def main(argv: list[str]) -> int:
         outcome = {"invalid": f"{job['module']} does not import: {_describe(exc)}"}
     if not outcome:
         cli = importlib.import_module("pcverify.harness.cli")
-        plan_code, plan = _command(cli.main, job["plan"])
-        code, summary = _command(cli.main, job["study"]) if plan_code == 0 else (plan_code, None)
-        outcome = {"exit": code, "plan": plan, "summary": summary}
+        outcome["results"] = results = []
+        for command in job["commands"]:
+            code, printed = _command(cli.main, command)
+            results.append({"exit": code, "json": printed})
+            if code != 0:
+                break
     with open(job["outcome"], "w", encoding="utf-8") as f:
         json.dump(outcome, f)
-    return INVALID_EXIT if "invalid" in outcome else int(outcome["exit"] or 0)
+    return INVALID_EXIT if "invalid" in outcome else int(outcome["results"][-1]["exit"] or 0)
 
 
 if __name__ == "__main__":
