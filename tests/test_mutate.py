@@ -1,8 +1,9 @@
 """`pcverify mutate`: a study's claims run on deliberate defects of the code.
 
 A tiny study (the example plugin's finite differences at n = 2, 3, 4 and one scikit-fem cell) with two
-mutants of the plugin's solver: a factor 2 in its update coefficient (the order claim catches it) and a
-factor 2 in a summary number no claim reads (it survives).  The kill matrix, mutants.json and the report
+mutants of the plugin's solver: a factor 2 in its update coefficient, as a unified diff in the study file (the
+order claim catches it), and a factor 2 in a summary number no claim reads, as a find/replace in the mutants
+file beside the study (it survives).  The kill matrix, mutants.json and the report
 section say so; the real result cache is byte for byte what it was; `--strict` exits 1 for the survivor; a
 rerun recomputes nothing.  A mutant whose edit is not Python, or whose module does not import, is invalid,
 never killed; one that hangs is stopped at its time limit and is crashed.  The overlay is seen by Python and
@@ -74,8 +75,15 @@ sense = "at-most"
 name = "rate-doubled"
 package = "fd_heat"
 file = "solver.py"
-find = "rate = alpha * dt / (h * h)"
-replace = "rate = 2.0 * alpha * dt / (h * h)"
+diff = """
+--- a/fd_heat/solver.py
++++ b/fd_heat/solver.py
+@@ -68,3 +68,3 @@
+             held[tuple(index)] = True
+-        rate = alpha * dt / (h * h)
++        rate = 2.0 * alpha * dt / (h * h)
+         for _ in range(steps):
+"""
 breaks = "twice the diffusivity in the update"
 expect = ["fd-order"]
 '''
@@ -149,7 +157,8 @@ def test_one_mutant_is_killed_one_survives_and_the_real_cache_is_untouched(plugi
                              "skfem-exact": {"baseline": "pass", "kills": [], "descriptive": True}}
     matrix = pd.read_csv(out / "tiny" / "mutants-matrix.csv")
     assert matrix.to_dict("records") == [
-        {"claim": "fd-order", "baseline": "pass", "kills": 1, "rate-doubled": "killed (fail)", "dt-reported-twice": "pass"},
+        {"claim": "fd-order", "baseline": "pass", "kills": 1, "rate-doubled": "killed (fail)",
+         "dt-reported-twice": "pass"},
         {"claim": "skfem-exact", "baseline": "pass", "kills": 0, "rate-doubled": "pass", "dt-reported-twice": "pass"}]
     page = (out / "index.html").read_text()
     assert "How strong are the claims? 2 mutants: 1 killed, 1 survived, 0 invalid, 0 crashed" in page

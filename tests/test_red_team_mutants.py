@@ -65,7 +65,8 @@ REFUSED_TABLES = [
     ("replace with diff", _mutant(find=None, diff='"@@ -1 +1 @@"'), "mutant[1] (m): replace is given with diff; "
      "allowed: find, replace and count, or diff alone"),
     ("count 0", _mutant(count=0), "mutant[1] (m): count=0 is not valid; allowed: integer in [1, 1000]"),
-    ("a name with a slash", _mutant(name='"a/b"'), "mutant[1] (a/b): name='a/b' is not valid; allowed: 1 to 80 letters"),
+    ("a name with a slash", _mutant(name='"a/b"'), "mutant[1] (a/b): name='a/b' is not valid; allowed: 1 to 80 "
+     "letters"),
     ("expect not a claim id", _mutant(expect=3), "mutant[1] (m): expect=3 is not valid; allowed: a claim id, or a "
      "list of them"),
     ("a name twice", _mutant() + _mutant(), "mutant[2] (m): name='m' is not valid; allowed: a name no other mutant "
