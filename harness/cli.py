@@ -492,7 +492,8 @@ def cmd_mutate(args: argparse.Namespace) -> int:
             docs.append(doc)
             if not args.json:
                 _print_mutants(doc, where)
-        write_index(out)
+        if docs:
+            write_index(out)
         if args.json:
             print(json.dumps(docs))
         return mutant_gate(docs, args.strict)
@@ -500,9 +501,10 @@ def cmd_mutate(args: argparse.Namespace) -> int:
 
 def _print_mutants(doc: dict[str, Any], where: Path) -> None:
     """One line per mutant, then the counts and the descriptive claims."""
+    width = max(len(o["name"]) for o in doc["mutants"])
     for o in doc["mutants"]:
         about = f"caught by {', '.join(o['caught_by'])}" if o["caught_by"] else o["reason"]
-        print(f"  {o['status']:<9} {o['name']:<24} {o['wall_s']:7.1f} s  {o['recomputed']:>4} cells run  {about}")
+        print(f"  {o['status']:<9} {o['name']:<{width}} {o['wall_s']:7.1f} s  {o['recomputed']:>4} cells run  {about}")
     counts = ", ".join(f"{n} {s}" for s, n in doc["counts"].items())
     descriptive = [c for c, v in doc["claims"].items() if v["descriptive"]]
     print(f"{doc['study']}: {len(doc['mutants'])} mutants: {counts}; descriptive claims (kill no mutant): "
