@@ -100,11 +100,15 @@ breaks = "twice the time step in the summary, which no claim reads"
 
 
 @pytest.fixture(scope="module")
-def plugin_path():
-    """The example plugin importable (not installed): the study names its solver module as a plugin."""
-    sys.path.insert(0, str(EXAMPLE))
-    yield EXAMPLE
-    sys.path.remove(str(EXAMPLE))
+def plugin_path(tmp_path_factory):
+    """The example plugin's package importable (not installed): the study names its solver module as a plugin.
+    A copy of the package alone: the example's folder may hold the egg-info of an in-tree pip build, whose
+    entry point would register the solver a second time."""
+    where = tmp_path_factory.mktemp("plugin")
+    shutil.copytree(EXAMPLE / "fd_heat", where / "fd_heat", ignore=shutil.ignore_patterns("__pycache__"))
+    sys.path.insert(0, str(where))
+    yield where
+    sys.path.remove(str(where))
 
 
 def _files(folder: Path, skip: str = "") -> dict[str, str]:
@@ -232,7 +236,7 @@ def test_the_overlay_changes_the_number_and_the_keys_it_reaches(plugin_path, tmp
     folder = tmp_path / "mutant"
     folder.mkdir()
     source = folder / "solver.py"
-    original = EXAMPLE / "fd_heat" / "solver.py"
+    original = plugin_path / "fd_heat" / "solver.py"
     source.write_text(original.read_text().replace("rate = alpha * dt / (h * h)", "rate = 2.0 * alpha * dt / (h * h)"))
     run = ["run", "bar-heat-faces", "--solver", "fd_heat.solver:FiniteDifferenceHeat", "--set", "mode=transient",
            "--set", "t_end=0.2", "--n", "3", "--json"]
@@ -312,3 +316,21 @@ breaks = "half the heat flow reaches each automaton's temperature"
              for line in (Path(m["folder"]) / "run.log").read_text().splitlines() if "data saved to" in line}
     assert saved == {"heat._explicit", "heat.explicit_run"}  # kernel.py's kernels were loaded, not compiled
     assert not (Path(m["folder"]) / "numba").exists()  # the copy goes once the mutant is judged
+
+
+def test_a_mutant_of_the_run_code_starts_from_an_empty_result_cache(plugin_path, tmp_path, capsys) -> None:
+    """How cells run is not in their keys: a mutant of harness/run gets no copy of the baseline's entries and
+    computes every cell, although no key changes."""
+    extra = '''
+[[mutant]]
+name = "run-code"
+file = "harness/run/execution.py"
+find = 'res.setdefault("h", resolution.spacing(scene.box.width))'
+replace = 'res.setdefault("h", float(resolution.spacing(scene.box.width)))'
+breaks = "nothing: the spacing converted to the float it already is"
+'''
+    study = _study(tmp_path, extra, beside="")
+    code, docs, _ = _mutate(str(study), "--out", str(tmp_path / "out"), "--mutant", "run-code", capsys=capsys)
+    assert code == 0
+    (m,) = docs[0]["mutants"]
+    assert (m["status"], m["seeded"], m["cells_changed"], m["recomputed"]) == ("survived", 0, 0, 4)

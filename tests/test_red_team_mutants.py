@@ -8,6 +8,7 @@ in this process: a refusal needs no process of its own."""
 
 from __future__ import annotations
 
+import shutil
 from pathlib import Path
 
 import pytest
@@ -47,9 +48,18 @@ def _mutant(**fields: object) -> str:
     return "\n[[mutant]]\n" + "".join(f"{k} = {v}\n" for k, v in table.items() if v is not None)
 
 
+@pytest.fixture(scope="module")
+def plugin_copy(tmp_path_factory):
+    """The example plugin's package alone (the example's folder may hold the egg-info of an in-tree pip build,
+    whose entry point would register its solver a second time)."""
+    where = tmp_path_factory.mktemp("plugin")
+    shutil.copytree(EXAMPLE / "fd_heat", where / "fd_heat", ignore=shutil.ignore_patterns("__pycache__"))
+    return where
+
+
 @pytest.fixture(autouse=True)
-def plugin_path(monkeypatch):
-    monkeypatch.syspath_prepend(str(EXAMPLE))
+def plugin_path(monkeypatch, plugin_copy):
+    monkeypatch.syspath_prepend(str(plugin_copy))
 
 
 REFUSED_TABLES = [
