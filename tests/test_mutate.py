@@ -259,6 +259,7 @@ def test_numba_recompiles_only_what_the_mutant_reaches_and_never_in_the_real_cac
     """A mutant of the MCA heat kernel (heat.py) on a study with an MCA heat cell and an MCA compression cell:
     numba compiles heat.py's kernels in the mutant's copy of the numba cache and loads those of kernel.py,
     which does not import heat.py; the real numba cache and the real result cache are byte for byte unchanged.
+    A mutant whose kernel numba cannot type is invalid, not killed.
     (Both studies run as the command line: NUMBA_CACHE_DIR is read when numba is imported.)"""
     real = tmp_path / "numba"
     if os.environ.get("NUMBA_CACHE_DIR") and Path(os.environ["NUMBA_CACHE_DIR"]).is_dir():
@@ -297,6 +298,13 @@ file = "solvers/particles/mca/heat.py"
 find = "temp[i] += dt * flow[i] / cap[i]"
 replace = "temp[i] += 0.5 * dt * flow[i] / cap[i]"
 breaks = "half the heat flow reaches each automaton's temperature"
+
+[[mutant]]
+name = "heat-untyped"
+file = "solvers/particles/mca/heat.py"
+find = "temp[i] += dt * flow[i] / cap[i]"
+replace = "temp[i] += dt * flow[i] / cap"
+breaks = "an array where a number belongs: numba cannot type the kernel"
 ''')
 
     def pcverify(*args: str) -> subprocess.CompletedProcess:
@@ -307,8 +315,13 @@ breaks = "half the heat flow reaches each automaton's temperature"
 
     pcverify("study", str(study), "--json")
     numba_before, cache_before = _files(real), _files(tmp_path / "out" / "cache")
-    doc = json.loads(pcverify("mutate", str(study), "--json").stdout)[0]
-    (m,) = doc["mutants"]
+    doc = json.loads(pcverify("mutate", str(study), "--jobs", "2", "--json").stdout)[0]
+    m, untyped = doc["mutants"]
+    # a kernel that does not compile: the heat cell failed with numba's TypingError (the compression cell, whose
+    # key changed too, does not call the heat kernel)
+    assert untyped["status"] == "invalid" and untyped["caught_by"] == []
+    assert untyped["reason"].startswith("its code does not compile or import: 1 of the 2 cells whose key it changed "
+                                        "failed so, e.g. TypingError: Failed in nopython mode pipeline")
     assert (m["status"], m["caught_by"], m["recomputed"]) == ("killed", ["heat-mean"], 2)
     assert _files(real) == numba_before
     assert _files(tmp_path / "out" / "cache", skip="mutants") == cache_before

@@ -99,7 +99,8 @@ def mutation_section(folder: Path, name: str, doc: Any) -> str:
         kills = _names(c.get("kills", [])) if c.get("kills") else "<i>descriptive: kills no catalogued mutant</i>"
         parts.append(f"<tr><td>{e(claim)}</td><td class='{e(str(c.get('baseline')))}'>{e(str(c.get('baseline')))}"
                      f"</td><td>{kills}</td></tr>")
-    parts.append("</table><table class='data' id='" + anchor(name, "mutants-outcomes") + "'><tr><th>mutant</th>"
+    parts.append("</table><div class='scroll'><table class='data' id='" + anchor(name, "mutants-outcomes") +
+                 "'><tr><th>mutant</th>"
                  "<th>status</th><th>caught by</th><th>breaks</th><th>file</th><th>expected</th><th>wall</th>"
                  "<th>cells recomputed</th><th>why</th></tr>")
     for o in doc["mutants"]:
@@ -111,7 +112,13 @@ def mutation_section(folder: Path, name: str, doc: Any) -> str:
                      f"<td>{_names(o.get('expect') or [])}</td><td>{float(o.get('wall_s') or 0):.1f} s</td>"
                      f"<td>{int(o.get('recomputed') or 0)}</td><td title='{e(str(o.get('reason') or ''))}'>"
                      f"{e(str(o.get('reason') or ''))}</td></tr>")
-    parts.append("</table>")
+    parts.append("</table></div>")
+    missed = [o for o in doc["mutants"] if o.get("status") != "killed"]
+    if missed:
+        parts.append("<p class='meta'>Not killed:</p><ul>" + "".join(
+            f"<li><b>{e(str(o.get('status')))}</b> {e(str(o.get('name')))} ({e(str(o.get('package')))}/"
+            f"{e(str(o.get('file')))}: {e(str(o.get('breaks')))}): {e(str(o.get('reason') or ''))}</li>"
+            for o in missed) + "</ul>")
     if (folder / f"{MATRIX}.csv").is_file():
         try:
             parts.append(table_details(pd.read_csv(folder / f"{MATRIX}.csv"), f"{name}/{MATRIX}.csv",

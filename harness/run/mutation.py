@@ -11,8 +11,9 @@ An interrupted run resumes: a mutant's folder, named by the hash of its definiti
 its result cache, so only what the edit changed is computed again.
 
 Outcomes: `killed` (a claim that passed on the baseline does not pass: fail, inconclusive, not applicable or
-gone), `survived`, `invalid` (the edit is not valid Python, changes no code, the module does not import, or
-every cell whose key it changed failed to compile: never counted as killed) and `crashed` (its study did not
+gone), `survived`, `invalid` (the edit is not valid Python, changes no code, the module does not import, or a
+cell whose key it changed failed to compile or import: numba's typing or lowering errors, an import or syntax
+error; never counted as killed) and `crashed` (its study did not
 end with verdicts: a crash, an error line, the time limit; a crash is not a claim catching the defect).
 """
 
@@ -239,14 +240,14 @@ class Runner:
             return self._outcome("crashed", why, t0)
         counts = {k: summary[0].get(k, 0) for k in ("cells", "cached", "done", "failed")}
         changed = [r["key"] for r in (plan or [{}])[0].get("cells", []) if r.get("key") not in self.keys]
-        failed = [(results.load(k)[0] or {}) for k in changed]
+        entries = [(results.load(k)[0] or {}) for k in changed]
         claims = judge(self.baseline, summary[0].get("verdicts") or [])
         extra = {"claims": claims, "cells": counts, "cells_changed": len(changed), "recomputed": counts["done"]}
-        reasons = [str(r.get("reason") or "") for r in failed]
-        if changed and all(r.get("status") == "failed" for r in failed) and all(COMPILE_ERRORS.match(x)
-                                                                                 for x in reasons):
-            return self._outcome("invalid", f"its code does not compile or import: all {len(changed)} cells whose key "
-                                 f"it changed failed, e.g. {reasons[0][:300]}", t0, **extra)
+        broken = [str(r.get("reason") or "") for r in entries
+                  if r.get("status") == "failed" and COMPILE_ERRORS.match(str(r.get("reason") or ""))]
+        if broken:
+            return self._outcome("invalid", f"its code does not compile or import: {len(broken)} of the {len(changed)} "
+                                 f"cells whose key it changed failed so, e.g. {broken[0][:300]}", t0, **extra)
         caught = caught_by(claims)
         if caught:
             return self._outcome("killed", "", t0, **extra | {"caught_by": caught})
