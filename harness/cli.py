@@ -787,7 +787,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("name", help="study name (`default`: every shipped study with mutants) or a path to a .toml file")
     p.add_argument("--mutant", action="append", metavar="NAME", help="run only this mutant (repeatable)")
     p.add_argument("--jobs", type=int_in("jobs", 1, 256), default=1,
-                   help="mutants run at once (each runs its study on one worker; default 1); the baseline's cells")
+                   help="mutants run at once, each running its study on one worker, and the baseline's cells run "
+                   "at once (default 1)")
     p.add_argument("--out", default="reports", help="output folder (default reports/)")
     p.add_argument("--cache", default=None, help="cache folder (default OUT/cache); mutants keep theirs under "
                    "CACHE/mutants/")

@@ -106,7 +106,8 @@ def _copy_numba_cache(target: Path, packages: Iterable[Path]) -> None:
     real = os.environ.get("NUMBA_CACHE_DIR")
     ignore = shutil.ignore_patterns("*.tmp.*", "*.lock")
     if real and Path(real).is_dir():
-        shutil.copytree(real, target, ignore=ignore)
+        with contextlib.suppress(shutil.Error):  # an entry replaced while copied: that kernel compiles again
+            shutil.copytree(real, target, ignore=ignore)
         return
     target.mkdir(parents=True)
     for root in packages:
