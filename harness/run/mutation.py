@@ -87,7 +87,7 @@ def judge(baseline: list[dict[str, Any]], mutated: list[dict[str, Any]]) -> dict
         verdicts: dict[str, set[str]] = {}
         for r in records:
             verdicts.setdefault(r["claim"], set()).add(r["verdict"])
-        return {c: next(s for s in (*STATES, "missing") if s in v or s == "missing") for c, v in verdicts.items()}
+        return {c: next((s for s in STATES if s in v), "fail") for c, v in verdicts.items()}
 
     before, after = states(baseline), states(mutated)
     return {c: {"baseline": s, "mutant": after.get(c, "missing")} for c, s in before.items()}
@@ -135,9 +135,11 @@ def _seed(results: Path, cache: Cache, keys: Iterable[str]) -> int:
 
 
 def _prune(folder: Path) -> None:
-    """Remove the folders of earlier definitions or sources of the same mutant (same name, other hash)."""
-    for old in folder.parent.glob(f"{folder.name.rsplit('-', 1)[0]}-*"):
-        if old != folder and old.is_dir() and re.fullmatch(r"[0-9a-f]{12}", old.name.rsplit("-", 1)[1]):
+    """Remove the folders of earlier definitions or sources of the same mutant (same name, another hash)."""
+    name = folder.name.rsplit("-", 1)[0]
+    for old in folder.parent.glob(f"{name}-*"):
+        stem, _, digest = old.name.rpartition("-")
+        if old != folder and old.is_dir() and stem == name and re.fullmatch(r"[0-9a-f]{12}", digest):
             shutil.rmtree(old, ignore_errors=True)
 
 
@@ -148,7 +150,7 @@ class Runner:
                  mutant_time_limit: float, allow_large: bool = False) -> None:
         self.study, self.baseline, self.cache = study, baseline, cache
         self.time_limit, self.mutant_time_limit, self.allow_large = time_limit, mutant_time_limit, allow_large
-        self.keys = sorted({identify(c).key for g in study.groups for c in g.cells})
+        self.keys = frozenset(identify(c).key for g in study.groups for c in g.cells)
         self.live: set[subprocess.Popen] = set()
         self.lock = threading.Lock()
         self.stopping = threading.Event()
@@ -207,7 +209,7 @@ class Runner:
         if not source.is_file() or source.read_text(encoding="utf-8") != p.edited:
             source.write_text(p.edited, encoding="utf-8")  # rewritten only when it changed: numba keys on it
         results = p.folder / "results"
-        seeded = _seed(results, self.cache, self.keys) if m.seedable() else 0
+        seeded = _seed(results, self.cache, sorted(self.keys)) if m.seedable() else 0
         results.mkdir(exist_ok=True)
         roots = {p.original.parent, *(Path(s.origin).parent for s in _pcverify_specs())}
         _copy_numba_cache(p.folder / "numba", roots)
@@ -232,9 +234,9 @@ class Runner:
                   t0: float) -> dict[str, Any]:
         if "invalid" in doc:
             return self._outcome("invalid", str(doc["invalid"]), t0)
-        results_ = doc.get("results") or []
-        plan, summary = (r.get("json") for r in (results_ + [{}, {}])[:2])
-        if timed_out or not isinstance(summary, list) or not summary or len(results_) < 2 or results_[1]["exit"]:
+        ran = doc.get("results") or []  # the dry run (each cell's key), then the study (cells, verdicts)
+        plan, summary = (r.get("json") for r in (ran + [{}, {}])[:2])
+        if timed_out or len(ran) < 2 or ran[1].get("exit") != 0 or not isinstance(summary, list) or not summary:
             why = (f"exceeded the mutant time limit of {self.mutant_time_limit:g} s (finished cells are kept: a rerun "
                    "resumes)" if timed_out else f"its study ended without verdicts ({exit_description(code)}): "
                    f"{_last_line(folder / 'run.log')}")
