@@ -26,7 +26,7 @@ import pandas as pd
 import pytest
 
 from pcverify.harness.cli import main
-from pcverify.harness.run.mutation import overlaid
+from pcverify.harness.run.mutation import prune, overlaid
 
 REPO = Path(__file__).resolve().parent.parent
 EXAMPLE = REPO / "examples" / "fd-heat-plugin"
@@ -347,3 +347,13 @@ breaks = "nothing: the spacing converted to the float it already is"
     assert code == 0
     (m,) = docs[0]["mutants"]
     assert (m["status"], m["seeded"], m["cells_changed"], m["recomputed"]) == ("survived", 0, 0, 4)
+
+
+def test_an_edited_mutant_replaces_its_own_folder_and_no_other(tmp_path) -> None:
+    """A mutant's folder is named by its name and the hash of its definition and edited source: a new hash
+    removes the mutant's older folders, never those of a mutant whose name extends its own."""
+    root = tmp_path / "mutants" / "s"
+    for name in ("a-0123456789ab", "a-b-0123456789ab", "ab-0123456789ab", "a-notahash"):
+        (root / name).mkdir(parents=True)
+    prune(root / "a-fedcba987654")
+    assert sorted(p.name for p in root.iterdir()) == ["a-b-0123456789ab", "a-notahash", "ab-0123456789ab"]

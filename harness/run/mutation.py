@@ -134,7 +134,7 @@ def _seed(results: Path, cache: Cache, keys: Iterable[str]) -> int:
     return copied
 
 
-def _prune(folder: Path) -> None:
+def prune(folder: Path) -> None:
     """Remove the folders of earlier definitions or sources of the same mutant (same name, another hash)."""
     name = folder.name.rsplit("-", 1)[0]
     for old in folder.parent.glob(f"{name}-*"):
@@ -203,7 +203,7 @@ class Runner:
         if self.stopping.is_set():
             return base | self._outcome("crashed", "not run: the run was interrupted", t0)
         p.folder.mkdir(parents=True, exist_ok=True)
-        _prune(p.folder)
+        prune(p.folder)
         source = p.folder / "source" / p.original.name
         source.parent.mkdir(exist_ok=True)
         if not source.is_file() or source.read_text(encoding="utf-8") != p.edited:
