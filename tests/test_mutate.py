@@ -26,7 +26,7 @@ import pandas as pd
 import pytest
 
 from pcverify.harness.cli import main
-from pcverify.harness.run.mutation import prune, overlaid
+from pcverify.harness.run.mutation import overlaid, prune
 
 REPO = Path(__file__).resolve().parent.parent
 EXAMPLE = REPO / "examples" / "fd-heat-plugin"
