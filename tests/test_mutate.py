@@ -25,8 +25,10 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
+from pcverify.fingerprint import module_fingerprint
 from pcverify.harness.cli import main
 from pcverify.harness.run.mutation import overlaid, prune
+from pcverify.harness.run.overlay import OverlayFinder
 
 REPO = Path(__file__).resolve().parent.parent
 EXAMPLE = REPO / "examples" / "fd-heat-plugin"
@@ -357,3 +359,23 @@ def test_an_edited_mutant_replaces_its_own_folder_and_no_other(tmp_path) -> None
         (root / name).mkdir(parents=True)
     prune(root / "a-fedcba987654")
     assert sorted(p.name for p in root.iterdir()) == ["a-b-0123456789ab", "a-notahash", "ab-0123456789ab"]
+
+
+def test_the_code_fingerprint_reads_the_overlay(tmp_path, monkeypatch) -> None:
+    """The overlay's finder is one of sys.meta_path's, which the fingerprint resolves names through (without
+    importing): a module whose closure holds the overlaid one gets another fingerprint, a module that does not
+    reach it keeps its own."""
+    package = tmp_path / "ovl_pkg"
+    package.mkdir()
+    (package / "__init__.py").write_text("")
+    (package / "a.py").write_text("from ovl_pkg import b\n")
+    (package / "b.py").write_text("X = 1\n")
+    (package / "c.py").write_text("Y = 1\n")
+    (tmp_path / "b_edited.py").write_text("X = 2\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    before = {m: module_fingerprint(f"ovl_pkg.{m}") for m in "abc"}
+    finder = OverlayFinder("ovl_pkg.b", str(tmp_path / "b_edited.py"), str(package / "b.py"))
+    monkeypatch.setattr(sys, "meta_path", [finder, *sys.meta_path])
+    after = {m: module_fingerprint(f"ovl_pkg.{m}") for m in "abc"}
+    assert after["a"] != before["a"] and after["b"] != before["b"] and after["c"] == before["c"]
+    assert "ovl_pkg" not in sys.modules  # resolved, never imported

@@ -107,7 +107,7 @@ def _copy_numba_cache(target: Path, packages: Iterable[Path]) -> None:
     ignore = shutil.ignore_patterns("*.tmp.*", "*.lock")
     if real and Path(real).is_dir():
         with contextlib.suppress(shutil.Error):  # an entry replaced while copied: that kernel compiles again
-            shutil.copytree(real, target, ignore=ignore)
+            shutil.copytree(real, target, ignore=ignore, dirs_exist_ok=True)
         return
     target.mkdir(parents=True)
     for root in packages:
