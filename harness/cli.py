@@ -1,4 +1,4 @@
-"""Command line `pcverify`: scenes, solvers, run, study, verdict, report, bench.
+"""Command line `pcverify`: scenes, solvers, run, study, verdict, mutate, report, bench.
 
 Every bad input ends in one line `pcverify: error: ...` naming the parameter and the
 allowed range, with exit code 2; never a traceback (unless --debug).
@@ -37,6 +37,7 @@ from tqdm import tqdm
 from pcverify import __version__
 from pcverify.harness.report.batch import ReportJob, write_reports
 from pcverify.harness.report.calibration_section import calibration_section
+from pcverify.harness.report.mutation import mutation_document, write_mutation_report
 from pcverify.harness.report.reproduce import claim_groups, select_groups
 from pcverify.harness.report.write import (
     benchmark_problem,
@@ -52,9 +53,11 @@ from pcverify.harness.run.execution import cached_results, cell_time_limit, exec
 from pcverify.harness.run.files import read_json
 from pcverify.harness.run.interrupt import TERMINATED, check_interrupted, received, remember_sigint, sigterm_interrupts
 from pcverify.harness.run.limits import DEFAULT_TIME_LIMIT, MAX_TIME_LIMIT, check_work
+from pcverify.harness.run.mutation import DEFAULT_MUTANT_TIME_LIMIT, Runner, prepare
 from pcverify.harness.run.workers import describe_exception, output_to_stderr
 from pcverify.harness.spec.catalogue import entries as scene_entries
 from pcverify.harness.spec.catalogue import get_spec, make_scene
+from pcverify.harness.spec.mutants import catalogue, select_mutants, solver_packages
 from pcverify.harness.spec.study import MAX_CELLS, Cell, declared_name, load_study, study_files
 from pcverify.scene import Param, Resolution, SceneError, shown
 from pcverify.solvers.protocol import skipped
@@ -73,6 +76,8 @@ examples:
   pcverify study stability --group limit-mca-heat   run one group of a study (from the cache where it can)
   pcverify study my.toml --strict                   exit 1 unless every verdict passes (a CI gate)
   pcverify verdict heat-particles mca-steady-line   judge one claim, print its value (from the cache)
+  pcverify mutate my.toml --strict                  run the claims on the study's mutants: exit 1 unless all
+                                                    are killed
   pcverify report                                   rebuild reports/index.html from the cache
   pcverify bench                                    benchmarks, saved and compared with the previous run
 
@@ -343,15 +348,8 @@ def cmd_study(args: argparse.Namespace) -> int:
                           f"replicas, sensitivity and {len(cal.calibrate) + len(cal.validate)} cells x 2 (cells "
                           "depend on the values found; cached ones are read back)")
                 continue
-            t0 = time.perf_counter()
-            shown_bar = not args.json and any(g.cells for g in study.groups)  # a calibration-only study: no bar
             try:
-                with output_to_stderr():
-                    results, counts = execute(study, cache, jobs=args.jobs, progress=shown_bar,
-                                              scheduler=args.scheduler, rerun=rerun, allow_large=args.allow_large)
-                    outcomes = [run_calibration(study, cal, cache, jobs=args.jobs, rerun=rerun,
-                                                allow_large=args.allow_large, progress=not args.json)
-                                for cal in study.calibrations]
+                counts, seconds, job = compute_study(study, args, cache, rerun)
             except KeyboardInterrupt:
                 if computed:  # the studies that finished keep their reports
                     print(f"interrupted: writing the reports of the {len(computed)} studies that finished "
@@ -359,15 +357,12 @@ def cmd_study(args: argparse.Namespace) -> int:
                     with output_to_stderr():
                         write_reports([job for *_, job in computed], out)
                 raise
-            for outcome in outcomes:
-                counts["calibration_runs"] = counts.get("calibration_runs", 0) + outcome.runs
-                counts["calibration_cached"] = counts.get("calibration_cached", 0) + outcome.hits
-            computed.append((study, counts, time.perf_counter() - t0, ReportJob(study, results, outcomes)))
+            computed.append((study, counts, seconds, job))
         with output_to_stderr():  # every study computed: the reports at once, one core each
-            seconds = write_reports([job for *_, job in computed], out, processes=args.jobs)
-        for (study, counts, compute_s, _), report_s in zip(computed, seconds, strict=True):
-            summary.append({"study": study.name, **counts, "wall_s": round(compute_s + report_s, 3),
-                            "verdicts": study_verdicts(out, study.name)})
+            report_s = write_reports([job for *_, job in computed], out, processes=args.jobs)
+        for (study, counts, seconds, _), written_s in zip(computed, report_s, strict=True):
+            counts = study_summary(study, counts, seconds + written_s, out)
+            summary.append(counts)
             if not args.json:
                 calib = (f", calibrations: {counts['calibration_runs']} solver runs, {counts['calibration_cached']} "
                          "cached" if study.calibrations else "")
@@ -383,6 +378,37 @@ def cmd_study(args: argparse.Namespace) -> int:
         if args.json:
             print(json.dumps(summary))
         return verdict_gate([r for entry in summary for r in entry.get("verdicts", [])], args.strict)
+
+
+def compute_study(study: Any, args: argparse.Namespace, cache: Cache, rerun: frozenset[str] | None = None
+                  ) -> tuple[dict[str, Any], float, ReportJob]:
+    """Run one study's cells and calibrations through the cache: its counts, the seconds it took and the job
+    that writes its report."""
+    t0 = time.perf_counter()
+    shown_bar = not args.json and any(g.cells for g in study.groups)  # a calibration-only study: no bar
+    with output_to_stderr():
+        results, counts = execute(study, cache, jobs=args.jobs, progress=shown_bar,
+                                  scheduler=getattr(args, "scheduler", None), rerun=rerun, allow_large=args.allow_large)
+        outcomes = [run_calibration(study, cal, cache, jobs=args.jobs, rerun=rerun, allow_large=args.allow_large,
+                                    progress=not args.json) for cal in study.calibrations]
+    for outcome in outcomes:
+        counts["calibration_runs"] = counts.get("calibration_runs", 0) + outcome.runs
+        counts["calibration_cached"] = counts.get("calibration_cached", 0) + outcome.hits
+    return counts, time.perf_counter() - t0, ReportJob(study, results, outcomes)
+
+
+def study_summary(study: Any, counts: dict[str, Any], seconds: float, out: Path) -> dict[str, Any]:
+    """The summary `study --json` prints for a study whose report is written: counts, wall time, verdicts."""
+    return {"study": study.name, **counts, "wall_s": round(seconds, 3), "verdicts": study_verdicts(out, study.name)}
+
+
+def run_study(study: Any, args: argparse.Namespace, cache: Cache, out: Path, rerun: frozenset[str] | None = None
+              ) -> dict[str, Any]:
+    """Run one study's cells and calibrations through the cache and write its report: its `study_summary`."""
+    counts, seconds, job = compute_study(study, args, cache, rerun)
+    with output_to_stderr():
+        (written_s,) = write_reports([job], out)
+    return study_summary(study, counts, seconds + written_s, out)
 
 
 def selected_groups(studies: list[Any], name: str, groups: list[str] | None) -> list[Any]:
@@ -458,6 +484,73 @@ def cmd_verdict(args: argparse.Namespace) -> int:
                 if r.get(key) not in (None, ""):
                     print(f"  {key:<12} {r[key]!r}" if isinstance(r[key], float) else f"  {key:<12} {r[key]}")
     return 0 if all(r["verdict"] == "pass" for r in records) else 1
+
+
+def cmd_mutate(args: argparse.Namespace) -> int:
+    """`pcverify mutate STUDY`: the study run as `study` runs it (the baseline), then once per mutant in a process
+    of its own on the mutated code (`run.mutation`); writes mutants.json, the kill matrix and the section of the
+    study's page.  Every mutant's edit is checked before anything runs.  --strict: exit 1 unless every mutant run
+    is killed."""
+    with remember_sigint(), cell_time_limit(args.time_limit):
+        names = sorted(study_files()) if args.name == "default" else [args.name]
+        with output_to_stderr():
+            studies = [load_study(n, args.allow_large) for n in names]
+            found = [catalogue(s.mutants, s.path, solver_packages(s)) for s in studies]
+        if args.mutant and args.name == "default":
+            raise CliError("--mutant needs one study; allowed: a study name or a .toml file, not default")
+        out = Path(args.out)
+        cache = Cache(args.cache or out / "cache")
+        chosen = [select_mutants(ms, args.mutant, s.name) for s, ms in zip(studies, found, strict=True)]
+        prepared = [[prepare(m, cache.root, s.name) for m in ms] for s, ms in zip(studies, chosen, strict=True)]
+        docs = []
+        for study, todo in zip(studies, prepared, strict=True):
+            if not todo:
+                print(f"{study.name}: no catalogued mutants; skipped", file=sys.stderr)
+                continue
+            t0 = time.perf_counter()
+            baseline = run_study(study, args, cache, out)
+            runner = Runner(study, baseline["verdicts"], cache, args.time_limit, args.mutant_time_limit,
+                            args.allow_large)
+            with output_to_stderr():
+                outcomes = runner.run(todo, args.jobs, progress=not args.json and _isatty(sys.stderr))
+            doc = mutation_document(study.name, baseline["verdicts"], outcomes, time.perf_counter() - t0)
+            doc["baseline"] = {k: baseline.get(k) for k in ("cells", "cached", "done", "failed", "wall_s")}
+            where = write_mutation_report(out, study.name, doc)
+            docs.append(doc)
+            if not args.json:
+                _print_mutants(doc, where)
+        if docs:
+            write_index(out)
+        if args.json:
+            print(json.dumps(docs))
+        return mutant_gate(docs, args.strict)
+
+
+def _print_mutants(doc: dict[str, Any], where: Path) -> None:
+    """One line per mutant, then the counts and the descriptive claims."""
+    width = max(len(o["name"]) for o in doc["mutants"])
+    for o in doc["mutants"]:
+        about = f"caught by {', '.join(o['caught_by'])}" if o["caught_by"] else o["reason"]
+        print(f"  {o['status']:<9} {o['name']:<{width}} {o['wall_s']:7.1f} s  {o['recomputed']:>4} cells run  {about}")
+    counts = ", ".join(f"{n} {s}" for s, n in doc["counts"].items())
+    descriptive = [c for c, v in doc["claims"].items() if v["descriptive"]]
+    print(f"{doc['study']}: {len(doc['mutants'])} mutants: {counts}; descriptive claims (kill no mutant): "
+          f"{', '.join(descriptive) or 'none'} -> {where}")
+
+
+def mutant_gate(docs: list[dict[str, Any]], strict: bool) -> int:
+    """Exit code of `mutate`: with --strict, 1 when a mutant run is not killed (survived, invalid or crashed),
+    each listed on stderr with why."""
+    bad = [(d["study"], o) for d in docs for o in d["mutants"] if o["status"] != "killed"]
+    if not strict or not bad:
+        return 0
+    for study, o in bad:
+        print(f"pcverify: mutant {o['status']}: {study}/{o['name']} ({o['package']}/{o['file']}: {o['breaks']}): "
+              f"{o['reason']}", file=sys.stderr)
+    total = sum(len(d["mutants"]) for d in docs)
+    counts = ", ".join(f"{sum(o['status'] == s for _, o in bad)} {s}" for s in ("survived", "invalid", "crashed"))
+    print(f"pcverify: {len(bad)} of {total} mutants are not killed ({counts}) (--strict)", file=sys.stderr)
+    return 1
 
 
 CALIBRATION_TABLES = ("summary", "parameters", "trace", "noise", "validation")  # a calibration's tables: ID-NAME
@@ -712,6 +805,32 @@ def build_parser() -> argparse.ArgumentParser:
                    metavar="SECONDS", help=TIME_LIMIT_HELP)
     p.add_argument("--json", action="store_true", help="print the verdict records as JSON")
     p.set_defaults(func=cmd_verdict)
+
+    p = sub.add_parser("mutate", help="run a study's claims on deliberate defects of the code: which claims catch "
+                       "which mutant", description="Run the study (the baseline), then each of its mutants ([[mutant]] "
+                       "tables, STUDY.mutants.toml beside it, plugins' pcverify.mutants entry points) in a process of "
+                       "its own on the mutated code; a mutant is killed when a claim that passes on the original does "
+                       "not pass on it.  Writes OUT/STUDY/mutants.json, the kill matrix and a section of the report.")
+    p.add_argument("name", help="study name (`default`: every shipped study with mutants) or a path to a .toml file")
+    p.add_argument("--mutant", action="append", metavar="NAME", help="run only this mutant (repeatable)")
+    p.add_argument("--jobs", type=int_in("jobs", 1, 256), default=1,
+                   help="mutants run at once, each running its study on one worker, and the baseline's cells run "
+                   "at once (default 1)")
+    p.add_argument("--out", default="reports", help="output folder (default reports/)")
+    p.add_argument("--cache", default=None, help="cache folder (default OUT/cache); mutants keep theirs under "
+                   "CACHE/mutants/")
+    p.add_argument("--allow-large", action="store_true", help=f"run a study of more than {MAX_CELLS} cells, or cells "
+                   "beyond the work and memory limits")
+    p.add_argument("--time-limit", type=seconds_in("time-limit", 0, MAX_TIME_LIMIT), default=DEFAULT_TIME_LIMIT,
+                   metavar="SECONDS", help=TIME_LIMIT_HELP)
+    p.add_argument("--mutant-time-limit", type=seconds_in("mutant-time-limit", 0, MAX_TIME_LIMIT),
+                   default=DEFAULT_MUTANT_TIME_LIMIT, metavar="SECONDS", help="stop a mutant's whole run after SECONDS "
+                   f"(status crashed; its finished cells are kept; default {DEFAULT_MUTANT_TIME_LIMIT:g})")
+    p.add_argument("--json", action="store_true", help="print mutants.json of each study (a list), nothing else on "
+                   "stdout")
+    p.add_argument("--strict", action="store_true", help="exit 1 when a mutant survives, is invalid or crashed (a "
+                   "CI gate)")
+    p.set_defaults(func=cmd_mutate)
 
     p = sub.add_parser("bench", help="run the benchmarks, save them, compare with the previous saved run")
     p.add_argument("--tests", default="tests/bench", help="benchmark folder (default tests/bench)")

@@ -6,7 +6,8 @@
   local Dask cluster, with verdicts;
 - a solver that is not installed: `--solver module:Class` and a study file's `plugins` list, in workers too;
 - a broken or clashing plugin is one clear line and the shipped solvers still work;
-- the cache knows when a solver's code changed; --rerun; --dry-run --json; `report` rebuilds user studies.
+- the cache knows when a solver's code changed; --rerun; --dry-run --json; `report` rebuilds user studies;
+- the example's mutants (`pcverify mutate`) are each killed by its claims.
 """
 
 from __future__ import annotations
@@ -135,6 +136,19 @@ def test_the_example_study_runs_with_two_jobs(plugin_env, tmp_path) -> None:
     order = fits[(fits.solver == "fd-heat") & (fits.quantity == "nodes.l2")]["order"].item()
     assert 1.8 < order < 2.2
     assert "pcverify-fd-heat 0.1.0" in (out / "index.html").read_text()
+
+
+def test_the_example_plugins_mutants_are_all_killed_by_its_claims(plugin_env, tmp_path) -> None:
+    """`pcverify mutate` on the example study: its three mutants (a sign, a factor 2, a boundary node off by
+    one; study.mutants.toml beside it) are each caught by the claims they name, --strict exits 0."""
+    out = tmp_path / "out"
+    done = _pcverify(plugin_env, "mutate", str(EXAMPLE / "study.toml"), "--jobs", "2", "--strict", "--out", str(out),
+                     "--json", cwd=tmp_path)
+    (doc,) = json.loads(done.stdout)
+    assert [(m["name"], m["status"]) for m in doc["mutants"]] == [
+        ("fd-heat-sign", "killed"), ("fd-heat-rate-doubled", "killed"), ("fd-heat-boundary-node", "killed")]
+    assert all(set(m["expect"]) <= set(m["caught_by"]) for m in doc["mutants"])
+    assert (out / "fd-heat-plugin" / "mutants.json").is_file()
 
 
 def test_the_example_study_runs_on_a_dask_cluster(plugin_env, tmp_path) -> None:

@@ -3,7 +3,7 @@ a document against a declaration.
 
 A `Field` declares one key (its kind, range or choices, whether it is required, its default and
 description); a `Table` declares the keys of one kind of table.  `STUDY` is the top level, and its lists of
-tables are `TABLES` ([[scene]], [[group]], [[claim]], [[calibration]] with their nested tables): a new kind
+tables are `TABLES` ([[scene]], [[group]], [[claim]], [[calibration]] with their nested tables, [[mutant]]): a new kind
 of table is one `Table` added there.  `check` walks a value against a declaration and raises, at the first
 problem, one SceneError line in one dialect that names where (the file, the table, its number from 1 and
 its id or name), the field, the value and what is allowed:
@@ -338,7 +338,26 @@ CALIBRATION = Table("[[calibration]]", (
     Field("tolerance", "real", low=0.0),
 ), key="id", default_key="calibration{}")
 
-TABLES = {"scene": SCENE, "group": GROUP, "claim": CLAIM, "calibration": CALIBRATION}  # [[<name>]] tables
+MUTANT = Table("[[mutant]]", (
+    Field("name", "text", "names the mutant (--mutant NAME) and its cache folder", hint=NAME.hint, pattern=SAFE_NAME,
+          required=True, unique=True),
+    Field("package", "text", "the importable top-level package whose file is mutated", hint="a top-level package name",
+          pattern=r"[A-Za-z_][A-Za-z0-9_]{0,79}", default="pcverify"),
+    Field("file", "text", "the mutated module, relative to the package's folder",
+          hint="a relative path of a .py file inside the package, e.g. solvers/particles/mca/contact.py",
+          pattern=r"(?s).{1,300}", required=True),
+    Field("find", "text", "the text replaced", hint="text of 1 or more characters", pattern=r"(?s).+"),
+    Field("replace", "text", "what replaces it"),
+    Field("count", "int", "how many times `find` occurs (each is replaced)", low=1, high=1000, default=1),
+    Field("diff", "text", "a unified diff against the file", hint="text of 1 or more characters", pattern=r"(?s).+"),
+    Field("breaks", "text", "the physics or numerics it breaks", hint="a sentence", pattern=r"(?s)(?=.*\S).+",
+          required=True),
+    Field("expect", "text", "claims expected to kill it (shown in the report)", hint="a claim id",
+          shape="value or list", min_items=0),
+), key="name", one_of=("find", "diff"))
+
+TABLES = {"scene": SCENE, "group": GROUP, "claim": CLAIM, "calibration": CALIBRATION,
+          "mutant": MUTANT}  # [[<name>]] tables
 STUDY = Table("a study file", (
     NAME, TITLE, Field("plugins", "text", "modules imported in every worker", hint="a dotted module name",
                        shape="value or list", min_items=0),

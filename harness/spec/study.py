@@ -2,8 +2,8 @@
 
 A study file has a `name`, a `title`, optional `plugins` (modules imported in every process that runs
 its cells) and `[[scene]]` tables (scenes built from the shipped building blocks), `[[group]]` tables,
-`[[claim]]` tables and `[[calibration]]` tables (`calibspec`).  Each group names a scene (with
-`scene_params`), `solvers`, lists `n` and `refine`, `solver_params`, a `sweep`, and the `analysis`
+`[[claim]]` tables, `[[calibration]]` tables (`calibspec`) and `[[mutant]]` tables (`mutants`).  Each group
+names a scene (with `scene_params`), `solvers`, lists `n` and `refine`, `solver_params`, a `sweep`, and the `analysis`
 applied to its cells (the registry in `pcverify.harness.spec.analyses`).  The whole file is checked before any
 cell is built (`studyfile`).
 """
@@ -24,6 +24,7 @@ from pcverify.harness.spec.analyses import ANALYSES
 from pcverify.harness.spec.calibspec import Calibration, parse_calibrations
 from pcverify.harness.spec.catalogue import make_scene, register_scene, spec_from_table
 from pcverify.harness.spec.claims import Claim, parse_claims
+from pcverify.harness.spec.mutants import BESIDE, Mutant, parse_mutants
 from pcverify.harness.spec.plugins import load_plugins
 from pcverify.harness.spec.schema import NAME, SCENE, as_list, check_value, row_where
 from pcverify.harness.spec.studyfile import check_groups, check_study_document, read_study_document, solver_params_of
@@ -87,12 +88,14 @@ class Study:
     path: Path | None = None
     calibrations: list[Calibration] = field(default_factory=list)
     selected: tuple[str, ...] = ()  # `--group` ids: a report of this study merges with the study's full report
+    mutants: list[Mutant] = field(default_factory=list)  # its own [[mutant]] tables (`pcverify mutate`)
 
 
 def study_files() -> dict[str, Path]:
-    """The study files shipped with the package, by name."""
+    """The study files shipped with the package, by name (not the mutants files beside them)."""
     folder = resources.files("pcverify.harness") / "studies"
-    return {Path(str(p)).stem: Path(str(p)) for p in folder.iterdir() if str(p).endswith(".toml")}
+    return {Path(str(p)).stem: Path(str(p)) for p in folder.iterdir()
+            if str(p).endswith(".toml") and not str(p).endswith(BESIDE)}
 
 
 def study_path(name_or_path: str) -> Path:
@@ -128,8 +131,9 @@ def load_study(name_or_path: str, allow_large: bool = False) -> Study:
     calibrations = parse_calibrations(doc["calibration"], f"study file {path.name}") if "calibration" in doc else []
     require_solvers(sorted({c.solver for g in groups for c in g.cells} | {c.solver for c in calibrations}),
                     f"study file {path.name}")
+    mutants = parse_mutants(doc.get("mutant", []), f"study file {path.name}")
     return Study(name, doc.get("title", path.stem), groups, claims, plugins, path.resolve(),
-                 calibrations)
+                 calibrations, mutants=mutants)
 
 
 def study_name(doc: dict[str, Any], path: Path) -> str:

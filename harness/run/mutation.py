@@ -1,0 +1,318 @@
+"""Mutation testing of a study's claims: each mutant runs the study in a process of its own, and a claim that
+passes on the original code and not on a mutant has caught it.
+
+A mutant's process (`overlay`) sees the mutated module through a finder that maps its name to an edited copy
+kept in the mutant's folder, `<cache>/mutants/<study>/<name>-<identity>/`: the rest of every package is the
+original, read-only.  Nothing of a mutant reaches the real caches: its numba cache (NUMBA_CACHE_DIR) is a copy
+of the real one made for it, where the numba guard recompiles exactly the kernels whose closure holds the
+mutated module (the others load as compiled), and its result cache is its own folder, seeded with copies of
+the baseline's entries only where a cell key covers every code the mutant can change (`Mutant.seedable`).
+An interrupted run resumes: a mutant's folder, named by the hash of its definition and edited source, keeps
+its result cache, so only what the edit changed is computed again.
+
+Outcomes: `killed` (a claim that passed on the baseline does not pass: fail, inconclusive, not applicable or
+gone), `survived`, `invalid` (the edit is not valid Python, changes no code, the module does not import, or a
+cell whose key it changed failed to compile or import: numba's typing or lowering errors, an import or syntax
+error; never counted as killed) and `crashed` (its study did not
+end with verdicts: a crash, an error line, the time limit; a crash is not a claim catching the defect).
+"""
+
+from __future__ import annotations
+
+import concurrent.futures
+import contextlib
+import hashlib
+import json
+import os
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Iterable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from tqdm import tqdm
+
+from pcverify.harness.judge.verdict import STATES
+from pcverify.harness.run import overlay
+from pcverify.harness.run.cache import Cache
+from pcverify.harness.run.execution import identify
+from pcverify.harness.run.files import read_json
+from pcverify.harness.run.workers import exit_description
+from pcverify.harness.spec.mutants import Mutant
+from pcverify.harness.spec.study import Study
+
+OUTCOMES = ("killed", "survived", "invalid", "crashed")
+DEFAULT_MUTANT_TIME_LIMIT = 7200.0  # seconds a mutant's whole run may take
+STOP_GRACE_S = 10.0  # after SIGTERM, a mutant's process has this long to stop cleanly before SIGKILL
+COMPILE_ERRORS = re.compile(r"(TypingError|LoweringError|UnsupportedError|NumbaError|SyntaxError|IndentationError|"
+                            r"ImportError|ModuleNotFoundError)\b")
+BOOT = ("import importlib.util as u, sys; s = u.spec_from_file_location('pcverify_overlay', sys.argv[1]); "
+        "m = u.module_from_spec(s); s.loader.exec_module(m); sys.exit(m.main(sys.argv[2:]))")
+
+
+@dataclass(frozen=True)
+class Prepared:
+    """A mutant ready to run: its original and edited source and its folder."""
+
+    mutant: Mutant
+    original: Path
+    edited: str
+    folder: Path
+    changes_code: bool
+    syntax_error: str
+
+
+def prepare(mutant: Mutant, cache_root: Path, study: str) -> Prepared:
+    """Resolve and apply a mutant's edit (MutantError, one line, when it does not apply as declared)."""
+    source, edited = mutant.edited()
+    try:
+        compile(edited, str(mutant.path()), "exec")
+        syntax = ""
+    except (SyntaxError, ValueError) as exc:
+        syntax = f"{type(exc).__name__}: {' '.join(str(exc).split())}"
+    folder = cache_root / "mutants" / study / f"{mutant.name}-{mutant.identity(edited)}"
+    return Prepared(mutant, mutant.path(), edited, folder, mutant.changes_code(source, edited), syntax)
+
+
+def judge(baseline: list[dict[str, Any]], mutated: list[dict[str, Any]]) -> dict[str, dict[str, str]]:
+    """Per claim of the baseline its state there and on the mutant: the worst of its verdicts (fail,
+    inconclusive, not-applicable, pass), "missing" when the mutant's report has none."""
+    def states(records: list[dict[str, Any]]) -> dict[str, str]:
+        verdicts: dict[str, set[str]] = {}
+        for r in records:
+            verdicts.setdefault(r["claim"], set()).add(r["verdict"])
+        return {c: next((s for s in STATES if s in v), "fail") for c, v in verdicts.items()}
+
+    before, after = states(baseline), states(mutated)
+    return {c: {"baseline": s, "mutant": after.get(c, "missing")} for c, s in before.items()}
+
+
+def caught_by(claims: dict[str, dict[str, str]]) -> list[str]:
+    """The claims that passed on the baseline and do not pass on the mutant."""
+    return [c for c, s in claims.items() if s["baseline"] == "pass" and s["mutant"] != "pass"]
+
+
+def _copy_numba_cache(target: Path, packages: Iterable[Path]) -> None:
+    """A copy of the real numba cache for a mutant: NUMBA_CACHE_DIR's folder, or, without it, the in-tree
+    `__pycache__` entries of the packages' folders laid out as numba lays out a cache folder."""
+    if target.exists():
+        return
+    real = os.environ.get("NUMBA_CACHE_DIR")
+    ignore = shutil.ignore_patterns("*.tmp.*", "*.lock")
+    if real and Path(real).is_dir():
+        with contextlib.suppress(shutil.Error):  # an entry replaced while copied: that kernel compiles again
+            shutil.copytree(real, target, ignore=ignore, dirs_exist_ok=True)
+        return
+    target.mkdir(parents=True)
+    for root in packages:
+        for pycache in root.rglob("__pycache__"):
+            entries = [p for p in pycache.iterdir() if p.suffix in (".nbi", ".nbc")]
+            if entries:
+                source_dir = str(pycache.parent.resolve())
+                sub = target / f"{pycache.parent.name}_{hashlib.sha1(source_dir.encode()).hexdigest()}"
+                sub.mkdir(exist_ok=True)
+                for p in entries:
+                    shutil.copyfile(p, sub / p.name)
+
+
+def _seed(results: Path, cache: Cache, keys: Iterable[str]) -> int:
+    """Copy the baseline's entries of `keys` that the mutant's result cache lacks (copies: a write there can
+    never reach the real cache); returns how many."""
+    results.mkdir(parents=True, exist_ok=True)
+    copied = 0
+    for key in keys:
+        real, mine = cache.path(key), results / f"{key}.json"
+        if real.is_file() and not mine.exists():
+            shutil.copyfile(real, mine)
+            copied += 1
+    return copied
+
+
+def prune(folder: Path) -> None:
+    """Remove the folders of earlier definitions or sources of the same mutant (same name, another hash)."""
+    name = folder.name.rsplit("-", 1)[0]
+    for old in folder.parent.glob(f"{name}-*"):
+        stem, _, digest = old.name.rpartition("-")
+        if old != folder and old.is_dir() and stem == name and re.fullmatch(r"[0-9a-f]{12}", digest):
+            shutil.rmtree(old, ignore_errors=True)
+
+
+class Runner:
+    """Runs prepared mutants of one study, `jobs` at a time, each in its own process (killed with the run)."""
+
+    def __init__(self, study: Study, baseline: list[dict[str, Any]], cache: Cache, time_limit: float,
+                 mutant_time_limit: float, allow_large: bool = False) -> None:
+        self.study, self.baseline, self.cache = study, baseline, cache
+        self.time_limit, self.mutant_time_limit, self.allow_large = time_limit, mutant_time_limit, allow_large
+        self.keys = frozenset(identify(c).key for g in study.groups for c in g.cells)
+        self.live: set[subprocess.Popen] = set()
+        self.lock = threading.Lock()
+        self.stopping = threading.Event()
+
+    def run(self, prepared: list[Prepared], jobs: int, progress: bool) -> list[dict[str, Any]]:
+        """Every mutant's outcome, in the order given."""
+        bar = tqdm(total=len(prepared), desc=f"{self.study.name}: mutants", unit="mutant", disable=not progress,
+                   dynamic_ncols=True)
+        done: dict[int, dict[str, Any]] = {}
+        pool = concurrent.futures.ThreadPoolExecutor(max_workers=jobs, thread_name_prefix="pcverify-mutant")
+        try:
+            futures = {pool.submit(self.one, p): i for i, p in enumerate(prepared)}
+            for fut in concurrent.futures.as_completed(futures):
+                done[futures[fut]] = out = fut.result()
+                counts = {s: sum(o["status"] == s for o in done.values()) for s in OUTCOMES}
+                bar.set_postfix(counts)
+                bar.set_description(f"{self.study.name}: {out['name']} {out['status']}"[:70])
+                bar.update(1)
+        except BaseException:
+            self.stop()
+            raise
+        finally:
+            pool.shutdown(wait=True, cancel_futures=True)
+            bar.close()
+        return [done[i] for i in range(len(prepared))]
+
+    def stop(self) -> None:
+        """Stop every mutant's process (and keep new ones from starting)."""
+        self.stopping.set()
+        with self.lock:
+            live = list(self.live)
+        for proc in live:
+            with contextlib.suppress(OSError):
+                os.killpg(proc.pid, signal.SIGTERM)
+        deadline = time.monotonic() + STOP_GRACE_S
+        for proc in live:
+            _stop(proc, max(0.0, deadline - time.monotonic()))
+
+    def one(self, p: Prepared) -> dict[str, Any]:
+        """Run one mutant and say what came of it."""
+        m = p.mutant
+        base = {"name": m.name, "package": m.package, "file": m.file, "module": m.module(), "breaks": m.breaks,
+                "expect": list(m.expect), "origin": m.origin, "folder": str(p.folder)}
+        t0 = time.perf_counter()
+        if p.syntax_error:
+            return base | self._outcome("invalid", f"the edited module is not valid Python ({p.syntax_error})", t0)
+        if not p.changes_code:
+            return base | self._outcome("invalid", "the edit changes no code (only comments, layout or docstrings): "
+                                        "an equivalent mutant", t0)
+        if self.stopping.is_set():
+            return base | self._outcome("crashed", "not run: the run was interrupted", t0)
+        p.folder.mkdir(parents=True, exist_ok=True)
+        prune(p.folder)
+        source = p.folder / "source" / p.original.name
+        source.parent.mkdir(exist_ok=True)
+        if not source.is_file() or source.read_text(encoding="utf-8") != p.edited:
+            source.write_text(p.edited, encoding="utf-8")  # rewritten only when it changed: numba keys on it
+        results = p.folder / "results"
+        seeded = _seed(results, self.cache, sorted(self.keys)) if m.seedable() else 0
+        results.mkdir(exist_ok=True)
+        roots = {p.original.parent, *(Path(s.origin).parent for s in _pcverify_specs())}
+        _copy_numba_cache(p.folder / "numba", roots)
+        outcome_file = p.folder / "outcome.json"
+        common = [str(self.study.path), "--out", str(p.folder / "report"), "--cache", str(results), "--json",
+                  "--time-limit", f"{self.time_limit:g}"] + (["--allow-large"] if self.allow_large else [])
+        code, timed_out = overlaid(m.module(), source, p.original, [["study", *common, "--dry-run"],
+                                                                    ["study", *common, "--jobs", "1"]],
+                                   p.folder, self.mutant_time_limit, self.live, self.lock)
+        doc, _ = read_json(outcome_file)
+        out = base | self._classify(doc if isinstance(doc, dict) else {}, code, timed_out, p.folder, Cache(results), t0)
+        out["seeded"] = seeded
+        if out["status"] != "crashed":
+            shutil.rmtree(p.folder / "numba", ignore_errors=True)  # 18 MB each; a crashed run keeps it to resume
+        return out
+
+    def _outcome(self, status: str, reason: str, t0: float, **extra: Any) -> dict[str, Any]:
+        return {"status": status, "reason": reason, "caught_by": [], "claims": {}, "cells": {},
+                "cells_changed": 0, "recomputed": 0, "seeded": 0, "wall_s": round(time.perf_counter() - t0, 3)} | extra
+
+    def _classify(self, doc: dict[str, Any], code: int | None, timed_out: bool, folder: Path, results: Cache,
+                  t0: float) -> dict[str, Any]:
+        if "invalid" in doc:
+            return self._outcome("invalid", str(doc["invalid"]), t0)
+        ran = doc.get("results") or []  # the dry run (each cell's key), then the study (cells, verdicts)
+        plan, summary = (r.get("json") for r in (ran + [{}, {}])[:2])
+        if timed_out or len(ran) < 2 or ran[1].get("exit") != 0 or not isinstance(summary, list) or not summary:
+            why = (f"exceeded the mutant time limit of {self.mutant_time_limit:g} s (finished cells are kept: a rerun "
+                   "resumes)" if timed_out else f"its study ended without verdicts ({exit_description(code)}): "
+                   f"{_last_line(folder / 'run.log')}")
+            return self._outcome("crashed", why, t0)
+        counts = {k: summary[0].get(k, 0) for k in ("cells", "cached", "done", "failed")}
+        changed = [r["key"] for r in (plan or [{}])[0].get("cells", []) if r.get("key") not in self.keys]
+        entries = [(results.load(k)[0] or {}) for k in changed]
+        claims = judge(self.baseline, summary[0].get("verdicts") or [])
+        extra = {"claims": claims, "cells": counts, "cells_changed": len(changed), "recomputed": counts["done"]}
+        broken = [str(r.get("reason") or "") for r in entries
+                  if r.get("status") == "failed" and COMPILE_ERRORS.match(str(r.get("reason") or ""))]
+        if broken:
+            return self._outcome("invalid", f"its code does not compile or import: {len(broken)} of the {len(changed)} "
+                                 f"cells whose key it changed failed so, e.g. {broken[0][:300]}", t0, **extra)
+        caught = caught_by(claims)
+        if caught:
+            return self._outcome("killed", "", t0, **extra | {"caught_by": caught})
+        passing = [c for c, s in claims.items() if s["baseline"] == "pass"]
+        why = (f"every claim that passes on the original passes on it ({len(passing)} claims)" if passing else
+               "no claim passes on the original: none can catch it")
+        return self._outcome("survived", why, t0, **extra)
+
+
+def overlaid(module: str, source: Path, original: Path, commands: list[list[str]], folder: Path,
+             time_limit: float, live: set[subprocess.Popen] | None = None, lock: threading.Lock | None = None
+             ) -> tuple[int | None, bool]:
+    """Run pcverify `commands` in one process of their own in which `module` is loaded from `source` (`overlay`),
+    with `folder`/numba as its numba cache; its output goes to `folder`/run.log, its outcome (`overlay.main`) to
+    `folder`/outcome.json.  The process has a session of its own (stopped as a group) and is registered in `live`
+    while it runs.  (exit code, whether it ran past `time_limit` seconds and was stopped)."""
+    job = {"module": module, "source": str(source), "original": str(original), "sys_path": sys.path,
+           "parent": os.getpid(), "outcome": str(folder / "outcome.json"), "commands": commands}
+    (folder / "job.json").write_text(json.dumps(job, indent=1), encoding="utf-8")
+    (folder / "outcome.json").unlink(missing_ok=True)
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(folder / "numba"))
+    live = set() if live is None else live
+    lock = threading.Lock() if lock is None else lock
+    with open(folder / "run.log", "wb") as log:
+        proc = subprocess.Popen([sys.executable, "-c", BOOT, overlay.__file__, str(folder / "job.json")],
+                                stdin=subprocess.DEVNULL, stdout=log, stderr=log, env=env, start_new_session=True)
+        with lock:
+            live.add(proc)
+        try:
+            proc.wait(time_limit)
+            return proc.returncode, False
+        except subprocess.TimeoutExpired:
+            _stop(proc)
+            return proc.returncode, True
+        finally:
+            with lock:
+                live.discard(proc)
+
+
+def _stop(proc: subprocess.Popen, grace: float = STOP_GRACE_S) -> None:
+    """SIGTERM to the process's group (its study stops cleanly, its workers with it), SIGKILL after `grace`."""
+    with contextlib.suppress(OSError):
+        os.killpg(proc.pid, signal.SIGTERM)
+    try:
+        proc.wait(grace)
+    except subprocess.TimeoutExpired:
+        with contextlib.suppress(OSError):
+            os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
+
+
+def _last_line(log: Path) -> str:
+    """The last non-empty line a mutant's process wrote (its error line or the end of a traceback)."""
+    try:
+        lines = [line.strip() for line in log.read_text(errors="replace").splitlines() if line.strip()]
+    except OSError:
+        return "no output"
+    return (lines[-1] if lines else "no output")[:300]
+
+
+def _pcverify_specs() -> list[Any]:
+    """The specs of pcverify's top-level packages (their folders hold in-tree numba caches)."""
+    names = ("pcverify", "pcverify.harness", "pcverify.solvers", "pcverify.references")
+    return [sys.modules[n].__spec__ for n in names if n in sys.modules and sys.modules[n].__spec__ is not None
+            and sys.modules[n].__spec__.origin]
