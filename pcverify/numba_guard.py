@@ -1,14 +1,22 @@
-"""numba's on-disk cache guarded so that compiled code never outlives an edit of any source it came from.
+"""numba's on-disk cache guarded so that compiled code never outlives an edit of any source it came from, and
+compiled once when several processes need it at the same time.
 
 numba's `cache=True` checks only the file that defines a jitted function, not the modules it calls into,
 so after an edit of a helper module the old machine code was loaded and run.  Each of numba's cache
 locators is wrapped (same cache folder and file names) so that its source stamp also holds the source
 closure fingerprint of the function's module (pcverify.fingerprint); numba treats another stamp as a miss
 and recompiles.  `import pcverify` installs it without importing numba: when numba's caching module loads.
+
+A study's worker processes start alike, so on an empty cache each compiled the same kernels at the same time
+(a kernel of the MCA contact scenes takes 20 s).  A cached function's compilation of one signature therefore
+holds an exclusive file lock beside its cache entry: a second process waits, then loads what the first saved.
+Callees lock inside their callers, in the order of the call graph, so two processes never wait on each other.
 """
 
 from __future__ import annotations
 
+import functools
+import hashlib
 import os
 import sys
 import warnings
@@ -18,7 +26,13 @@ from typing import Any
 
 from pcverify.fingerprint import module_fingerprint
 
+try:
+    import fcntl
+except ImportError:  # not POSIX: each process compiles on its own, as numba does
+    fcntl = None  # type: ignore[assignment]
+
 CACHING = "numba.core.caching"
+DISPATCHER = "numba.core.dispatcher"
 
 
 class ClosureStampedLocator:
@@ -74,12 +88,57 @@ def guard(caching: ModuleType) -> None:
                       "guard them against compiled code older than the sources it calls", stacklevel=2)
 
 
+def _lock_path(dispatcher: Any, sig: Any) -> str | None:
+    """The lock file of one signature of a cached function (beside its cache index), or None: not cached."""
+    cache_file = getattr(getattr(dispatcher, "_cache", None), "_cache_file", None)  # NullCache has none
+    folder, index = getattr(cache_file, "_cache_path", None), getattr(cache_file, "_index_name", None)
+    if fcntl is None or not isinstance(folder, str) or not isinstance(index, str):
+        return None
+    return os.path.join(folder, f"{index}.{hashlib.sha256(str(sig).encode()).hexdigest()[:16]}.lock")
+
+
+def _compiled_once(compile: Any) -> Any:
+    """Dispatcher.compile under the file lock of the signature (a cache hit while waiting is a load)."""
+    if getattr(compile, "pcverify_locked", False):
+        return compile
+
+    @functools.wraps(compile)
+    def locked(self: Any, sig: Any) -> Any:
+        path = _lock_path(self, sig)
+        if path is None:
+            return compile(self, sig)
+        try:
+            os.makedirs(os.path.dirname(path), exist_ok=True)
+            handle = open(path, "a")  # noqa: SIM115 - held for the compilation, closed below
+        except OSError:  # a read-only cache folder: numba compiles in memory, each process on its own
+            return compile(self, sig)
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX)
+            return compile(self, sig)
+        finally:
+            handle.close()  # releases the lock
+
+    locked.pcverify_locked = True
+    return locked
+
+
+def lock_compilation(dispatcher_module: ModuleType) -> None:
+    """Compile each cached function's signature once across processes (idempotent; nothing to do in a numba
+    without Dispatcher.compile)."""
+    cls = getattr(dispatcher_module, "Dispatcher", None)
+    if cls is not None and callable(getattr(cls, "compile", None)):
+        cls.compile = _compiled_once(cls.compile)
+
+
 class _WhenNumbaCachingLoads:
-    """A meta-path finder that finds nothing itself: it lets numba's caching module load as usual and then
-    guards it, and steps aside."""
+    """A meta-path finder that finds nothing itself: it lets numba's caching and dispatcher modules load as usual
+    and then guards them, and steps aside once both are done."""
+
+    def __init__(self) -> None:
+        self.pending = {CACHING: guard, DISPATCHER: lock_compilation}
 
     def find_spec(self, name: str, path: Any = None, target: Any = None) -> ModuleSpec | None:
-        if name != CACHING:
+        if name not in self.pending:
             return None
         for finder in sys.meta_path:
             find = getattr(finder, "find_spec", None)
@@ -92,20 +151,26 @@ class _WhenNumbaCachingLoads:
             return None
         exec_module = spec.loader.exec_module
 
+        after = self.pending.pop(name)
+
         def exec_and_guard(module: ModuleType) -> None:
             exec_module(module)
-            if self in sys.meta_path:
+            if not self.pending and self in sys.meta_path:
                 sys.meta_path.remove(self)
-            guard(module)
+            after(module)
 
         spec.loader.exec_module = exec_and_guard
         return spec
 
 
 def guard_numba_cache() -> None:
-    """Guard numba's cache now if numba's caching module is loaded, else as soon as it is."""
-    caching = sys.modules.get(CACHING)
-    if caching is not None:
-        guard(caching)
-    elif not any(isinstance(f, _WhenNumbaCachingLoads) for f in sys.meta_path):
-        sys.meta_path.insert(0, _WhenNumbaCachingLoads())
+    """Guard numba's cache and lock its compilations now where numba's modules are loaded, else as soon as they
+    are."""
+    if any(isinstance(f, _WhenNumbaCachingLoads) for f in sys.meta_path):
+        return
+    finder = _WhenNumbaCachingLoads()
+    for name in list(finder.pending):
+        if name in sys.modules:
+            finder.pending.pop(name)(sys.modules[name])
+    if finder.pending:
+        sys.meta_path.insert(0, finder)

@@ -273,3 +273,60 @@ def test_exactly_the_cells_of_the_edited_code_recompute(tmp_path) -> None:
     _edit(tmp_path / "corelib" / "linear.py", '"""The core solver."""', '"""The core solver, documented."""')
     again, _ = study()
     assert (again["done"], again["cached"]) == (0, 4)
+
+
+KERNEL = '''
+import json, sys, time
+import pcverify  # guards numba: the cache stamp and the compile lock
+from numba import njit
+
+
+@njit(cache=True)
+def kernel(x):
+    s = 0.0
+    for i in range(x.shape[0]):
+        for j in range(x.shape[0]):
+            s += (x[i] - x[j]) ** 2 / (1.0 + abs(x[i] * x[j]))
+    return s
+
+
+if __name__ == "__main__":
+    import numpy as np
+    open(sys.argv[1], "w").close()  # started
+    kernel(np.ones(3))
+    stats = kernel.stats
+    print(json.dumps({"hits": sum(stats.cache_hits.values()), "misses": sum(stats.cache_misses.values())}))
+'''
+
+
+def _kernel_process(tmp_path: Path, tag: str) -> subprocess.Popen:
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "numba"), PYTHONPATH=str(tmp_path))
+    return subprocess.Popen([sys.executable, str(tmp_path / "kern.py"), str(tmp_path / f"started-{tag}")], env=env,
+                            stdout=subprocess.PIPE, text=True)
+
+
+def test_a_kernel_is_compiled_once_while_another_process_waits_for_it(tmp_path) -> None:
+    """Processes compiling the same cached function: while one holds the signature's lock the other waits,
+    then loads what was saved (a cache hit) instead of compiling it a second time.  Two started together: one
+    compiles, one loads, whichever is first."""
+    import fcntl
+
+    (tmp_path / "kern.py").write_text(KERNEL)
+    first = _kernel_process(tmp_path, "a")
+    assert json.loads(first.communicate(timeout=120)[0]) == {"hits": 0, "misses": 1}
+    locks = list((tmp_path / "numba").rglob("*.lock"))
+    assert len(locks) == 1 and locks[0].name.startswith("kern.kernel-")
+    shutil.rmtree(tmp_path / "numba")
+    locks[0].parent.mkdir(parents=True)
+    with open(locks[0], "a") as held:  # another process compiling it
+        fcntl.flock(held, fcntl.LOCK_EX)
+        waiting = _kernel_process(tmp_path, "b")
+        while not (tmp_path / "started-b").exists():
+            assert waiting.poll() is None
+        with pytest.raises(subprocess.TimeoutExpired):
+            waiting.wait(timeout=3.0)  # blocked on the lock
+    assert json.loads(waiting.communicate(timeout=120)[0]) == {"hits": 0, "misses": 1}  # nobody saved it
+    shutil.rmtree(tmp_path / "numba")
+    pair = [_kernel_process(tmp_path, tag) for tag in ("c", "d")]
+    outcomes = sorted(json.dumps(json.loads(p.communicate(timeout=120)[0])) for p in pair)
+    assert outcomes == [json.dumps({"hits": 0, "misses": 1}), json.dumps({"hits": 1, "misses": 0})]

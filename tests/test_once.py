@@ -172,3 +172,17 @@ def test_a_cell_a_timed_group_also_solves_is_solved_once(tmp_path, capsys):
     assert main(args) == 0
     (entry,) = json.loads(capsys.readouterr().out)
     assert (entry["done"], entry["cached"]) == (0, 4)
+
+
+def test_workers_start_on_different_kinds_of_cells(tmp_path):
+    """The parallel cells are handed out smallest-of-each-kind first (solver, scene, task), so the two workers
+    begin on different kernels; the rest follow in study order."""
+    from pcverify.harness.run.execution import first_of_each_kind
+
+    path = tmp_path / "kinds.toml"
+    path.write_text(ALPHA.replace('solvers = ["skfem"]', 'solvers = ["skfem", "fipy"]').replace("n = [2, 3]",
+                                                                                            "n = [3, 2, 4]"))
+    cells = [c for g in load_study(str(path)).groups for c in g.cells]
+    order = first_of_each_kind(cells, list(range(len(cells))))
+    assert [(cells[i].solver, cells[i].n) for i in order] == [
+        ("skfem", 2), ("fipy", 2), ("skfem", 3), ("skfem", 4), ("fipy", 3), ("fipy", 4)]

@@ -450,7 +450,7 @@ def _run(study: Study, cells: list[Cell], identities: list[CellId], todo: list[i
     for i in [i for i in todo if i in refused]:
         finish(i, _failed(cells[i], refused[i]))
     todo = [i for i in todo if i not in refused]
-    free = [i for i in todo if not cells[i].serial]
+    free = first_of_each_kind(cells, [i for i in todo if not cells[i].serial])
     timed = [i for i in todo if cells[i].serial and identities[i].skip is None]
     timed_skips = [i for i in todo if cells[i].serial and identities[i].skip is not None]
     if (jobs > 1 or client is not None) and len(free) > 1:
@@ -467,6 +467,19 @@ def _run(study: Study, cells: list[Cell], identities: list[CellId], todo: list[i
     for i in timed:
         bar.set_description(f"{study.name}: timed {cells[i].describe()}"[:70])
         finish(i, run_cell(cells[i]) | {"timing": "serial after warm-up"})
+
+
+def first_of_each_kind(cells: list[Cell], todo: list[int]) -> list[int]:
+    """`todo` reordered: first the smallest cell of each kind (solver, scene, task), then the rest in order.  The
+    workers then start on different kinds, whose compiled kernels differ, so they compile them side by side
+    instead of the same ones at the same time (each compilation happens once: `pcverify.numba_guard`)."""
+    first: dict[tuple[str, str, str], int] = {}
+    for i in todo:
+        kind = (cells[i].solver, cells[i].scene.name, cells[i].task.name)
+        if kind not in first or (cells[i].n, cells[i].refine) < (cells[first[kind]].n, cells[first[kind]].refine):
+            first[kind] = i
+    lead = sorted(first.values(), key=todo.index)
+    return lead + [i for i in todo if i not in set(lead)]
 
 
 def cached_results(study: Study, cache: Cache) -> list[dict[str, Any]]:
