@@ -275,7 +275,7 @@ def test_exactly_the_cells_of_the_edited_code_recompute(tmp_path) -> None:
     assert (again["done"], again["cached"]) == (0, 4)
 
 
-KERNEL = '''
+COMPILED_ONCE = '''
 import json, sys, time
 import pcverify  # guards numba: the cache stamp and the compile lock
 from numba import njit
@@ -311,7 +311,7 @@ def test_a_kernel_is_compiled_once_while_another_process_waits_for_it(tmp_path) 
     compiles, one loads, whichever is first."""
     import fcntl
 
-    (tmp_path / "kern.py").write_text(KERNEL)
+    (tmp_path / "kern.py").write_text(COMPILED_ONCE)
     first = _kernel_process(tmp_path, "a")
     assert json.loads(first.communicate(timeout=120)[0]) == {"hits": 0, "misses": 1}
     locks = list((tmp_path / "numba").rglob("*.lock"))
