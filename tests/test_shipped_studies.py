@@ -127,7 +127,11 @@ def _check_elasticity(results, verdicts) -> None:
         for r in (r for (g, sv, _), r in results.items() if (g, sv) == (group, solver)):
             assert r["summary"]["E_eff"] == pytest.approx(70e9, rel=1e-6)
     assert _verdicts(verdicts) == {("mca-hooke-E", "n=2"): "pass", ("mca-hooke-nu", "n=2"): "pass",
-                                   ("mca-pair-only-nu", "n=2"): "pass"}
+                                   ("mca-pair-only-nu", "n=2"): "pass",
+                                   ("continuum-hooke-E", "params=element=q1"): "pass",
+                                   ("continuum-hooke-E", "params=element=q2"): "pass",
+                                   ("continuum-hooke-nu", "params=element=q1"): "pass",
+                                   ("continuum-hooke-nu", "params=element=q2"): "pass"}
 
 
 def _check_contact_friction(results, verdicts) -> None:
