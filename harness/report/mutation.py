@@ -4,8 +4,8 @@ page.
 `mutants.json` holds per mutant its file, what it breaks, its status (killed, survived, invalid, crashed) and
 why, the claims that caught it, each claim's state on the baseline and on the mutant, its wall time and the
 cells it recomputed; per claim the mutants it kills.  `mutants-matrix.csv` is the kill matrix (claims x
-mutants).  A claim that kills no mutant is *descriptive*: it reports a number, but no catalogued defect of the
-code makes it fail.
+mutants).  A claim that passes and kills no mutant is *descriptive*: it reports a number, but no catalogued
+defect of the code makes it fail (a claim that does not pass on the original is a finding: it can catch none).
 """
 
 from __future__ import annotations
@@ -34,8 +34,8 @@ def mutation_document(study: str, baseline: list[dict[str, Any]], outcomes: list
     states = {claim: claim_state(rows) for (_, claim), rows in by_claim(baseline).items()}
     claims = {c: {"baseline": s, "kills": [o["name"] for o in outcomes if c in o.get("caught_by", [])]}
               for c, s in states.items()}
-    for c in claims.values():
-        c["descriptive"] = not c["kills"]
+    for c in claims.values():  # a claim that does not pass on the original is a finding: it can catch nothing
+        c["descriptive"] = c["baseline"] == "pass" and not c["kills"]
     return {"study": study, "counts": {s: sum(o["status"] == s for o in outcomes) for s in OUTCOMES},
             "mutants": outcomes, "claims": claims, "wall_s": round(wall_s, 3)}
 
@@ -96,7 +96,9 @@ def mutation_section(folder: Path, name: str, doc: Any) -> str:
              "<table class='data' id='" + anchor(name, "mutants-claims") + "'><tr><th>claim</th><th>on the original"
              "</th><th>kills</th></tr>"]
     for claim, c in doc["claims"].items():
-        kills = _names(c.get("kills", [])) if c.get("kills") else "<i>descriptive: kills no catalogued mutant</i>"
+        kills = (_names(c.get("kills", [])) if c.get("kills") else
+                 "<i>descriptive: kills no catalogued mutant</i>" if c.get("descriptive") else
+                 "<i>does not pass on the original: it can catch no defect</i>")
         parts.append(f"<tr><td>{e(claim)}</td><td class='{e(str(c.get('baseline')))}'>{e(str(c.get('baseline')))}"
                      f"</td><td>{kills}</td></tr>")
     parts.append("</table><div class='scroll'><table class='data' id='" + anchor(name, "mutants-outcomes") +
