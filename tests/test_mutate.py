@@ -151,16 +151,17 @@ def test_one_mutant_is_killed_one_survives_and_the_real_cache_is_untouched(plugi
     assert doc == docs[0]
     killed, survived = doc["mutants"]
     assert (killed["name"], killed["status"], killed["caught_by"]) == ("rate-doubled", "killed", ["fd-order"])
-    assert killed["claims"] == {"fd-order": {"baseline": "pass", "mutant": "fail"},
-                                "skfem-exact": {"baseline": "pass", "mutant": "pass"}}
+    assert killed["claims"] == {"fd-order": {"baseline": "pass", "mutant": "fail", "passing": 1, "caught": [""]},
+                                "skfem-exact": {"baseline": "pass", "mutant": "pass", "passing": 1, "caught": []}}
     assert (survived["name"], survived["status"], survived["caught_by"]) == ("dt-reported-twice", "survived", [])
     assert survived["origin"] == f"mutants file {tmp_path / 'tiny.mutants.toml'}"
     for m in (killed, survived):
         # the three fd-heat cells reach the mutated file: their keys change and they run again; the scikit-fem
         # cell's key does not (its solver does not reach fd_heat): copied from the baseline, not recomputed
         assert (m["cells_changed"], m["recomputed"], m["cells"]["cells"], m["seeded"]) == (3, 3, 4, 4)
-    assert doc["claims"] == {"fd-order": {"baseline": "pass", "kills": ["rate-doubled"], "descriptive": False},
-                             "skfem-exact": {"baseline": "pass", "kills": [], "descriptive": True}}
+    assert doc["claims"] == {"fd-order": {"baseline": "pass", "passing": 1, "kills": ["rate-doubled"],
+                                          "descriptive": False},
+                             "skfem-exact": {"baseline": "pass", "passing": 1, "kills": [], "descriptive": True}}
     matrix = pd.read_csv(out / "tiny" / "mutants-matrix.csv")
     assert matrix.to_dict("records") == [
         {"claim": "fd-order", "baseline": "pass", "kills": 1, "rate-doubled": "killed (fail)",
@@ -379,3 +380,17 @@ def test_the_code_fingerprint_reads_the_overlay(tmp_path, monkeypatch) -> None:
     after = {m: module_fingerprint(f"ovl_pkg.{m}") for m in "abc"}
     assert after["a"] != before["a"] and after["b"] != before["b"] and after["c"] == before["c"]
     assert "ovl_pkg" not in sys.modules  # resolved, never imported
+
+
+def test_a_claim_judged_per_case_catches_a_mutant_with_any_case_that_passed() -> None:
+    """A claim with one failing case (n=3) and one passing case (n=8): on a mutant that breaks n=8 it has caught
+    the defect, though its worst state was fail on the original too; a case failing on both catches nothing."""
+    from pcverify.harness.run.mutation import caught_by, judge
+
+    def rows(n3: str, n8: str) -> list[dict[str, str]]:
+        return [{"claim": "c", "case": "n=3", "verdict": n3}, {"claim": "c", "case": "n=8", "verdict": n8}]
+
+    claims = judge(rows("fail", "pass"), rows("fail", "inconclusive"))
+    assert claims == {"c": {"baseline": "fail", "mutant": "fail", "passing": 1, "caught": ["n=8"]}}
+    assert caught_by(claims) == ["c"]
+    assert caught_by(judge(rows("fail", "pass"), rows("pass", "pass"))) == []

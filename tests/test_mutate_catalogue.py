@@ -40,7 +40,7 @@ def test_every_shipped_catalogue_loads_and_each_edit_applies_to_code() -> None:
         if not beside_file(path).is_file():
             continue
         mutants = read_mutants_file(beside_file(path))
-        assert len({m.name for m in mutants}) == len(mutants) >= 3, name
+        assert len({m.name for m in mutants}) == len(mutants) >= 2, name
         for m in mutants:
             source, edited = m.edited()
             assert edited != source and m.changes_code(source, edited), (name, m.name)

@@ -31,11 +31,12 @@ e = html.escape
 def mutation_document(study: str, baseline: list[dict[str, Any]], outcomes: list[dict[str, Any]],
                       wall_s: float) -> dict[str, Any]:
     """mutants.json: the study, the outcome per mutant, per claim its baseline state and the mutants it kills."""
-    states = {claim: claim_state(rows) for (_, claim), rows in by_claim(baseline).items()}
-    claims = {c: {"baseline": s, "kills": [o["name"] for o in outcomes if c in o.get("caught_by", [])]}
-              for c, s in states.items()}
-    for c in claims.values():  # a claim that does not pass on the original is a finding: it can catch nothing
-        c["descriptive"] = c["baseline"] == "pass" and not c["kills"]
+    grouped = by_claim(baseline)
+    claims = {claim: {"baseline": claim_state(rows), "passing": sum(r["verdict"] == "pass" for r in rows),
+                      "kills": [o["name"] for o in outcomes if claim in o.get("caught_by", [])]}
+              for (_, claim), rows in grouped.items()}
+    for c in claims.values():  # a claim with no passing case is a finding: it can catch nothing
+        c["descriptive"] = c["passing"] > 0 and not c["kills"]
     return {"study": study, "counts": {s: sum(o["status"] == s for o in outcomes) for s in OUTCOMES},
             "mutants": outcomes, "claims": claims, "wall_s": round(wall_s, 3)}
 
@@ -53,7 +54,7 @@ def kill_matrix(doc: dict[str, Any]) -> pd.DataFrame:
                 row[o["name"]] = o["status"]
             elif claim in o.get("caught_by", []):
                 row[o["name"]] = f"killed ({s['mutant']})"
-            elif s is None or s["baseline"] != "pass":
+            elif s is None or not c.get("passing"):
                 row[o["name"]] = f"baseline {c['baseline']}"
             else:
                 row[o["name"]] = "pass"

@@ -80,22 +80,32 @@ def prepare(mutant: Mutant, cache_root: Path, study: str) -> Prepared:
     return Prepared(mutant, mutant.path(), edited, folder, mutant.changes_code(source, edited), syntax)
 
 
-def judge(baseline: list[dict[str, Any]], mutated: list[dict[str, Any]]) -> dict[str, dict[str, str]]:
-    """Per claim of the baseline its state there and on the mutant: the worst of its verdicts (fail,
-    inconclusive, not-applicable, pass), "missing" when the mutant's report has none."""
-    def states(records: list[dict[str, Any]]) -> dict[str, str]:
-        verdicts: dict[str, set[str]] = {}
-        for r in records:
-            verdicts.setdefault(r["claim"], set()).add(r["verdict"])
-        return {c: next((s for s in STATES if s in v), "fail") for c, v in verdicts.items()}
+def judge(baseline: list[dict[str, Any]], mutated: list[dict[str, Any]]) -> dict[str, dict[str, Any]]:
+    """Per claim of the baseline its state there and on the mutant (the worst of its verdicts: fail,
+    inconclusive, not-applicable, pass; "missing" when the mutant's report has none), how many of its cases pass
+    on the baseline, and `caught`: those cases that do not pass on the mutant (a claim judged per n, say, catches
+    a defect with each case that passed)."""
+    def cases(records: list[dict[str, Any]]) -> dict[tuple[str, str], str]:
+        return {(r["claim"], str(r.get("case") or "")): r["verdict"] for r in records}
 
-    before, after = states(baseline), states(mutated)
-    return {c: {"baseline": s, "mutant": after.get(c, "missing")} for c, s in before.items()}
+    def worst(verdicts: list[str]) -> str:
+        return next((s for s in STATES if s in verdicts), "missing")
+
+    before, after = cases(baseline), cases(mutated)
+    out: dict[str, dict[str, Any]] = {}
+    for claim in dict.fromkeys(c for c, _ in before):
+        mine = [(case, v) for (c, case), v in before.items() if c == claim]
+        passed = [case for case, v in mine if v == "pass"]
+        out[claim] = {"baseline": worst([v for _, v in mine]),
+                      "mutant": worst([v for (c, _), v in after.items() if c == claim]),
+                      "passing": len(passed), "caught": [case for case in passed
+                                                         if after.get((claim, case), "missing") != "pass"]}
+    return out
 
 
-def caught_by(claims: dict[str, dict[str, str]]) -> list[str]:
-    """The claims that passed on the baseline and do not pass on the mutant."""
-    return [c for c, s in claims.items() if s["baseline"] == "pass" and s["mutant"] != "pass"]
+def caught_by(claims: dict[str, dict[str, Any]]) -> list[str]:
+    """The claims with a case that passed on the baseline and does not pass on the mutant."""
+    return [c for c, s in claims.items() if s.get("caught")]
 
 
 def _copy_numba_cache(target: Path, packages: Iterable[Path]) -> None:
@@ -254,9 +264,9 @@ class Runner:
         caught = caught_by(claims)
         if caught:
             return self._outcome("killed", "", t0, **extra | {"caught_by": caught})
-        passing = [c for c, s in claims.items() if s["baseline"] == "pass"]
-        why = (f"every claim that passes on the original passes on it ({len(passing)} claims)" if passing else
-               "no claim passes on the original: none can catch it")
+        passing = [c for c, s in claims.items() if s.get("passing")]
+        why = (f"every case that passes on the original passes on it ({len(passing)} claims)" if passing else
+               "no claim passes on the original in any case: none can catch it")
         return self._outcome("survived", why, t0, **extra)
 
 
