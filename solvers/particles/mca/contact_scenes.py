@@ -339,10 +339,11 @@ def _reaction_summary(marks: list[Mark], st: mk.State, aut: Automata, law: ct.Co
 
     def measured(a: Mark, b: Mark) -> tuple[float, float, float, float, np.ndarray, np.ndarray]:
         react, damping, residual = external_forces(a, b, st, gamma)
-        n_clamp = react[0, ax] + on_base[ax]
-        n_drive = -(react[1, ax] + on_slider[ax])
-        return (float(-react[0, dr] / n_clamp), float(react[1, dr] / n_drive), float(n_clamp), float(n_drive), damping,
-                residual)
+        n_clamp = float(react[0, ax] + on_base[ax])
+        n_drive = float(-(react[1, ax] + on_slider[ax]))
+        mu_clamp = -float(react[0, dr]) / n_clamp if n_clamp > 0 else math.nan  # none: the bodies separated
+        mu_drive = float(react[1, dr]) / n_drive if n_drive > 0 else math.nan
+        return mu_clamp, mu_drive, n_clamp, n_drive, damping, residual
 
     mu_clamp, mu_drive, n_clamp, n_drive, damping, residual = measured(marks[0], marks[2])
     halves = [measured(marks[0], marks[1]), measured(marks[1], marks[2])]
