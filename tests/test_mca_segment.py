@@ -1,7 +1,9 @@
 """MCA contact of two bodies by the segment method (sections 6-7 of the MCA seed): the facet force shares
 reduce to the 2-D segment formulas, a stack compressed across an unlinked interface is its bonded lattice,
 sliding gives mu_dr = mu1 (dry), mu0 V / sigma_N (viscous) and mu1 (1 + K_av) within the stated uncertainty
-(rough), with the energy balance closed; the micro-roughness process has the stated mean.
+(rough), with the energy balance closed; the micro-roughness process has the stated mean.  Measured outside
+the friction law: the held automata's reactions (the drive's and the clamp's mu, every external force balanced),
+the drive's power; dissimilar blocks heated as two semi-infinite solids in contact.
 
 Tolerances: the pressed stack relaxes to a residual of 1e-9 E |strain| a^2, so its pressure agrees with the
 uniaxial stress to ~1e-10 and its field with the bonded lattice's to ~2e-5 (asserted 1e-6 and 1e-4); sliding
