@@ -1,7 +1,9 @@
 """MCA contact of two bodies by the segment method (sections 6-7 of the MCA seed): the facet force shares
 reduce to the 2-D segment formulas, a stack compressed across an unlinked interface is its bonded lattice,
 sliding gives mu_dr = mu1 (dry), mu0 V / sigma_N (viscous) and mu1 (1 + K_av) within the stated uncertainty
-(rough), with the energy balance closed; the micro-roughness process has the stated mean.
+(rough), with the energy balance closed; the micro-roughness process has the stated mean.  Measured outside
+the friction law: the held automata's reactions (the drive's and the clamp's mu, every external force balanced),
+the drive's power; dissimilar blocks heated as two semi-infinite solids in contact.
 
 Tolerances: the pressed stack relaxes to a residual of 1e-9 E |strain| a^2, so its pressure agrees with the
 uniaxial stress to ~1e-10 and its field with the bonded lattice's to ~2e-5 (asserted 1e-6 and 1e-4); sliding
@@ -18,9 +20,10 @@ import numpy as np
 import pytest
 
 from pcverify.harness.spec.catalogue import make_scene
-from pcverify.references import analytic
+from pcverify.references import analytic, slab
 from pcverify.scene import Box, Contact, Resolution, SceneError
 from pcverify.solvers.particles.mca import contact as ct
+from pcverify.solvers.particles.mca import contact_scenes as cs
 from pcverify.solvers.particles.mca import roughness as rg
 from pcverify.solvers.particles.mca.automata import bar_automata, body_automata
 from pcverify.solvers.registry import get_solver
@@ -34,9 +37,11 @@ def mca():
     return get_solver("mca")
 
 
-def _one_facet(x_slave: np.ndarray, v_slave: np.ndarray, law: ct.ContactLaw, mass: float = 1.0):
+def _one_facet(x_slave: np.ndarray, v_slave: np.ndarray, law: ct.ContactLaw, mass: float = 1.0,
+               held: np.ndarray | None = None):
     """A slave automaton (index 3) over one triangle (0, 1, 2) = ((0,0,0), (r,0,0), (0,r,0)), r = 1 mm: the
-    forces of one contact evaluation, and the contact state."""
+    forces of one contact evaluation, and the contact state (`held`: the degrees of freedom whose reactions it
+    records)."""
     r = 1e-3
     x = np.array([[0.0, 0.0, 0.0], [r, 0.0, 0.0], [0.0, r, 0.0], x_slave], dtype=float)
     v = np.zeros((4, 3))
@@ -46,8 +51,8 @@ def _one_facet(x_slave: np.ndarray, v_slave: np.ndarray, law: ct.ContactLaw, mas
         side=np.array([5]), cand_ptr=np.array([0, 1]), cand=np.array([0]), extent=np.full((4, 3), r),
         facet=np.full(1, -1), w=np.zeros((1, 3)), nrm=np.zeros((1, 3)), gap=np.zeros(1), area=np.zeros(1),
         sigma=np.zeros(1), fric=np.zeros((1, 3)), speed=np.zeros(1), power=np.zeros(1), dissipated=np.zeros(1),
-        heat=np.zeros(4),
-        rough=rg.new_state(1), law=law)
+        heat=np.zeros(4), held=held if held is not None else np.zeros((4, 3), dtype=np.int64),
+        reaction=np.zeros((2, 3)), impulse=np.zeros((2, 3)), rough=rg.new_state(1), law=law)
     theta = np.zeros(4)
     ct.geometry(x, np.full(4, r**3), con, theta)
     f = np.zeros((4, 3))
@@ -252,3 +257,94 @@ def test_continuum_heat_solvers_decline_the_coupled_scene_and_take_the_flux_one(
     pts = np.array([[0.0, 0.0, 0.0125]])
     assert analytic(make_scene("frictional-heating"), pts) == pytest.approx(
         analytic(make_scene("frictional-heating", source="flux"), pts))  # the clamp does not touch the heat
+
+
+def test_the_held_automata_record_their_constraints_reactions():
+    """Held degrees of freedom record what their constraints exert, -sum f over each body's (the pair and contact
+    forces), and its time integral once per step: a facet held as body 1 and a slave held as body 2 measure the
+    contact's force E S (h0 - h) / h0 = 70 N and its friction 0.4 x 70 N, equal and opposite (Newton's third law
+    of the segment method's force shares)."""
+    law = ct.ContactLaw(h0=1e-3, mu0=0.0, mu1=0.4, sigma0=math.inf, v_reg=1e-3, rough=NO_ROUGHNESS, axis=2,
+                        direction=0)
+    held = np.zeros((4, 3), dtype=np.int64)
+    held[:3], held[3] = 1, 2
+    _, con, _ = _one_facet(np.array([0.2e-3, 0.3e-3, 0.999e-3]), np.array([0.5, 0.0, 0.0]), law, held=held)
+    normal = E * 1e-6 * 1e-3  # S = r^2, strain (h0 - h) / h0 = 1e-3
+    assert np.allclose(con.reaction[1], [0.4 * normal, 0.0, -normal], rtol=1e-12, atol=0.0)  # holds the slave back
+    assert np.allclose(con.reaction[0], [-0.4 * normal, 0.0, normal], rtol=1e-12, atol=1e-12 * normal)
+    assert not con.impulse.any()  # integrated per step, not per force evaluation
+    ct.after_step(con, 2e-9)
+    assert np.allclose(con.impulse, 2e-9 * con.reaction, rtol=1e-15, atol=0.0)
+
+
+def test_the_drive_and_the_clamp_measure_mu1_and_every_external_force_balances(dry):
+    """Measured outside the friction law: the clamp carries the applied load sigma A = 100 N (to the window's
+    momentum change: measured 2.6e-6) and the drive's and the clamp's tangential reactions give mu1 = 0.3
+    (measured within 2.5e-5 and 4e-6, their halves within 6.3e-5 and 2.5e-6); every external force less the
+    momentum change sums to zero (measured 9e-8 of the load: quadrature); the drive delivers mu1 F_N V = 30 W
+    to friction (measured 5e-6 off)."""
+    s = dry.summary
+    assert s["normal_force_applied"] == pytest.approx(1e6 * 0.01 * 0.01)
+    assert s["normal_drive_ratio"] == pytest.approx(1.0, abs=1e-12)  # no platen: the load alone presses
+    assert s["normal_clamp_ratio"] == pytest.approx(1.0, abs=1e-5)
+    for where in ("drive", "clamp"):
+        assert s[f"mu_{where}"] == pytest.approx(0.3, rel=3e-4)
+        assert s[f"mu_{where}_drift"] < 1e-4
+    assert s["newton_error"] < 1e-6 and s["damping_force_ratio"] < 1e-5
+    assert s["drive_power_W"] == pytest.approx(0.3 * 100.0 * 1.0, rel=1e-4)
+    assert s["drive_power_drift"] < 1e-4
+
+
+def test_the_friction_heat_is_split_by_the_conductivities():
+    assert cs.thermal_split(121.0, 121.0) == 0.5
+    assert cs.thermal_split(60.5, 121.0) == pytest.approx(1 / 3, rel=1e-15)
+
+
+@pytest.fixture(scope="module")
+def dissimilar(mca):
+    """Frictional heating of dissimilar blocks (the lower one conducting half as well), viscous friction at
+    0.5 m/s for 1 ms, at n = 4 and 6."""
+    scene = make_scene("frictional-heating", base_conductivity=60.5, speed=0.5, friction=0.6, duration=1e-3)
+    return scene, {n: mca.solve(scene, Resolution(n), mu1=0.0, mu0=1.2e6) for n in (4, 6)}
+
+
+def test_dissimilar_blocks_heat_as_two_semi_infinite_solids_in_contact(dissimilar):
+    """Two semi-infinite solids in perfect contact take the flux by their effusivities (the references' own
+    functions give the rise on each side at a/2 and the lower block's share sqrt(2) - 1); the MCA run approaches
+    them at second order: the error at n = 6 is (3/5)^2 = 0.36 of n = 4's (measured 0.36 for the share, 0.33
+    and 0.31 for the two sides), where a split by halves or all the heat into one body converges at first
+    order (measured 0.6 and above).  No slab reference for two materials."""
+    scene, runs = dissimilar
+    mat = scene.material
+    share = slab.effusivity_shares(slab.effusivity(60.5, mat.density, mat.heat_capacity),
+                                   slab.effusivity(mat.conductivity, mat.density, mat.heat_capacity))[0]
+    assert share == pytest.approx(math.sqrt(2) - 1, rel=1e-12)
+    err = {}
+    for n, sol in runs.items():
+        s = sol.summary
+        assert sol.status == "ok", sol.reason
+        assert s["heat_share_base_expected"] == pytest.approx(share, rel=1e-12)
+        depth = 0.5 * 0.01 / (n - 1)
+        for side, k, q in (("base", 60.5, share), ("slider", mat.conductivity, 1 - share)):
+            alpha = k / (mat.density * mat.heat_capacity)
+            exact = float(slab.semi_infinite_rise(q * 3e5, k, alpha, 0.5, depth))
+            assert s[f"interface_rise_{side}_expected"] == pytest.approx(exact, rel=1e-12)
+            assert s[f"interface_rise_{side}"] == pytest.approx(s[f"interface_rise_{side}_ratio"] * exact, rel=1e-12)
+        assert s["flux_drive_ratio"] == pytest.approx(1.0, abs=5e-4) and s["newton_error"] < 1e-5
+        err[n] = np.array([s["heat_share_base"] / share - 1, s["interface_rise_base_ratio"] - 1,
+                           s["interface_rise_slider_ratio"] - 1])
+    assert np.all(np.abs(err[6]) < 0.45 * np.abs(err[4])), err
+    assert np.all(np.abs(err[6]) < 0.02)
+    assert analytic(scene, np.zeros((1, 3))) is None
+
+
+def test_one_material_given_twice_is_the_one_material_run(mca):
+    """The lower block's own constants equal to the material's: the same run to the last digit (a half split,
+    the pair conductance k), the two sides rising alike."""
+    kw = {"mu1": 0.0, "mu0": 1.2e6}
+    one = mca.solve(make_scene("frictional-heating", speed=0.5, friction=0.6), Resolution(4), **kw)
+    twice = mca.solve(make_scene("frictional-heating", speed=0.5, friction=0.6, base_conductivity=121.0,
+                                 base_heat_capacity=875.0), Resolution(4), **kw)
+    assert np.array_equal(one.samples["nodes"]["values"], twice.samples["nodes"]["values"])
+    assert twice.summary["heat_split_base"] == 0.5
+    assert twice.summary["interface_rise_base"] == pytest.approx(twice.summary["interface_rise_slider"], rel=1e-12)

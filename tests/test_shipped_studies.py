@@ -36,7 +36,7 @@ from pcverify.harness.spec.study import load_study, study_files
 # study: cells the dry run plans, by state; the calibration study's cells follow from the values found
 PLANNED = {
     "calibration": {},
-    "contact-friction": {"to run": 34},
+    "contact-friction": {"to run": 38},
     "continuum-heat": {"to run": 54},
     "elasticity": {"to run": 79},
     "heat-particles": {"to run": 200},

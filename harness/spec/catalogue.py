@@ -149,11 +149,16 @@ def _frictional_heating(p: dict[str, Any]) -> Scene:
     heat = Conduction(t_max=p["t_max"], mode="transient", t_end=p["t_end"], dt=p["dt"],
                       interface=InterfaceFlux(flux, box.length / 2, "z"))
     physics = {"conduction", "interface-flux"}
+    base = {k: p[k] for k in ("base_conductivity", "base_heat_capacity") if p[k] is not None}
+    if p["source"] == "flux" and base:
+        name = next(iter(base))
+        raise SceneError(f"{name}={base[name]!r} is not allowed with source='flux'; allowed: source='friction' (the "
+                         "flux scene is one material, as the continuum solvers take it)")
     if p["source"] == "flux":
         return Scene("frictional-heating", CATALOGUE["frictional-heating"].description, box, DURALUMIN_THERMAL,
                      frozenset(physics), (), conduction=heat, params=tuple(sorted(p.items())))
     contact = Contact(axis="z", position=box.length / 2, normal_stress=p["normal_stress"], speed=p["speed"],
-                      direction="x", duration=p["duration"], heating=True, platen=True)
+                      direction="x", duration=p["duration"], heating=True, platen=True, **base)
     return Scene("frictional-heating", CATALOGUE["frictional-heating"].description, box, DURALUMIN_THERMAL,
                  frozenset(physics | {"elasticity", "contact", "frictional-heating"}), (FaceClamp("z0"),),
                  conduction=heat, elasticity=Elasticity(), contact=contact, params=tuple(sorted(p.items())))
@@ -268,6 +273,11 @@ CATALOGUE: dict[str, SceneSpec] = {
                 Param("t_end", 0.5, "s", "heating time", low=0.0, high=1e4, low_open=True),
                 Param("dt", 0.005, "s", "continuum time step", low=0.0, high=1e4, low_open=True),
                 Param("t_max", 10.0, "K", "temperature scale (relative results are T/t_max)", low=1e-3, high=1e5),
+                Param("base_conductivity", None, "W/(m K)", "the lower block's own conductivity (dissimilar blocks, "
+                      "source=friction; none = duralumin's 121)", low=0.0, high=1e4, low_open=True, optional=True),
+                Param("base_heat_capacity", None, "J/(kg K)", "the lower block's own heat capacity (dissimilar "
+                      "blocks, source=friction; none = duralumin's 875)", low=0.0, high=1e5, low_open=True,
+                      optional=True),
             ),
             _frictional_heating,
         ),

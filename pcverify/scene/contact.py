@@ -5,8 +5,10 @@ body 2 (above it); `span`, if given, limits body 2 along the sliding `direction`
 base).  Body 2's far face (the box face at the upper end of `axis`) is pressed onto body 1 by the uniform
 `normal_stress` and, with `speed` > 0, driven along `direction` for `duration` seconds of sliding.  With
 `heating`, the power dissipated by friction enters the two bodies as heat (the physics "frictional-heating",
-which needs a Conduction part).  Body 1 is held by the scene's constraints (a clamp or supports); body 2's
-far face by the drive, or by supports when the contact is only compressed.
+which needs a Conduction part); `base_conductivity` and `base_heat_capacity` give body 1 thermal constants of
+its own (dissimilar blocks: the friction heat then divides between the bodies unevenly; the mechanics is the
+scene material's).  Body 1 is held by the scene's constraints (a clamp or supports); body 2's far face by the
+drive, or by supports when the contact is only compressed.
 """
 
 from __future__ import annotations
@@ -34,7 +36,8 @@ class Contact:
     slid along `direction` at `speed` (m/s) for `duration` (s); `span` = (low, high) in m along `direction`
     limits body 2 (default: the whole box); `heating`: friction heats the bodies; `platen`: once pressed, body
     2's far face is held at its height along `axis` while it slides (a rigid platen takes the friction's
-    moment), instead of staying under the applied stress."""
+    moment), instead of staying under the applied stress; `base_conductivity` (W/(m K)) and `base_heat_capacity`
+    (J/(kg K)): body 1's thermal constants where they differ from the scene material's (None: the same)."""
 
     axis: str = "z"
     position: float = 0.015
@@ -45,6 +48,8 @@ class Contact:
     span: tuple[float, float] | None = None
     heating: bool = False
     platen: bool = False
+    base_conductivity: float | None = None
+    base_heat_capacity: float | None = None
 
     def __post_init__(self) -> None:
         for name in ("axis", "direction"):
@@ -68,6 +73,12 @@ class Contact:
         for name in ("heating", "platen"):
             if not isinstance(getattr(self, name), bool):
                 raise SceneError(f"{name}={shown(getattr(self, name))} is not valid; allowed: true/false")
+        for name, unit in (("base_conductivity", "W/(m K)"), ("base_heat_capacity", "J/(kg K)")):
+            if getattr(self, name) is not None:
+                _number(name, getattr(self, name), 0.0, 1e15, unit, low_open=True)
+                if not self.heating:
+                    raise SceneError(f"{name}={shown(getattr(self, name))} is not allowed without heating; allowed: "
+                                     "body 1's thermal constants of a frictional-heating contact")
 
     @property
     def axis_index(self) -> int:

@@ -31,7 +31,12 @@ and l_i / r_ij of eqs. 11-12 and 14-15.
   max(v_reg, tau S dt / m_red).  Without the cap a pressed stack (70 MPa, n = 2 and 4) never relaxed: the
   stiff regularised damper chattered.
 - Heat: the dissipated power tau S |V_t| enters k and the facet's automata as heat, half to each body (the
-  two bodies have the same material, so this is also the split by effusivity).
+  record of the mechanics; the frictional-heating analysis splits the window's power by the bodies'
+  conductivities, contact_scenes.py).
+- Reactions: the automata's degrees of freedom the scene holds (`held`: 1 body 1's, 2 body 2's) record the
+  force their constraint exerts, -sum f over them (pair and contact forces; the loads are the caller's), and
+  its time integral (`impulse`).  A drive's and a clamp's reactions measure what the friction and the normal
+  force transmit through the bodies, outside the contact law's own bookkeeping.
 
 The candidate list (facets whose centroid lies within h0 + 0.75 d + 2 skin of a slave that faces them,
 nearest first) is rebuilt with the pair list, whenever an automaton has moved further than the skin.
@@ -71,7 +76,9 @@ class ContactState(NamedTuple):
     """Slaves (automata of body 2 on its surface), master facets (triangles of body 1), the candidate list
     (CSR: cand_ptr, cand), the cells' extents; per slave the current contact (facet or -1, weights, normal,
     height, area, normal stress, friction force, tangential speed, power) and the energy its friction
-    dissipated; per automaton the heat received (J); the roughness process; and the law."""
+    dissipated; per automaton the heat received (J); the held degrees of freedom (N, 3: 0 free, 1 body 1's,
+    2 body 2's), their constraints' current reactions (2, 3) and the reactions' time integrals (2, 3; N s);
+    the roughness process; and the law."""
 
     slave: np.ndarray
     faces: np.ndarray  # (ns, 6) open sides of each slave
@@ -91,6 +98,9 @@ class ContactState(NamedTuple):
     power: np.ndarray  # (ns,) friction power of the current step (W)
     dissipated: np.ndarray  # (ns,) energy dissipated by each slave's friction (J)
     heat: np.ndarray  # (N,) heat received (J)
+    held: np.ndarray  # (N, 3) int64: 0 free, 1 held in body 1 (a clamp), 2 held in body 2 (a drive, a platen)
+    reaction: np.ndarray  # (2, 3) -sum f over the held degrees of freedom of body 1, body 2 (N)
+    impulse: np.ndarray  # (2, 3) time integral of `reaction` (N s)
     rough: rg.RoughState
     law: ContactLaw
 
@@ -196,7 +206,8 @@ def new_state(aut: Automata, x: np.ndarray, law: ContactLaw, skin: float) -> Con
                         facet=np.full(ns, -1, dtype=np.int64), w=np.zeros((ns, 3)), nrm=np.zeros((ns, 3)),
                         gap=np.zeros(ns), area=np.zeros(ns), sigma=np.zeros(ns), fric=np.zeros((ns, 3)),
                         speed=np.zeros(ns), power=np.zeros(ns), dissipated=np.zeros(ns), heat=np.zeros(aut.size),
-                        rough=rs, law=law)
+                        held=np.zeros((aut.size, 3), dtype=np.int64), reaction=np.zeros((2, 3)),
+                        impulse=np.zeros((2, 3)), rough=rs, law=law)
 
 
 def rest_partners(con: ContactState, aut: Automata) -> ContactState:
@@ -376,13 +387,32 @@ def forces(x, v, f, theta, mass, kn, lam, dt, con):
         con.fric[s, 2] = fr2
         con.speed[s] = speed
         con.power[s] = coef * speed * speed
+    _reactions(f, con)
+
+
+@njit(cache=True)
+def _reactions(f, con):
+    """The held degrees of freedom's constraint reactions, -sum f over each body's (f: the pair and contact
+    forces of the step, before the loads)."""
+    for g in range(2):
+        for c in range(3):
+            con.reaction[g, c] = 0.0
+    for i in range(con.held.shape[0]):
+        for c in range(3):
+            g = con.held[i, c]
+            if g > 0:
+                con.reaction[g - 1, c] -= f[i, c]
 
 
 @njit(cache=True)
 def after_step(con, dt):
     """Time integration of the contacts over one step: friction heat into the automata (half to the slave,
-    half to the facet's automata by their weights), the roughness advanced by the sliding distance; returns
-    the energy dissipated by friction in the step (J)."""
+    half to the facet's automata by their weights), the roughness advanced by the sliding distance, the held
+    degrees of freedom's reactions into their impulses; returns the energy dissipated by friction in the step
+    (J)."""
+    for g in range(2):
+        for c in range(3):
+            con.impulse[g, c] += con.reaction[g, c] * dt
     total = 0.0
     for s in range(con.slave.shape[0]):
         fct = con.facet[s]

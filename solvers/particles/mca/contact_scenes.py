@@ -25,6 +25,14 @@ onto the model and summarises the run).
   variance of one contact's mean of K over the distance slid in the window (roughness.variance_of_mean).
   Energy balance over the window: work of the drive and of the load against kinetic + elastic energy +
   friction and damping dissipation (the largest imbalance over the window relative to the drive's work).
+  Measured outside the friction law's bookkeeping (mu_dr sums the law's own forces): the reactions of the
+  held automata, time-averaged over the window and over each half of it (contact.py records them every
+  step): mu at the drive (its tangential reaction over the normal force its far face transmits) and at the
+  clamp (the base's held automata), against the law's mu_dr for the normal force each measures, with the
+  drift between the halves (`mu_drive_drift`: how stationary the window is); Newton's third law, the drive's,
+  the clamp's, the load's and the damping's forces less the momentum change (`newton_error`, relative to the
+  applied normal force); the power the drive delivers to friction, its and the load's work less the change of
+  kinetic and elastic energy and the damping's dissipation (`drive_power_W`, its halves' drift).
   With a platen (Contact.platen) the far face is held at its preloaded height while it slides, and F_N is
   the normal force the contacts carry.  The run is ok only if the bodies stayed in contact over the whole
   window: body 2 not driven beyond body 1's surface (`footprint_room`) and a closed contact in every history
@@ -32,17 +40,21 @@ onto the model and summarises the run).
   max_steps (else failed before any step: a cut window is never averaged).
 - Frictional heating: sliding as above, then MCA heat on the bonded automata (the contact conducts as the
   interface pairs of the rest geometry) from the initial temperature to t_end, each contact's mean friction
-  power over the window held constant: half into the slave, half into its rest partners (one-way,
-  quasi-steady coupling: the mechanics' time scale is ~1e-7 s, the heat's ~1e-2 s; no thermal expansion).
-  Summary: the mean flux against the scene's declared interface flux (flux_ratio), its uniformity over the
-  interface, and the rise of the automata next to the plane against the semi-infinite solid's at a/2.
+  power over the window held constant, split by the bodies' conductivities (`thermal_split`: one half each
+  for one material) between the slave and its rest partners (one-way, quasi-steady coupling: the mechanics'
+  time scale is ~1e-7 s, the heat's ~1e-2 s; no thermal expansion).  Dissimilar blocks (Contact's
+  base_conductivity, base_heat_capacity): body 1's automata carry its own k and rho c, a pair across the
+  interface conducts as the two half cells in series.  Summary: the law's mean flux and the drive's against
+  the scene's declared interface flux (flux_ratio, flux_drive_ratio), the flux's uniformity over the
+  interface, the share of the heat body 1 holds at t_end, and the rise of the automata next to the plane on
+  each side against two semi-infinite solids in contact (each taking e_i / (e1 + e2) of the flux) at a/2.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from scipy.special import erfc
@@ -232,6 +244,8 @@ def sliding(scene: Scene, aut: Automata, bonded: Automata, el: Elastic, law: ct.
     frame = np.zeros((aut.size, 3))
     frame[aut.body == 1, dr] = contact.speed
     st = st._replace(frame=mk.Frame(frame))
+    held = np.where(fixm[:, :3] == mk.PRESCRIBED, 1 + aut.body[:, None], 0)
+    st.contact.held[:] = held  # the clamp's (body 1) and the drive's (body 2) reactions are recorded
     gamma = rate if p["slide_damping"] is None else p["slide_damping"]
     model.params = model.params._replace(gamma=float(gamma), t_stop=math.inf, ramp_start=t0, ramp=t_ramp)
     total = ramp_steps + window_steps
@@ -242,9 +256,12 @@ def sliding(scene: Scene, aut: Automata, bonded: Automata, el: Elastic, law: ct.
     t1 = float(st.clock[0])
     heat0 = st.contact.heat.copy()
     dissipated0 = st.contact.dissipated.copy()
-    if code == mk.OK:
-        st, code, more = _slide(model, st, pre_steps + total, every, rows)
-        rebuilds += more
+    marks = [_mark(st)]
+    for until in (pre_steps + ramp_steps + window_steps // 2, pre_steps + total):  # the window's two halves
+        if code == mk.OK:
+            st, code, more = _slide(model, st, until, every, rows)
+            rebuilds += more
+            marks.append(_mark(st))
     done = int(st.counters[mk.C_STEPS]) - pre_steps
     h = np.concatenate(rows) if rows else np.zeros((0, mk.N_H))
     summary.update(steps=int(st.counters[mk.C_STEPS]), slide_steps=done, slide_ramp_s=t_ramp,
@@ -257,6 +274,13 @@ def sliding(scene: Scene, aut: Automata, bonded: Automata, el: Elastic, law: ct.
         status, reason = "failed", f"only {len(window)} history rows in the sliding window"
     else:
         summary.update(_friction_summary(window, st, law, contact, f_normal))
+        if len(marks) == 3:
+            summary.update(_reaction_summary(marks, st, aut, law, contact, f_normal, float(gamma)))
+            summary.update(_drive_power(window, marks[1].t))
+            unc = summary.get("mu_dr_uncertainty", math.nan)
+            for name in ("drive", "clamp") if unc > 0 else ():  # rough: in units of the run length's uncertainty
+                summary[f"mu_{name}_zscore"] = (summary[f"mu_{name}"] - summary[f"mu_{name}_expected"]) / unc
+            summary.update(_worse_of_reactions(summary))
         slid, room = slid_distance(aut, st, contact, ext), footprint_room(aut, contact)
         summary.update(slid_distance=slid, slide_room=room)
         reason = contact_lost(window, slid, room, contact)
@@ -269,6 +293,98 @@ def sliding(scene: Scene, aut: Automata, bonded: Automata, el: Elastic, law: ct.
     return {"field": heat / aut.volume, "quantity": "friction heat received in the window (J/m^3)",
             "summary": summary, "status": status, "reason": reason, "diagnostics": diag, "model": model, "state": st,
             "power": (st.contact.dissipated - dissipated0) / window_s if window_s > 0 else None}
+
+
+class Mark(NamedTuple):
+    """The state at an instant of the sliding window: time (s), the held degrees of freedom's reaction impulses
+    (2, 3; N s), the momentum (3,; kg m/s) and the positions (N, 3)."""
+
+    t: float
+    impulse: np.ndarray
+    momentum: np.ndarray
+    x: np.ndarray
+
+
+def _mark(st: mk.State) -> Mark:
+    return Mark(float(st.clock[0]), st.contact.impulse.copy(), (st.mass[:, None] * st.v).sum(axis=0), st.x.copy())
+
+
+def external_forces(a: Mark, b: Mark, st: mk.State, gamma: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Mean forces over [a.t, b.t] from outside the two bodies: the reactions (2, 3) of body 1's and body 2's held
+    degrees of freedom (what a clamp, a drive or a platen exerts: -f - load on them), the damping's (3,) and
+    the sum of every external force minus the momentum change (3,), which Newton's third law makes zero (the
+    bodies' internal forces, pairs and contacts, cancel).  The damping acts on the free degrees of freedom
+    relative to the frame's velocities: its mean is -gamma sum m (dx - v_ref span) / span."""
+    span = b.t - a.t
+    load = st.load.force if st.load is not None else np.zeros_like(st.x)
+    held = st.contact.held
+    react = (b.impulse - a.impulse) / span
+    for g in range(2):
+        react[g] -= np.where(held == g + 1, load, 0.0).sum(axis=0)
+    free = st.fixm[:, :3] == mk.FREE
+    ref = st.frame.vel if st.frame is not None else np.zeros_like(st.x)
+    damping = -gamma * (st.mass[:, None] * np.where(free, b.x - a.x - ref * span, 0.0)).sum(axis=0) / span
+    residual = react.sum(axis=0) + load.sum(axis=0) + damping - (b.momentum - a.momentum) / span
+    return react, damping, residual
+
+
+def _reaction_summary(marks: list[Mark], st: mk.State, aut: Automata, law: ct.ContactLaw, contact: Contact,
+                      f_applied: float, gamma: float) -> dict[str, Any]:
+    """mu measured at the drive and at the clamp (their mean tangential reaction over their normal one, over
+    the window and over each half of it), against the law's mu_dr for the normal force each measures; the
+    external forces' balance (Newton's third law) relative to the applied normal force."""
+    ax, dr = contact.axis_index, contact.direction_index
+    load = st.load.force if st.load is not None else np.zeros_like(st.x)
+    on_base, on_slider = (load[aut.body == g].sum(axis=0) for g in (0, 1))
+
+    def measured(a: Mark, b: Mark) -> tuple[float, float, float, float, np.ndarray, np.ndarray]:
+        react, damping, residual = external_forces(a, b, st, gamma)
+        n_clamp = float(react[0, ax] + on_base[ax])
+        n_drive = float(-(react[1, ax] + on_slider[ax]))
+        mu_clamp = -float(react[0, dr]) / n_clamp if n_clamp > 0 else math.nan  # none: the bodies separated
+        mu_drive = float(react[1, dr]) / n_drive if n_drive > 0 else math.nan
+        return mu_clamp, mu_drive, n_clamp, n_drive, damping, residual
+
+    mu_clamp, mu_drive, n_clamp, n_drive, damping, residual = measured(marks[0], marks[2])
+    halves = [measured(marks[0], marks[1]), measured(marks[1], marks[2])]
+    out: dict[str, Any] = {"mu_drive": mu_drive, "mu_clamp": mu_clamp, "normal_drive_ratio": n_drive / f_applied,
+                           "normal_clamp_ratio": n_clamp / f_applied,
+                           "newton_error": float(np.linalg.norm(residual)) / f_applied,
+                           "damping_force_ratio": float(np.linalg.norm(damping)) / f_applied}
+    for name, mu, normal, k in (("drive", mu_drive, n_drive, 1), ("clamp", mu_clamp, n_clamp, 0)):
+        expected = mu_dr_expected(law, contact.speed, contact.normal_stress * normal / f_applied)
+        out[f"mu_{name}_expected"] = expected
+        out[f"mu_{name}_error"] = abs(mu / expected - 1) if expected > 0 else math.nan
+        out[f"mu_{name}_drift"] = abs(halves[0][k] - halves[1][k]) / expected if expected > 0 else math.nan
+    return out
+
+
+def _worse_of_reactions(summary: dict[str, Any]) -> dict[str, Any]:
+    """The drive's and the clamp's measurements as one: the larger error, the larger drift, the z-score of larger
+    magnitude (a claim on both reactions at once)."""
+    out = {"mu_reactions_error": max(summary["mu_drive_error"], summary["mu_clamp_error"]),
+           "mu_reactions_drift": max(summary["mu_drive_drift"], summary["mu_clamp_drift"])}
+    if "mu_drive_zscore" in summary:
+        out["mu_reactions_zscore"] = max(summary["mu_drive_zscore"], summary["mu_clamp_zscore"], key=abs)
+    return out
+
+
+def _drive_power(window: np.ndarray, t_mid: float) -> dict[str, Any]:
+    """The power the drive and the load deliver to friction, measured at them: their work minus the change of the
+    bodies' kinetic and elastic energy and the damping's dissipation, over the window's history rows (W), and
+    the drift between its two halves relative to it (the window's stationarity)."""
+
+    def power(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
+        work = b[mk.H_WORK] + b[mk.H_LOAD] - a[mk.H_WORK] - a[mk.H_LOAD]
+        kept = b[mk.H_KE] + b[mk.H_U] + b[mk.H_DISS] - a[mk.H_KE] - a[mk.H_U] - a[mk.H_DISS]
+        span = float(b[mk.H_T] - a[mk.H_T])
+        return float(work - kept) / span, float(work) / span
+
+    mid = int(np.argmin(np.abs(window[:, mk.H_T] - t_mid)))
+    whole, work = power(window[0], window[-1])
+    first, second = power(window[0], window[mid])[0], power(window[mid], window[-1])[0]
+    return {"drive_power_W": whole, "drive_work_power_W": work,
+            "drive_power_drift": abs(first - second) / abs(whole) if whole else math.nan}
 
 
 def _slide(model: Model, st: mk.State, until: int, every: int, rows: list[np.ndarray]
@@ -341,42 +457,85 @@ def heating(scene: Scene, aut: Automata, bonded: Automata, el: Elastic, law: ct.
             ) -> dict[str, Any]:
     """Sliding, then MCA heat of the bonded automata (the contact conducts as the interface pairs of the rest
     geometry) from the scene's initial temperature to t_end, fed by the window's mean friction power of each
-    contact: half to the slave, half to its rest partners (the facet found at the rest positions, by weight)."""
+    contact, split between the bodies by their conductivities (the slave's share to the slave, body 1's to its
+    rest partners by weight; `thermal_split`)."""
     out = sliding(scene, aut, bonded, el, law, p)
     slave_power = out.pop("power", None)
     summary = out["summary"]
     if out["status"] != "ok" or slave_power is None:
         return out | {"field": None}
-    contact, heat, mat = scene.contact, scene.conduction, scene.material
+    contact, heat = scene.contact, scene.conduction
     ax = contact.axis_index
     section = float(np.prod(np.delete(scene.box.extent, ax)))
+    conductivity, rho_c = body_thermal(scene, aut)
+    k_base, k_slider = float(conductivity[aut.body == 0][0]), float(conductivity[aut.body == 1][0])
+    base_share = thermal_split(k_base, k_slider)
     rest = ct.rest_partners(out["state"].contact, aut)
     power = np.zeros(aut.size)
     paired = rest.facet >= 0
-    np.add.at(power, rest.slave, 0.5 * slave_power)
+    np.add.at(power, rest.slave, (1.0 - base_share) * slave_power)
     for v in range(3):
-        np.add.at(power, rest.facets[rest.facet[paired], v], 0.5 * slave_power[paired] * rest.w[paired, v])
+        np.add.at(power, rest.facets[rest.facet[paired], v], base_share * slave_power[paired] * rest.w[paired, v])
     flux = float(slave_power.sum()) / section
     per_area = slave_power[paired] / rest.area[paired]
     held, values = mca_heat.held_temperatures(scene, bonded)
-    hs, hp, steps = mca_heat.transient(bonded, mat.conductivity, mat.density * mat.heat_capacity, values, held,
-                                       heat.t_end, p["heat_cfl"], power)
+    i, j = bonded.pairs[:, 0], bonded.pairs[:, 1]
+    pair_conductivity = 2.0 * conductivity[i] * conductivity[j] / (conductivity[i] + conductivity[j])  # in series
+    hs, hp, steps = mca_heat.transient(bonded, pair_conductivity, rho_c, values, held, heat.t_end, p["heat_cfl"],
+                                       power)
     heat_s = timed("heat", hs, hp, steps)
     rise = hs.temp - heat.initial_temperature
     near = np.abs(np.abs(aut.positions[:, ax] - contact.position) - 0.5 * law.h0) < 1e-6 * law.h0
+    stored = rise * rho_c * bonded.volume
     summary.update(heat_dt=hp.dt, heat_steps=steps, heat_kernel_s=heat_s, flux_friction=flux,
                    flux_uniformity=float(np.ptp(per_area) / per_area.mean()),
-                   interface_rise=float(rise[near].mean()))
+                   flux_drive=summary["drive_power_W"] / section, interface_rise=float(rise[near].mean()),
+                   interface_rise_base=float(rise[near & (aut.body == 0)].mean()),
+                   interface_rise_slider=float(rise[near & (aut.body == 1)].mean()),
+                   heat_split_base=base_share, heat_share_base=float(stored[aut.body == 0].sum() / stored.sum()))
     declared = heat.interface.flux if heat.interface is not None else math.nan
     if math.isfinite(declared) and declared > 0:
-        expect = semi_infinite_rise(declared / 2, mat.conductivity, mat.diffusivity, heat.t_end, 0.5 * law.h0)
-        summary.update(flux_declared=declared, flux_ratio=flux / declared, interface_rise_expected=expect,
-                       interface_rise_error=float(rise[near].mean() / expect - 1))
+        diffusivity = conductivity / rho_c
+        effusivity = np.sqrt(conductivity * rho_c)
+        e_base, e_slider = float(effusivity[aut.body == 0][0]), float(effusivity[aut.body == 1][0])
+        share = e_base / (e_base + e_slider)  # two semi-infinite solids in perfect contact
+        summary.update(flux_declared=declared, flux_ratio=flux / declared,
+                       flux_drive_ratio=summary["flux_drive"] / declared, heat_share_base_expected=share)
+        for side, body, q in (("base", 0, share * declared), ("slider", 1, (1 - share) * declared)):
+            k = float(conductivity[aut.body == body][0])
+            expect = semi_infinite_rise(q, k, float(diffusivity[aut.body == body][0]), heat.t_end, 0.5 * law.h0)
+            summary[f"interface_rise_{side}_expected"] = expect
+            summary[f"interface_rise_{side}_ratio"] = summary[f"interface_rise_{side}"] / expect
+        expect = 0.5 * (summary["interface_rise_base_expected"] + summary["interface_rise_slider_expected"])
+        summary.update(interface_rise_expected=expect, interface_rise_error=summary["interface_rise"] / expect - 1,
+                       interface_rise_sides_error=max(abs(summary[f"interface_rise_{side}_ratio"] - 1)
+                                                      for side in ("base", "slider")))
     temp = hs.temp / heat.t_max
     summary.update(heat_summary(temp, float((temp * bonded.volume).sum() / bonded.volume.sum())))
     out["diagnostics"]["notes"] = ["frictional heating: the mean friction power of the sliding window feeds MCA "
                                    "heat on the rest geometry for t_end (quasi-steady one-way coupling)"]
     return out | {"field": temp, "quantity": "T/t_max"}
+
+
+def body_thermal(scene: Scene, aut: Automata) -> tuple[np.ndarray, np.ndarray]:
+    """Conductivity (W/(m K)) and rho c (J/(m^3 K)) of every automaton: the scene material's, body 1's own where
+    the contact gives them (dissimilar blocks)."""
+    mat, contact = scene.material, scene.contact
+    base = aut.body == 0
+    k_base = mat.conductivity if contact.base_conductivity is None else contact.base_conductivity
+    c_base = mat.heat_capacity if contact.base_heat_capacity is None else contact.base_heat_capacity
+    return (np.where(base, k_base, mat.conductivity).astype(float),
+            mat.density * np.where(base, c_base, mat.heat_capacity).astype(float))
+
+
+def thermal_split(k_base: float, k_slider: float) -> float:
+    """Body 1's share of the friction heat generated between the automata next to the interface: k1 / (k1 + k2).
+    The finite-volume split of a source on the face between two cells of conductivities k1 and k2: the face's
+    temperature eliminated (its flux balance), each cell receives the source in proportion to its conductance to
+    the face plus the harmonic-mean conduction between the cells, which is second order in a for the field of two
+    solids in contact (an effusivity or half split leaves an error of first order in a when k1 != k2).  Equal
+    materials: one half each."""
+    return k_base / (k_base + k_slider)
 
 
 def semi_infinite_rise(flux: float, conductivity: float, diffusivity: float, t: float, depth: float) -> float:
