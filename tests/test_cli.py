@@ -74,10 +74,10 @@ def test_run_json_contract_end_to_end(solver):
 
 
 def test_a_reader_that_stops_early_is_not_an_error() -> None:
-    """`pcverify study stability --dry-run | head -1` (~95 kB, more than a pipe holds): the reader closes the pipe
-    after the first bytes.  Before: 'pcverify: error: [Errno 32] Broken pipe' on stderr and exit 2; now nothing on
-    stderr and 141, as a shell reports a SIGPIPE."""
-    proc = subprocess.Popen([sys.executable, "-m", "pcverify.harness.cli", "study", "stability", "--dry-run"],
+    """`pcverify study default --dry-run --json | head -c 1` (~150 kB, more than a pipe holds): the reader closes
+    the pipe after the first bytes.  Before: 'pcverify: error: [Errno 32] Broken pipe' on stderr and exit 2; now
+    nothing on stderr and 141, as a shell reports a SIGPIPE."""
+    proc = subprocess.Popen([sys.executable, "-m", "pcverify.harness.cli", "study", "default", "--dry-run", "--json"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, bufsize=0)
     assert proc.stdout.read(1)  # the first byte is there: the reader leaves
     proc.stdout.close()
