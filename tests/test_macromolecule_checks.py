@@ -8,11 +8,13 @@ n = 2 and short runs: the file runs in seconds after numba compilation.
 
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
 import pytest
 
+from pcverify.harness.cli import main
 from pcverify.harness.spec.catalogue import make_scene
 from pcverify.harness.spec.mutants import read_mutants_file
 from pcverify.harness.spec.study import load_study, study_files
@@ -180,6 +182,23 @@ def test_stop_deviation_is_the_change_between_the_stopped_and_the_whole_run() ->
     dev = np.max(np.abs(stopped.diagnostics["relative_hotness_raw"] - whole.diagnostics["relative_hotness_raw"])[free])
     assert stopped.summary["stop_deviation"] == pytest.approx(float(dev), rel=1e-12) and 0 < dev <= 0.01
     assert _solve(**given | {"stop_tol": 0.0}, stop_check=True).summary["stop_deviation"] == 0.0
+
+
+# ---------------------------------------------------------------- the study's verification claims
+VERIFICATION_GROUPS = ("top-mode", "energy-balance", "red-pair", "energy-check", "stop-paper", "stop-faces")
+
+
+def test_every_verification_claim_of_the_macromolecule_study_passes_on_the_original(tmp_path, capsys) -> None:
+    """The study's verification groups (12 cells, seconds) judged as `pcverify study --group` judges them: every
+    claim on them passes, case by case (the values are those the claims' comments state)."""
+    groups = [a for g in VERIFICATION_GROUPS for a in ("--group", g)]
+    code = main(["study", "macromolecule", *groups, "--jobs", "1", "--out", str(tmp_path), "--json"])
+    out = capsys.readouterr().out
+    assert code == 0
+    (doc,) = json.loads(out)
+    verdicts = {(v["claim"], v["case"]): v["verdict"] for v in doc["verdicts"]}
+    assert len(verdicts) == 25 and set(verdicts.values()) == {"pass"}, verdicts
+    assert {c for c, _ in verdicts} == {c.id for c in load_study("macromolecule").claims}
 
 
 # ---------------------------------------------------------------- the mutant catalogues
