@@ -40,7 +40,7 @@ PLANNED = {
     "continuum-heat": {"to run": 54},
     "elasticity": {"to run": 79},
     "heat-particles": {"to run": 200},
-    "macromolecule": {"to run": 81},
+    "macromolecule": {"to run": 93},
     "stability": {"to run": 293},
 }
 # study: (group, solver, cells) the study names but does not plan, because the solver does not support the scene

@@ -16,7 +16,7 @@ import numpy as np
 from pcverify.scene import FaceTemperature, Param, Resolution, Scene, SceneError, point_patch_note
 from pcverify.solvers.protocol import Solution, WorkEstimate, effective_params, heat_summary
 
-from . import codes
+from . import checks, codes
 from .elastic_modes import macromolecule_modes
 from .fixes import Fixes
 from .force import SevenRoot
@@ -79,6 +79,15 @@ PARAMETERS: tuple[Param, ...] = (
     Param("max_steps", 20_000_000, "", "largest number of time steps a run may take (t_end / dt)", low=1, high=1e10,
           kind=int),
     Param("dt_check", False, "", "rerun at dt/2 and report the change in relative hotness", kind=bool),
+    Param("start", "rest", "", "initial state: at rest on the lattice (the paper), or at rest displaced along the "
+          "held lattice's top mode by start_amplitude (a verification run: its mean kinetic energy and its decay "
+          "have closed forms, summary top_mode_*; drive it far below f_top)", choices=("rest", "top-mode"), kind=str),
+    Param("start_amplitude", 1e-5, "a", "start = top-mode: the largest particle displacement (small: the lattice "
+          "is linear to first order in it)", low=0.0, high=1e-2, low_open=True),
+    Param("setup_check", False, "", "recompute omega_max from the Hessian of the force model as built and report "
+          "f_top_check_hz and dt_safety_check = dt omega_max / 2", kind=bool),
+    Param("stop_check", False, "", "rerun without the stationarity stop and report the largest change in relative "
+          "hotness of a free particle (stop_deviation)", kind=bool),
     Param("dt_guard", True, "", "refuse a dt above the stability limit of the linearised scheme (or leaving fewer than "
           "100 steps in the averaging window); false runs it, its checks report a blow-up (the stability probe)",
           kind=bool),
@@ -137,11 +146,13 @@ class Macromolecule:
         if "modes" in scene.physics:
             return self._modes(scene, n, p, t_wall)
         s = prepare(scene, n, p)
-        return self._heat(scene, n, p, s, run_setup(s, p), t_wall, samples)
+        x0 = checks.top_mode_start(s, p["start_amplitude"]) if p["start"] == "top-mode" else None
+        return self._heat(scene, n, p, s, run_setup(s, p, x0=x0), t_wall, samples, x0)
 
     def _heat(self, scene: Scene, n: int, p: dict[str, Any], s: Setup, run: RunResult, t_wall: float,
-              samples: dict[str, np.ndarray] | None) -> Solution:
-        """The Solution of a heat run: relative hotness at the samples, status, summary and diagnostics."""
+              samples: dict[str, np.ndarray] | None, x0: np.ndarray | None) -> Solution:
+        """The Solution of a heat run: relative hotness at the samples, status, summary (with the independent
+        measurements of `checks`) and diagnostics."""
         lat, fx = s.lattice, s.fixes
         H = run.hot[0]
         free = (fx.kind == codes.FREE) & (fx.gamma == 0.0)  # bath particles are held, not free
@@ -182,13 +193,25 @@ class Macromolecule:
             # held faces at both ends: the layer profile along z against Fourier's linear law
             summary.update(self._faces(lat, H, fx, diagnostics))
         work = {"pair_steps": len(lat.pairs) * run.steps, "time_steps": run.steps, "unknowns": 3 * lat.size}
+        summary.update(checks.cold_kinetic_max(scene, s, H, free))
+        summary.update(checks.red_pair_summary(scene, s, p, run))
+        if x0 is not None:
+            summary.update(checks.top_mode_summary(s, p, run, x0))
+        if p["setup_check"]:
+            summary.update(checks.setup_summary(s))
         if p["dt_check"]:
-            Hf = run_setup(s, p, s.dt / 2).hot[0]
+            Hf = run_setup(s, p, s.dt / 2, x0=x0).hot[0]
             relf = Hf / Hf[free].max()
             summary["dt_sensitivity"] = float(np.max(np.abs(relf - rel)[free]))
             summary["dt_sensitivity_bulk_median"] = float(np.median(relf) - np.median(rel))
             work["pair_steps"] += len(lat.pairs) * 2 * run.steps
             work["time_steps"] += 2 * run.steps
+        if p["stop_check"]:
+            whole = run_setup(s, p | {"stop_tol": 0.0}, x0=x0)
+            Hw = whole.hot[0]
+            summary["stop_deviation"] = float(np.max(np.abs(Hw / Hw[free].max() - rel_raw)[free]))
+            work["pair_steps"] += len(lat.pairs) * whole.steps
+            work["time_steps"] += whole.steps
         nodes = scene.sample_sets(n) if samples is None else samples
         out = {k: {"points": np.asarray(v, float), "values": rel[lat.node_at(v)]} for k, v in nodes.items()}
         return Solution(scene=scene.name, solver=self.name, params=p, samples=out,

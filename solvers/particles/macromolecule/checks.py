@@ -1,0 +1,148 @@
+"""Independent measurements of a macromolecule run against closed forms: what a verification study's claims read.
+
+Each number compares what the kernel measured (hotness sums, the energy ledger) with a value computed here from
+the scene and the parameters alone, never from the fixes or the kernel's own bookkeeping:
+
+- a run started at rest along the held lattice's top mode (`start = "top-mode"`, amplitude eps a): the kernel's
+  scheme on one mode of frequency omega and damping ratio zeta is the recurrence x_{n+1} = (2 - 2 zeta h - h^2) x_n
+  - (1 - 2 zeta h) x_{n-1} (h = omega dt; the first step undamped, the damping lagging from v_0 = 0), solved in
+  closed form.  `top_mode_kinetic_ratio`: the mean kinetic energy over the window against that sequence's, at the
+  f_top asked for (so A, the force, the hotness sums and the window are all measured); `top_mode_damping_ratio`:
+  the zeta whose sequence loses the energy the ledger lost (E_end / E_start);
+- `red_pair_kinetic_ratio` (point-held hot corner, symmetric drive): the driven pair's mean kinetic energy against
+  that of its prescribed relative stroke D a sin(2 pi f t) carried by the reduced mass m / 2;
+- `cold_kinetic_max`: the largest mean kinetic energy of the particles at the scene's 0 K points and patches,
+  relative to the hottest free particle (0: they are held);
+- `setup_check`: omega_max recomputed from the Hessian of the force model as built (`f_top_check_hz`) and
+  `dt_safety_check` = dt omega_max / 2, the safety the time step really has;
+- `stop_check`: `stop_deviation`, the largest change of a free particle's relative hotness between the run with
+  the stationarity stop and the same run over its whole window.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+from scipy.optimize import brentq
+
+from pcverify.scene import PatchTemperature, PointTemperature, Scene
+
+from . import codes, modal
+from .setup import Setup
+from .simulate import RunResult
+
+
+def top_mode(s: Setup) -> tuple[float, np.ndarray]:
+    """(omega_max, shape): the top angular frequency of the held lattice from the Hessian of the force model as
+    built (A included) and its shape as (N, 3) displacements, largest particle displacement 1, held particles 0."""
+    lat = s.lattice
+    dofs = modal.free_dofs(~s.fixes.held)
+    omega, phi = modal.top_modes(modal.hessian(lat.positions, lat.pairs, s.model, lat.a), lat.mass, dofs, k=1)
+    shape = np.zeros(3 * lat.size)
+    shape[dofs] = phi[:, -1]
+    shape = shape.reshape(-1, 3)
+    return float(omega[-1]), shape / np.linalg.norm(shape, axis=1).max()
+
+
+def top_mode_start(s: Setup, amplitude: float) -> np.ndarray:
+    """Start positions: the lattice displaced along its top mode, largest displacement `amplitude` a."""
+    return s.lattice.positions + amplitude * s.lattice.a * top_mode(s)[1]
+
+
+def mode_sequence(omega: float, zeta: float, dt: float, steps: int) -> np.ndarray:
+    """x_0 .. x_steps of one mode started at rest at x_0 = 1 under the kernel's scheme (see the module docstring):
+    x_1 = 1 - h^2 / 2, then the recurrence, in closed form (its two roots)."""
+    h = omega * dt
+    b, c = 2.0 - 2.0 * zeta * h - h * h, 1.0 - 2.0 * zeta * h
+    z1, z2 = np.roots([1.0, -b, c]).astype(complex)
+    x1 = 1.0 - 0.5 * h * h
+    coef1 = (x1 - z2) / (z1 - z2)
+    n = np.arange(steps + 1)
+    return np.real(coef1 * z1**n + (1.0 - coef1) * z2**n)
+
+
+def mode_kinetic_mean(omega: float, zeta: float, dt: float, n0: int, count: int) -> float:
+    """Mean of v_n^2 (v_n = (x_{n+1} - x_{n-1}) / 2 dt, v_0 = 0) over the steps n0 .. n0 + count - 1 of
+    `mode_sequence`: twice the mean kinetic energy per unit mass of the mode."""
+    x = mode_sequence(omega, zeta, dt, n0 + count + 1)
+    v = np.zeros(n0 + count)
+    v[1:] = (x[2:n0 + count + 1] - x[:n0 + count - 1]) / (2.0 * dt)
+    return float(np.mean(v[n0:] ** 2))
+
+
+def mode_energy_ratio(omega: float, zeta: float, dt: float, steps: int) -> float:
+    """E_steps / E_0 of `mode_sequence` with the kernel's ledger energy E_n = 1/2 v_{n-1/2} v_{n+1/2} + 1/2
+    omega^2 x_n^2 (v_{-1/2} = omega^2 dt / 2: the start from rest)."""
+    x = mode_sequence(omega, zeta, dt, steps + 1)
+    e0 = 0.5 * omega**2 * (1.0 - 0.25 * (omega * dt) ** 2)
+    vm, vp = (x[steps] - x[steps - 1]) / dt, (x[steps + 1] - x[steps]) / dt
+    return float((0.5 * vm * vp + 0.5 * omega**2 * x[steps] ** 2) / e0)
+
+
+def measured_damping_ratio(omega: float, dt: float, steps: int, ratio: float) -> float:
+    """The zeta whose `mode_energy_ratio` over `steps` is `ratio` (NaN when none in [-0.1, 0.5] is)."""
+    def miss(zeta: float) -> float:
+        return mode_energy_ratio(omega, zeta, dt, steps) - ratio
+
+    lo, hi = -0.1, 0.5
+    if not (math.isfinite(ratio) and ratio > 0 and miss(lo) > 0 > miss(hi)):
+        return math.nan
+    return float(brentq(miss, lo, hi, xtol=1e-14, rtol=1e-12))
+
+
+def top_mode_summary(s: Setup, p: dict[str, Any], run: RunResult, x0: np.ndarray) -> dict[str, float]:
+    """The top-mode run's kinetic energy and damping against the closed forms, at the f_top asked for."""
+    lat = s.lattice
+    omega = 2.0 * math.pi * p["f_top"]
+    n0 = int(round(p["t_start"] / s.dt))
+    count = int(run.counters[codes.K_HOT_STEPS])
+    amplitude2 = float(((x0 - lat.positions) ** 2)[~s.fixes.held].sum())  # sum of |u_i|^2 over the free particles
+    expected = 0.5 * lat.mass * amplitude2 * mode_kinetic_mean(omega, s.damping_ratio, s.dt, n0, count)
+    ratio = run.energy[codes.E_END] / run.energy[codes.E_START]
+    return {"top_mode_kinetic_ratio": float(run.hot[0].sum() / expected),
+            "top_mode_damping_ratio": measured_damping_ratio(omega, s.dt, run.steps, ratio)}
+
+
+def red_pair_summary(scene: Scene, s: Setup, p: dict[str, Any], run: RunResult) -> dict[str, float]:
+    """The driven pairs' mean kinetic energy against their strokes' (points held hot, symmetric drive only)."""
+    lat, t_max = s.lattice, scene.conduction.t_max
+    hot = [c for c in scene.constraints if c.value >= t_max * (1 - 1e-12)]
+    if p["drive_sharing"] != "symmetric" or not hot or not all(isinstance(c, PointTemperature) for c in hot):
+        return {}
+    nodes = []
+    for c in hot:
+        point = np.array(c.point, dtype=float)
+        below = point[1] - lat.a >= -1e-9 * lat.a  # the pair's second particle: one spacing below, or above
+        nodes += [point, point - (1.0 if below else -1.0) * np.array([0.0, lat.a, 0.0])]
+    measured = float(run.hot[0][lat.node_at(np.array(nodes))].sum())
+    omega, stroke = 2.0 * math.pi * p["drive_frequency"], p["drive_amplitude"] * lat.a
+    n0 = int(round(p["t_start"] / s.dt))
+    t = (n0 + np.arange(int(run.counters[codes.K_HOT_STEPS]))) * s.dt
+    w = (np.sin(omega * (t + s.dt)) - np.sin(omega * (t - s.dt))) / (2.0 * s.dt)  # the stroke's v_n per unit
+    expected = len(hot) * 0.5 * (0.5 * lat.mass) * stroke**2 * float(np.mean(w**2))
+    return {"red_pair_kinetic_ratio": measured / expected}
+
+
+def cold_kinetic_max(scene: Scene, s: Setup, H: np.ndarray, free: np.ndarray) -> dict[str, float]:
+    """The largest mean kinetic energy at the scene's 0 K points and patches over the hottest free particle's."""
+    lat = s.lattice
+    nodes: list[np.ndarray] = []
+    for c in scene.constraints:
+        if c.value != 0.0 or not isinstance(c, (PointTemperature, PatchTemperature)):
+            continue
+        if isinstance(c, PointTemperature):
+            nodes.append(lat.node_at(np.array(c.point)))
+        else:
+            nodes.append(np.union1d(lat.within(np.array(c.centre), c.radius), lat.node_at(np.array(c.centre))))
+    hottest = H[free].max() if free.any() else 0.0
+    if not nodes or not hottest > 0:
+        return {}
+    return {"cold_kinetic_max": float(H[np.concatenate(nodes)].max() / hottest)}
+
+
+def setup_summary(s: Setup) -> dict[str, float]:
+    """f_top and the time step's safety dt omega_max / 2 with omega_max recomputed from the force model as built."""
+    omega = top_mode(s)[0]
+    return {"f_top_check_hz": omega / (2.0 * math.pi), "dt_safety_check": s.dt * omega / 2.0}
