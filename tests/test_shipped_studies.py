@@ -119,7 +119,7 @@ def _check_macromolecule(results, verdicts) -> None:
     assert s["energy_balance_error"] <= 1e-6 and s["hops"] == 0  # measured 1.4e-7 (ok needs 1e-2)
     for solver in ("macromolecule", "skfem", "fipy"):  # relative hotness: between the frozen and the hot end
         assert 0.0 < results[("paper-runs", solver, 2)]["summary"]["bulk_median"] < 1.0
-    assert verdicts is None  # the study has no claims: its tables are read by eye
+    assert verdicts is None  # the subset (paper-runs) has no claims: its tables are read by eye
 
 
 def _check_elasticity(results, verdicts) -> None:
