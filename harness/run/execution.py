@@ -25,7 +25,6 @@ from collections import Counter
 from collections.abc import Iterator
 from typing import Any, NamedTuple
 
-import numpy as np
 from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
@@ -38,7 +37,7 @@ from pcverify.harness.run.workers import Outcome, describe_exception, pool
 from pcverify.harness.spec.boundary import Inadmissible
 from pcverify.harness.spec.plugins import load_plugins
 from pcverify.harness.spec.study import Cell, Study
-from pcverify.harness.spec.tasks import SolveTask
+from pcverify.harness.spec.tasks import SolveTask, SupportsAnswerError, ask_supports
 from pcverify.scene import Resolution, Scene, SceneError, shown
 from pcverify.solvers.registry import SolverUnavailable, get_solver, named, snapshot
 
@@ -122,16 +121,15 @@ def _supported(cell: Cell, solver: Any, scene: Scene) -> tuple[bool, str, str | 
     """(supported, reason, why the check itself failed or None): a `supports` that raises or answers
     something other than (True or False, text) fails the cell."""
     try:
-        answer = cell.task.supports(solver, scene)
-        ok, reason = answer
+        ok, reason = ask_supports(cell.task, solver, scene)
     except KeyboardInterrupt:
         raise
+    except SupportsAnswerError as bad:
+        return False, "", (f"solver {cell.solver!r}: supports(scene) returned {shown(bad.answer)}; allowed: (True or "
+                           "False, a reason text)")
     except BaseException as exc:  # noqa: BLE001 - whatever a plugin's supports raises is its cell's failure
         return False, "", f"solver {cell.solver!r}: supports(scene) raised {describe_exception(exc)}"
-    if not isinstance(ok, (bool, np.bool_)) or not isinstance(reason, str):
-        return False, "", (f"solver {cell.solver!r}: supports(scene) returned {shown(answer)}; allowed: (True or "
-                           "False, a reason text)")
-    return bool(ok), reason, None
+    return ok, reason, None
 
 
 def _checks_raised(cell: Cell, exc: BaseException) -> str:

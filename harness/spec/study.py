@@ -18,8 +18,6 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from pcverify.harness.spec.analyses import ANALYSES
 from pcverify.harness.spec.calibspec import Calibration, parse_calibrations
 from pcverify.harness.spec.catalogue import make_scene, register_scene, spec_from_table
@@ -28,7 +26,7 @@ from pcverify.harness.spec.mutants import BESIDE, Mutant, parse_mutants
 from pcverify.harness.spec.plugins import load_plugins
 from pcverify.harness.spec.schema import NAME, SCENE, as_list, check_value, row_where
 from pcverify.harness.spec.studyfile import check_groups, check_study_document, read_study_document, solver_params_of
-from pcverify.harness.spec.tasks import SOLVE, CellTask
+from pcverify.harness.spec.tasks import SOLVE, CellTask, ask_supports
 from pcverify.scene import Scene, SceneError
 from pcverify.solvers.registry import SolverUnavailable, get_solver, named
 
@@ -216,12 +214,9 @@ def _unsupported(task: CellTask, solver_name: str, scene: Scene) -> str | None:
     scene), or None: planned.  A solver that cannot be loaded, or whose `supports` raises or answers something
     other than (bool, text), is planned: its cells then fail (or skip) with the reason, one by one."""
     try:
-        solver = get_solver(solver_name)
-        ok, reason = task.supports(named(solver, solver_name), copy.deepcopy(scene))
+        ok, reason = ask_supports(task, named(get_solver(solver_name), solver_name), copy.deepcopy(scene))
     except KeyboardInterrupt:
         raise
     except BaseException:  # noqa: BLE001 - a plugin's failure belongs to its cells, which report it
         return None
-    if isinstance(ok, (bool, np.bool_)) and not ok and isinstance(reason, str):
-        return reason or "the solver does not support this scene"
-    return None
+    return None if ok else (reason or "the solver does not support this scene")

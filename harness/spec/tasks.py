@@ -8,6 +8,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, Protocol
 
+import numpy as np
+
 from pcverify.harness.spec.boundary import admitted
 from pcverify.harness.spec.stability import StabilityTask
 from pcverify.scene import Resolution, Scene
@@ -27,6 +29,28 @@ class CellTask(Protocol):
     def check(self, solver: Solver, params: dict[str, Any]) -> dict[str, Any]: ...
 
     def run(self, solver: Solver, scene: Scene, resolution: Resolution, params: dict[str, Any]) -> dict[str, Any]: ...
+
+
+class SupportsAnswerError(TypeError):
+    """A `supports` that answered something other than (True or False, a reason text); `answer` is what it
+    returned."""
+
+    def __init__(self, answer: Any) -> None:
+        super().__init__("supports(scene) must return (True or False, a reason text)")
+        self.answer = answer
+
+
+def ask_supports(task: CellTask, solver: Solver, scene: Scene) -> tuple[bool, str]:
+    """(supported, reason) of `task.supports(solver, scene)`: what the solver raises propagates, an answer of
+    another form is a SupportsAnswerError.  The one place that says what a valid answer is."""
+    answer = task.supports(solver, scene)
+    try:
+        ok, reason = answer
+    except (TypeError, ValueError):
+        raise SupportsAnswerError(answer) from None
+    if not isinstance(ok, (bool, np.bool_)) or not isinstance(reason, str):
+        raise SupportsAnswerError(answer)
+    return bool(ok), reason
 
 
 @dataclass(frozen=True)
