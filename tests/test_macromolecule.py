@@ -17,6 +17,7 @@ import pytest
 from pcverify.harness.spec.catalogue import make_scene
 from pcverify.scene import Resolution, SceneError
 from pcverify.solvers.particles.macromolecule import codes
+from pcverify.solvers.particles.macromolecule.computes import unlisted_contact
 from pcverify.solvers.particles.macromolecule.fixes import make_fixes
 from pcverify.solvers.particles.macromolecule.force import STABLE, SevenRoot, force_array, force_slope_array
 from pcverify.solvers.particles.macromolecule.kernel import stencil
@@ -492,8 +493,6 @@ def test_the_cell_list_finds_an_unlisted_contact_exactly_when_the_all_pairs_sear
     """Lattices of bar-heat-paper shaken by up to 0.6 a (6 of the 40 with a contact closer than 0.5 a): the O(N)
     cell list of the neighbourhood check answers as the all-pairs search does, also at a contact distance far below
     a (the cell side doubles) and with every particle in one cell."""
-    from pcverify.solvers.particles.macromolecule.computes import unlisted_contact
-
     rng = np.random.default_rng(seed)
     lat = build_lattice(PAPER.box, int(rng.integers(2, 5)), PAPER.material.density)
     a = lat.a
@@ -508,8 +507,6 @@ def test_the_cell_list_finds_an_unlisted_contact_exactly_when_the_all_pairs_sear
 def test_the_cell_list_finds_a_single_unlisted_contact_in_any_direction() -> None:
     """One particle moved to within 0.4 a of an unlisted one (rest distance beyond 2 a), in 300 random directions
     and pairs: the only contact closer than 0.5 a, found whichever neighbouring cell it falls in."""
-    from pcverify.solvers.particles.macromolecule.computes import unlisted_contact
-
     rng = np.random.default_rng(7)
     lat = build_lattice(PAPER.box, 3, PAPER.material.density)
     a, rest = lat.a, lat.positions

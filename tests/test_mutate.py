@@ -27,7 +27,7 @@ import pytest
 
 from pcverify.fingerprint import module_fingerprint
 from pcverify.harness.cli import main
-from pcverify.harness.run.mutation import overlaid, prune
+from pcverify.harness.run.mutation import caught_by, judge, overlaid, prune
 from pcverify.harness.run.overlay import OverlayFinder
 
 REPO = Path(__file__).resolve().parent.parent
@@ -385,8 +385,6 @@ def test_the_code_fingerprint_reads_the_overlay(tmp_path, monkeypatch) -> None:
 def test_a_claim_judged_per_case_catches_a_mutant_with_any_case_that_passed() -> None:
     """A claim with one failing case (n=3) and one passing case (n=8): on a mutant that breaks n=8 it has caught
     the defect, though its worst state was fail on the original too; a case failing on both catches nothing."""
-    from pcverify.harness.run.mutation import caught_by, judge
-
     def rows(n3: str, n8: str) -> list[dict[str, str]]:
         return [{"claim": "c", "case": "n=3", "verdict": n3}, {"claim": "c", "case": "n=8", "verdict": n8}]
 

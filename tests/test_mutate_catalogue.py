@@ -11,6 +11,8 @@ import time
 from pathlib import Path
 
 from pcverify.harness.cli import main
+from pcverify.harness.spec.mutants import beside_file, read_mutants_file
+from pcverify.harness.spec.study import study_files
 
 STUDY = Path(__file__).resolve().parent / "mutate" / "continuum-heat-ci.toml"
 
@@ -32,9 +34,6 @@ def test_every_catalogued_mutant_of_the_ci_study_is_killed(tmp_path, capsys) -> 
 def test_every_shipped_catalogue_loads_and_each_edit_applies_to_code() -> None:
     """The shipped studies' mutants files: every mutant names a module of pcverify, its find text occurs as
     declared (or its diff applies) and the edit changes code, not only comments; names are unique per study."""
-    from pcverify.harness.spec.mutants import beside_file, read_mutants_file
-    from pcverify.harness.spec.study import study_files
-
     total = 0
     for name, path in sorted(study_files().items()):
         if not beside_file(path).is_file():

@@ -16,7 +16,7 @@ import pytest
 
 from pcverify.harness.cli import main
 from pcverify.harness.run.cache import CLAIMED, HELD, Cache
-from pcverify.harness.run.execution import cached_results, identify, plan
+from pcverify.harness.run.execution import cached_results, first_of_each_kind, identify, plan
 from pcverify.harness.spec.study import load_study
 from pcverify.solvers.energy import balance_error
 from pcverify.solvers.particles.macromolecule import codes
@@ -177,8 +177,6 @@ def test_a_cell_a_timed_group_also_solves_is_solved_once(tmp_path, capsys):
 def test_workers_start_on_different_kinds_of_cells(tmp_path):
     """The parallel cells are handed out smallest-of-each-kind first (solver, scene, task), so the two workers
     begin on different kernels; the rest follow in study order."""
-    from pcverify.harness.run.execution import first_of_each_kind
-
     path = tmp_path / "kinds.toml"
     path.write_text(ALPHA.replace('solvers = ["skfem"]', 'solvers = ["skfem", "fipy"]').replace("n = [2, 3]",
                                                                                             "n = [3, 2, 4]"))

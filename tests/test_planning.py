@@ -7,10 +7,14 @@ import json
 import textwrap
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
+import pytest
 
 from pcverify.harness.cli import main
+from pcverify.harness.spec.catalogue import make_scene
 from pcverify.harness.spec.study import load_study
+from pcverify.harness.spec.tasks import SOLVE, SupportsAnswerError, ask_supports
 
 # fipy solves the transient bar; the macromolecule's hotness has no transient counterpart (it does not support
 # the scene), so its cells are not planned
@@ -108,3 +112,28 @@ def test_claims_on_unplanned_cells_are_judged_as_on_skipped_ones(tmp_path, capsy
     assert every["verdict"] == "fail" and "some of its cells are not planned" in every["note"]
     skipped = pd.read_csv(out / "planning" / "transient-skipped.csv")
     assert skipped[["solver", "status"]].values.tolist() == [["macromolecule", "not planned"]]
+
+
+def test_a_supports_answer_is_checked_in_one_place() -> None:
+    """(True or False, text) is a valid answer, numpy's booleans included; anything else is a
+    SupportsAnswerError carrying the answer (its cell then fails naming it), and what supports raises
+    propagates."""
+    scene = make_scene("bar-heat-faces")
+
+    class Answers:
+        def __init__(self, answer):
+            self.answer = answer
+
+        def supports(self, scene):
+            if isinstance(self.answer, Exception):
+                raise self.answer
+            return self.answer
+
+    assert ask_supports(SOLVE, Answers((np.False_, "why")), scene) == (False, "why")
+    assert ask_supports(SOLVE, Answers((True, "")), scene) == (True, "")
+    for bad in ("yes", (1, "why"), (True, None), (True, "a", "b")):
+        with pytest.raises(SupportsAnswerError) as info:
+            ask_supports(SOLVE, Answers(bad), scene)
+        assert info.value.answer == bad
+    with pytest.raises(ZeroDivisionError):
+        ask_supports(SOLVE, Answers(ZeroDivisionError("plugin")), scene)
