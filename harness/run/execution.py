@@ -298,14 +298,20 @@ def connect(address: str, timeout: float = 5.0) -> Any:
     return box["client"]
 
 
+def _smallest(cells: list[Cell], todo: list[int], kind: Any) -> dict[Any, int]:
+    """Per kind(cell), the index in `todo` of its smallest cell (n, then refine; the first of equals)."""
+    first: dict[Any, int] = {}
+    for i in todo:
+        k = kind(cells[i])
+        if k not in first or (cells[i].n, cells[i].refine) < (cells[first[k]].n, cells[first[k]].refine):
+            first[k] = i
+    return first
+
+
 def _warm_up(cells: list[Cell]) -> None:
     """Run the cheapest cell of each solver once, uncached, so compilation stays out of the timings."""
-    cheapest: dict[str, Cell] = {}
-    for c in cells:
-        if c.solver not in cheapest or (c.n, c.refine) < (cheapest[c.solver].n, cheapest[c.solver].refine):
-            cheapest[c.solver] = c
-    for c in cheapest.values():
-        run_cell(c)  # in the worker that runs the timed cells next
+    for i in _smallest(cells, list(range(len(cells))), lambda c: c.solver).values():
+        run_cell(cells[i])  # in the worker that runs the timed cells next
 
 
 def plan(study: Study, cache: Cache, rerun: frozenset[str] | None = None) -> list[dict[str, Any]]:
@@ -471,13 +477,8 @@ def first_of_each_kind(cells: list[Cell], todo: list[int]) -> list[int]:
     """`todo` reordered: first the smallest cell of each kind (solver, scene, task), then the rest in order.  The
     workers then start on different kinds, whose compiled kernels differ, so they compile them side by side
     instead of the same ones at the same time (each compilation happens once: `pcverify.numba_guard`)."""
-    first: dict[tuple[str, str, str], int] = {}
-    for i in todo:
-        kind = (cells[i].solver, cells[i].scene.name, cells[i].task.name)
-        if kind not in first or (cells[i].n, cells[i].refine) < (cells[first[kind]].n, cells[first[kind]].refine):
-            first[kind] = i
-    lead = sorted(first.values(), key=todo.index)
-    return lead + [i for i in todo if i not in set(lead)]
+    lead = set(_smallest(cells, todo, lambda c: (c.solver, c.scene.name, c.task.name)).values())
+    return [i for i in todo if i in lead] + [i for i in todo if i not in lead]
 
 
 def cached_results(study: Study, cache: Cache) -> list[dict[str, Any]]:
