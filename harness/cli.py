@@ -60,7 +60,7 @@ from pcverify.harness.spec.catalogue import get_spec, make_scene
 from pcverify.harness.spec.mutants import catalogue, select_mutants, solver_packages
 from pcverify.harness.spec.study import MAX_CELLS, Cell, declared_name, load_study, study_files
 from pcverify.scene import Param, Resolution, SceneError, shown
-from pcverify.solvers.protocol import skipped
+from pcverify.solvers.protocol import model_notes, skipped
 from pcverify.solvers.registry import SolverUnavailable, get_solver
 from pcverify.solvers.registry import entries as solver_entries
 
@@ -177,8 +177,8 @@ def cmd_solvers(args: argparse.Namespace) -> int:
             rows.append({"name": name, "available": True, "kind": solver.kind, "origin": entry.origin,
                          "description": doc.splitlines()[0] if doc else "",
                          "stability_probe": hasattr(solver, "stability_probe"),
-                         "parameters": _param_rows(solver.parameters)})
-        except (SolverUnavailable, SceneError) as exc:
+                         "parameters": _param_rows(solver.parameters), "notes": list(model_notes(solver))})
+        except (SolverUnavailable, SceneError, TypeError) as exc:
             rows.append({"name": name, "available": False, "origin": entry.origin, "reason": str(exc),
                          "parameters": []})
     return _print_entries(rows, args.json,
@@ -201,6 +201,10 @@ def _print_entries(rows: list[dict[str, Any]], as_json: bool, headline: Callable
         for p in row["parameters"]:
             print(f"    {p['name']:<{widths[0]}} default {p['default']!s:<{widths[1]}} {p['allowed']:<40} "
                   f"{p['description']}")
+        if row.get("notes"):
+            print("  model notes (departures from the source and choices it leaves open):")
+            for k, note in enumerate(row["notes"], 1):
+                print(f"    {k}. {note}")
     return 0
 
 

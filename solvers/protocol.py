@@ -99,6 +99,10 @@ class Solver(Protocol):
     `uses_refine` (optional, a bool) says whether `resolution.refine` changes what it computes; without it a
     continuum solver is taken to use it (h = a / refine) and a particle solver to ignore it (its particles are
     the lattice of n): see `uses_refine`.
+    `notes` (optional, a tuple of sentences): the model notes, where the solver departs from its source (a
+    paper's equation replaced or left out) or makes a choice the source leaves open, each with its reason
+    and, where it matters, a measured number; `pcverify solvers` and every report that uses the solver show
+    them (see `model_notes`).
     """
 
     name: str
@@ -200,6 +204,17 @@ def uses_refine(solver: Solver) -> bool:
     that differ only in a refine the solver ignores are the same run (the calibration's overlap guard)."""
     declared = getattr(solver, "uses_refine", None)
     return declared if isinstance(declared, bool) else solver.kind == "continuum"
+
+
+def model_notes(solver: Solver) -> tuple[str, ...]:
+    """The solver's model notes (its optional `notes`): the non-empty sentences, in order; () without any.  A
+    `notes` that is not a sequence of text raises TypeError naming the solver (a plugin's mistake shown, not
+    dropped)."""
+    notes = getattr(solver, "notes", ())
+    if isinstance(notes, str) or not isinstance(notes, (tuple, list)) or not all(isinstance(t, str) for t in notes):
+        raise TypeError(f"solver {getattr(solver, 'name', solver)!r}: notes={notes!r} is not valid; allowed: a tuple "
+                        "of sentences (str)")
+    return tuple(t.strip() for t in notes if t.strip())
 
 
 def effective_params(solver: Solver, given: dict[str, Any]) -> dict[str, Any]:

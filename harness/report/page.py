@@ -274,6 +274,7 @@ def study_section(folder: Path, man: dict[str, Any], records: list[dict[str, Any
     parts = [f"<section class='study' id='{anchor(name)}'><h2>{e(man['title'])}</h2>",
              f"<p class='meta'>study <b>{e(name)}</b> · {counts if mine else 'no claims'} · rerun: "
              f"<code>{e(man.get('rerun') or 'pcverify study ' + name)}</code></p>"]
+    parts.append(notes_details(name, man.get("model_notes") or {}))
     if man.get("verdicts"):
         parts.append(table_details(read(folder / man["verdicts"]), f"{name}/{man['verdicts']}",
                                    anchor(name, "verdicts")))
@@ -286,6 +287,19 @@ def study_section(folder: Path, man: dict[str, Any], records: list[dict[str, Any
                          f"<a href='{e(name)}/vtu/'>{e(name)}/vtu/</a></p>")
     parts.append(extra + "</section>")
     return "".join(parts)
+
+
+def notes_details(study: str, notes: dict[str, list[str]]) -> str:
+    """A study's model notes, per solver (collapsed): where the solvers it ran depart from their sources."""
+    if not notes:
+        return ""
+    items = "".join(f"<li><b>{e(solver)}</b><ol>" + "".join(f"<li>{e(t)}</li>" for t in lines) + "</ol></li>"
+                    for solver, lines in sorted(notes.items()))
+    count = sum(len(v) for v in notes.values())
+    verbs = ("departs", "chooses") if len(notes) == 1 else ("depart", "choose")
+    return (f"<details class='notes' id='{anchor(study, 'model-notes')}'><summary>Model notes ({count}): where "
+            f"{', '.join(sorted(notes))} {verbs[0]} from the source or {verbs[1]} what it leaves open</summary>"
+            f"<ul>{items}</ul></details>")
 
 
 def provenance_section(info: dict[str, str]) -> str:

@@ -32,6 +32,8 @@ from pcverify.harness.report.vtu import write_vtu
 from pcverify.harness.run.files import atomic_write, exclusive, read_json, remove_stray_files
 from pcverify.harness.spec.claims import Claim
 from pcverify.scene import is_real
+from pcverify.solvers.protocol import model_notes
+from pcverify.solvers.registry import SolverUnavailable, get_solver
 
 
 def _markdown(df: pd.DataFrame) -> str:
@@ -91,6 +93,20 @@ def _lattice_nodes(study: Any, claims: list[Claim], table: pd.DataFrame) -> list
     return nodes
 
 
+def solver_notes(names: list[str]) -> dict[str, list[str]]:
+    """The model notes of the named solvers that have any (solver -> sentences): what the report shows beside a
+    study's numbers, so a reader sees where a solver departs from its source."""
+    out = {}
+    for name in names:
+        try:
+            notes = model_notes(get_solver(name))
+        except (SolverUnavailable, TypeError) as exc:
+            notes = (f"(model notes not available: {exc})",)
+        if notes:
+            out[name] = list(notes)
+    return out
+
+
 def write_study_report(study: Any, results: list[dict[str, Any]], out: Path, run_command: str | None = None,
                        extra: list[tuple[dict[str, Any], dict[str, pd.DataFrame]]] = ()) -> Path:
     """Write tables, plots, VTU files and verdicts of one study into out/<study>/ and its manifest (with the
@@ -106,6 +122,7 @@ def write_study_report(study: Any, results: list[dict[str, Any]], out: Path, run
                                 "rerun": study_command(study, []),
                                 "solvers": sorted({c.solver for g in study.groups for c in g.cells}
                                                    | {c.solver for c in getattr(study, "calibrations", [])})}
+    manifest["model_notes"] = solver_notes(manifest["solvers"])
     all_tables: dict[str, pd.DataFrame] = {}
     group_cells = []
     for g in study.groups:
@@ -166,6 +183,7 @@ def _merged(folder: Path, study: Any, manifest: dict[str, Any], cells: pd.DataFr
     manifest["sections"] = sections + list(fresh.values())
     manifest["orders"] = [o for o in old.get("orders", []) if o["group"] not in new_ids] + manifest["orders"]
     manifest["solvers"] = sorted(set(manifest["solvers"]) | set(old.get("solvers") or []))
+    manifest["model_notes"] = solver_notes(manifest["solvers"])
     manifest["rerun"] = old.get("rerun") or manifest["rerun"]
     previous = _read_csv(folder / "cells.csv") if (folder / "cells.csv").exists() else pd.DataFrame()
     if "group" in previous and not previous.empty:

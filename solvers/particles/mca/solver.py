@@ -62,6 +62,7 @@ from . import response as rf
 from .automata import Automata, bar_automata
 from .kernels import timed
 from .model import COEFFICIENTS, Elastic, Model, rebuild_pairs, relax, relax_status
+from .notes import MODEL_NOTES
 from .probe import McaProbe
 from .stiffness import mass_diagonal, stiffness
 
@@ -129,6 +130,7 @@ class Mca:
     name = "mca"
     kind = "particle"
     parameters = PARAMETERS
+    notes = MODEL_NOTES
 
     def stability_probe(self) -> McaProbe:
         """The probe of this solver's explicit heat and mechanics steps."""
