@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any, Protocol
 
 import numpy as np
@@ -204,6 +205,14 @@ def uses_refine(solver: Solver) -> bool:
     that differ only in a refine the solver ignores are the same run (the calibration's overlap guard)."""
     declared = getattr(solver, "uses_refine", None)
     return declared if isinstance(declared, bool) else solver.kind == "continuum"
+
+
+def read_notes(path: Path) -> tuple[str, ...]:
+    """Model notes kept in a text file beside a solver: one note per paragraph (blank lines between), lines
+    starting with '#' left out.  A data file rather than code, so that editing a note changes no fingerprint
+    and recomputes no cached result."""
+    text = "\n".join(line for line in path.read_text(encoding="utf-8").splitlines() if not line.startswith("#"))
+    return tuple(" ".join(par.split()) for par in text.split("\n\n") if par.strip())
 
 
 def model_notes(solver: Solver) -> tuple[str, ...]:

@@ -12,8 +12,8 @@ from pcverify.harness.report.write import solver_notes
 from pcverify.scene import Box
 from pcverify.solvers.particles.mca.automata import bar_automata
 from pcverify.solvers.particles.mca.model import Elastic, Model
-from pcverify.solvers.particles.mca.notes import MODEL_NOTES
-from pcverify.solvers.protocol import model_notes
+from pcverify.solvers.particles.mca.solver import Mca
+from pcverify.solvers.protocol import model_notes, read_notes
 from pcverify.solvers.registry import get_solver
 
 DURALUMIN = Elastic(70e9, 0.33)
@@ -23,7 +23,7 @@ RHO = 2800.0
 def test_solvers_listing_shows_the_mca_notes(capsys):
     assert main(["solvers", "--json"]) == 0
     rows = {r["name"]: r for r in json.loads(capsys.readouterr().out)}
-    assert rows["mca"]["notes"] == list(MODEL_NOTES) and len(MODEL_NOTES) >= 4
+    assert rows["mca"]["notes"] == list(Mca().notes) and len(Mca().notes) >= 4
     assert rows["skfem"]["notes"] == []
     assert main(["solvers"]) == 0
     out = capsys.readouterr().out
@@ -48,7 +48,7 @@ def test_notes_of_a_solver_must_be_sentences():
 
 
 def test_report_notes_per_solver_escaped():
-    assert solver_notes(["fipy", "mca", "skfem"]) == {"mca": list(MODEL_NOTES)}
+    assert solver_notes(["fipy", "mca", "skfem"]) == {"mca": list(Mca().notes)}
     html = notes_details("study-a", {"mca": ["x < y & z", "second"]})
     assert "Model notes (2)" in html and "x &lt; y &amp; z" in html and html.count("<li>") == 3
     assert "id='study-a-model-notes'" in html and "where mca departs from the source or chooses" in html
@@ -58,7 +58,7 @@ def test_report_notes_per_solver_escaped():
 def test_delay_note_one_step_is_a_fifth_of_the_p_wave_transit():
     """The note's 0.19 a / c_p: the many-body term acts within one step, dt = 2 cfl / omega_max."""
     cp = math.sqrt(DURALUMIN.contact / RHO)
-    assert "dt = 0.19 a / c_p" in MODEL_NOTES[0] and f"{cp:.0f}"[:3] == "608"
+    assert "dt = 0.19 a / c_p" in Mca().notes[0] and f"{cp:.0f}"[:3] == "608"
     for n in (3, 6):
         aut = bar_automata(Box(0.01, 0.01, 0.03), n, RHO)
         model = Model(aut, DURALUMIN, krot=0.01, cfl=0.5)
@@ -71,5 +71,11 @@ def test_contact_law_note_confined_and_uniaxial_moduli():
     el = DURALUMIN
     confined = el.kn + el.lam
     uniaxial = el.kn + el.lam * (1 - 2 * el.poisson)
-    assert confined == pytest.approx(103.715e9, rel=1e-4) and "M = K + 4G/3 = 103.7 GPa" in MODEL_NOTES[1]
+    assert confined == pytest.approx(103.715e9, rel=1e-4) and "M = K + 4G/3 = 103.7 GPa" in Mca().notes[1]
     assert uniaxial == pytest.approx(el.youngs, rel=1e-12)
+
+
+def test_notes_file_paragraphs_and_comments(tmp_path):
+    path = tmp_path / "notes.txt"
+    path.write_text("# a comment\n\nFirst note,\n  wrapped.\n\n\n# between\nSecond note.\n", encoding="utf-8")
+    assert read_notes(path) == ("First note, wrapped.", "Second note.")

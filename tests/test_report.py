@@ -17,7 +17,7 @@ from pcverify.harness.report.provenance import source_commit
 from pcverify.harness.report.vtu import write_vtu
 from pcverify.harness.spec.claims import parse_claims
 from pcverify.scene import SceneError
-from pcverify.solvers.particles.mca.notes import MODEL_NOTES
+from pcverify.solvers.particles.mca.solver import Mca
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -200,9 +200,9 @@ def test_study_report_has_verdicts_figures_and_vtu(report):
 def test_model_notes_beside_the_study(report):
     """The MCA's model notes travel with the study that ran it (manifest and page); FiPy has none."""
     manifest = json.loads((report / "mini" / "manifest.json").read_text())
-    assert manifest["model_notes"] == {"mca": list(MODEL_NOTES)}
+    assert manifest["model_notes"] == {"mca": list(Mca().notes)}
     html = (report / "index.html").read_text()
-    assert f"Model notes ({len(MODEL_NOTES)}): where mca departs" in html and "id='mini-model-notes'" in html
+    assert f"Model notes ({len(Mca().notes)}): where mca departs" in html and "id='mini-model-notes'" in html
 
 
 def test_every_figure_draws_what_its_legend_lists(report):

@@ -35,6 +35,7 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -53,7 +54,7 @@ from pcverify.scene import (
 )
 from pcverify.solvers.energy import balance_error
 from pcverify.solvers.modes import classify, lowest_of_each_kind
-from pcverify.solvers.protocol import Solution, WorkEstimate, effective_params, heat_summary
+from pcverify.solvers.protocol import Solution, WorkEstimate, effective_params, heat_summary, read_notes
 
 from . import contact_scenes as cs
 from . import heat as mca_heat
@@ -62,10 +63,10 @@ from . import response as rf
 from .automata import Automata, bar_automata
 from .kernels import timed
 from .model import COEFFICIENTS, Elastic, Model, rebuild_pairs, relax, relax_status
-from .notes import MODEL_NOTES
 from .probe import McaProbe
 from .stiffness import mass_diagonal, stiffness
 
+NOTES_FILE = Path(__file__).with_name("model_notes.txt")
 BYTES_PER_AUTOMATON = 4096  # state, rotations, inelastic state and about 13 pairs of 10 arrays each
 RELAX_STEPS_PER_CELL = 1000  # relaxation steps per spacing of the longest extent (measured 390-630, bar-compression)
 ENERGY_ALARM = 1e-2  # relative energy-balance error of an undamped elastic phase that flags a run as unstable
@@ -130,7 +131,11 @@ class Mca:
     name = "mca"
     kind = "particle"
     parameters = PARAMETERS
-    notes = MODEL_NOTES
+
+    @property
+    def notes(self) -> tuple[str, ...]:
+        """The model notes (model_notes.txt beside this module): where this solver departs from the MCA paper."""
+        return read_notes(NOTES_FILE)
 
     def stability_probe(self) -> McaProbe:
         """The probe of this solver's explicit heat and mechanics steps."""
