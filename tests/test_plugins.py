@@ -250,6 +250,35 @@ def test_a_solver_given_as_module_and_class(toy) -> None:
     assert run["samples"]["front_top_edge"]["values"][0] == 1.0 and run["samples"]["front_top_edge"]["values"][-1] == 0
 
 
+def _pcverify_as_installed(*args: str, cwd: Path) -> subprocess.CompletedProcess:
+    """The command as the console script runs it: the working folder is not on the import path (python -P),
+    and no PYTHONPATH."""
+    env = {k: v for k, v in ENV.items() if k != "PYTHONPATH"}
+    return subprocess.run([sys.executable, "-P", "-m", "pcverify.harness.cli", *args], capture_output=True,
+                          text=True, cwd=cwd, env=env, check=False)
+
+
+def test_a_plugin_beside_the_study_file_needs_no_pythonpath(toy) -> None:
+    """`plugins = ["toy_plugin"]` finds toy_plugin.py in the study file's folder, from another working folder and
+    in the --jobs 2 workers."""
+    where, _ = toy
+    elsewhere = where / "elsewhere"
+    elsewhere.mkdir()
+    out = _pcverify_as_installed("study", str(where / "toy.toml"), "--jobs", "2", "--out", "out", "--json",
+                                 cwd=elsewhere)
+    assert out.returncode == 0, out.stderr[-800:]
+    assert json.loads(out.stdout)[0]["failed"] == 0
+    assert pd.read_csv(elsewhere / "out" / "toy" / "verdicts.csv")["verdict"].tolist() == ["pass"]
+
+
+def test_module_and_class_found_in_the_working_folder(toy) -> None:
+    where, _ = toy
+    out = _pcverify_as_installed("run", "bar-heat-faces", "--solver", "toy_plugin:LinearFaces", "--n", "2", "--json",
+                                 cwd=where)
+    assert out.returncode == 0, out.stderr[-800:]
+    assert json.loads(out.stdout)["status"] == "ok"
+
+
 def test_a_study_files_plugins_reach_the_workers(toy) -> None:
     """`plugins = ["toy_plugin"]` makes the solver known by its name, also in --jobs 2 workers, and
     module:Class works beside it; the claim on the plugin's cells is judged."""

@@ -76,7 +76,7 @@ def cell_identity(cell: Cell) -> tuple[dict[str, Any], str | None]:
     if cell.serial:
         payload["timing"] = "serial-after-warm-up"
     try:
-        load_plugins(cell.plugins)
+        load_plugins(cell.plugins, cell.plugin_folder)
         solver = get_solver(cell.solver)
     except SolverUnavailable as exc:
         return payload | {"unavailable": True, "params": dict(cell.solver_params)}, str(exc)
@@ -161,7 +161,7 @@ def compute_cell(cell: Cell, raise_scene_errors: bool = False) -> dict[str, Any]
     scene = copy.deepcopy(cell.scene)
     before = scene.content_hash()
     try:
-        load_plugins(cell.plugins)
+        load_plugins(cell.plugins, cell.plugin_folder)
         solver = named(get_solver(cell.solver), cell.solver)
     except SolverUnavailable as exc:
         return base | {"status": "skipped", "reason": str(exc)}

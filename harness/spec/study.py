@@ -38,7 +38,8 @@ class Cell:
     """One unit of work: a scene value, a solver, a resolution, solver parameters, and the task to run.
 
     `scene_params` are the parameters the study gave the scene (the scene holds the effective ones);
-    `plugins` are imported before the solver is looked up, in whatever process runs the cell."""
+    `plugins` are imported before the solver is looked up, in whatever process runs the cell, with
+    `plugin_folder` (the study file's folder) searched first."""
 
     group: str
     scene: Scene
@@ -50,6 +51,7 @@ class Cell:
     task: CellTask = SOLVE
     serial: bool = False  # timed in the serial pass after a warm-up (part of the cache key)
     plugins: tuple[str, ...] = ()
+    plugin_folder: str | None = None
 
     def describe(self) -> str:
         extra = ", ".join(f"{k}={v}" for k, v in self.scene_params + self.solver_params)
@@ -88,6 +90,11 @@ class Study:
     selected: tuple[str, ...] = ()  # `--group` ids: a report of this study merges with the study's full report
     mutants: list[Mutant] = field(default_factory=list)  # its own [[mutant]] tables (`pcverify mutate`)
 
+    @property
+    def plugin_folder(self) -> str | None:
+        """Where the study's plugin modules are searched first: the study file's folder."""
+        return str(self.path.parent) if self.path is not None else None
+
 
 def study_files() -> dict[str, Path]:
     """The study files shipped with the package, by name (not the mutants files beside them)."""
@@ -119,12 +126,12 @@ def load_study(name_or_path: str, allow_large: bool = False) -> Study:
                          "--allow-large")
     check_study_document(doc, path)  # one-line errors for bad fields, before any cell is built
     plugins = tuple(as_list(doc.get("plugins", [])))
-    load_plugins(plugins)
+    load_plugins(plugins, str(path.resolve().parent))
     for number, table in enumerate(doc.get("scene", []), 1):
         register_scene(spec_from_table(table, row_where(f"study file {path.name}", "scene", number, table, SCENE)),
                        f"study file {path}")
     check_groups(doc, path)
-    groups = [_group(g, gi, plugins) for gi, g in enumerate(doc.get("group", []))]
+    groups = [_group(g, gi, plugins, str(path.resolve().parent)) for gi, g in enumerate(doc.get("group", []))]
     claims = parse_claims(doc.get("claim", []), f"study file {path.name}")
     calibrations = parse_calibrations(doc["calibration"], f"study file {path.name}") if "calibration" in doc else []
     require_solvers(sorted({c.solver for g in groups for c in g.cells} | {c.solver for c in calibrations}),
@@ -180,7 +187,7 @@ def cell_count(doc: dict[str, Any], path: Path) -> int:
     return total
 
 
-def _group(g: dict[str, Any], gi: int, plugins: tuple[str, ...]) -> Group:
+def _group(g: dict[str, Any], gi: int, plugins: tuple[str, ...], folder: str) -> Group:
     gid = g.get("id", f"group{gi + 1}")
     analysis = ANALYSES[g.get("analysis", "table")]
     options = {k: v for k, v in g.items() if k not in ("id", "title", "scene", "scene_params", "solvers", "n",
@@ -203,7 +210,8 @@ def _group(g: dict[str, Any], gi: int, plugins: tuple[str, ...]) -> Group:
     for solver, n, refine, combo in itertools.product(solvers, ns, refines, combos):
         params = solver_params_of(g.get("solver_params", {}), solver) | dict(zip(keys, combo, strict=True))
         cells.append(Cell(gid, scene, tuple(sorted(scene_params.items())), solver, int(n), int(refine),
-                          tuple(sorted(params.items())), task=task, plugins=plugins))
+                          tuple(sorted(params.items())), task=task, plugins=plugins,
+                          plugin_folder=folder if plugins else None))
     if bool(g.get("serial", analysis.serial)):
         cells = [dataclasses.replace(c, serial=True) for c in cells]
     return Group(gid, g.get("title", gid), analysis.name, cells, options, unplanned)
