@@ -271,6 +271,26 @@ def test_a_plugin_beside_the_study_file_needs_no_pythonpath(toy) -> None:
     assert pd.read_csv(elsewhere / "out" / "toy" / "verdicts.csv")["verdict"].tolist() == ["pass"]
 
 
+def test_the_provenance_names_the_plugins_commit(toy) -> None:
+    """A plugin module in a git checkout: the report's provenance names its commit and file (a plugin's edit
+    since that commit shows as +modified), beside pcverify's own commit."""
+    where, _ = toy
+    git = ["git", "-C", str(where), "-c", "user.name=t", "-c", "user.email=t@t"]
+    subprocess.run([*git, "init", "-q"], check=True)
+    subprocess.run([*git, "add", "toy_plugin.py"], check=True)
+    subprocess.run([*git, "commit", "-qm", "toy"], check=True)
+    commit = subprocess.run([*git, "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
+                            check=True).stdout.strip()
+    (where / "toy_plugin.py").write_text(TOY + "\n# edited\n")
+    out = _pcverify_as_installed("study", "toy.toml", "--out", "out", "--json", cwd=where)
+    assert out.returncode == 0, out.stderr[-800:]
+    manifest = json.loads((where / "out" / "toy" / "manifest.json").read_text())
+    origin = manifest["plugin_sources"]["toy_plugin"]
+    assert origin == f"commit {commit}+modified · {(where / 'toy_plugin.py').resolve()}"
+    html = (where / "out" / "index.html").read_text()
+    assert f"toy_plugin (commit {commit}+modified" in html
+
+
 def test_module_and_class_found_in_the_working_folder(toy) -> None:
     where, _ = toy
     out = _pcverify_as_installed("run", "bar-heat-faces", "--solver", "toy_plugin:LinearFaces", "--n", "2", "--json",
