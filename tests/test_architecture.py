@@ -75,3 +75,17 @@ def test_the_readme_counts_the_example_files_lines_right():
     assert found
     for path, count in found:
         assert len((root / path).read_text().splitlines()) == int(count), path
+
+
+def test_every_table_a_report_writes_is_documented():
+    """Each table name suffix the harness writes (`f"{id}-cells"`, ...) is in the README's "Output tables"."""
+    root = Path(__file__).resolve().parent.parent
+    readme = (root / "README.md").read_text()
+    section = readme[readme.index("### Output tables"):]
+    section = section[:section.index("\n## ")]
+    suffixes = set()
+    for path in (root / "harness").rglob("*.py"):
+        suffixes |= set(re.findall(r"""\}-([a-z][a-z-]*)["']""", path.read_text()))
+    assert {"cells", "fits", "levels", "skipped", "work-precision"} <= suffixes
+    undocumented = sorted(s for s in suffixes if f"-{s}`" not in section)
+    assert not undocumented, undocumented
