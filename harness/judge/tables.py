@@ -26,6 +26,20 @@ def spacing(result: dict[str, Any]) -> float:
     return float(h)
 
 
+def params_label(result: dict[str, Any], values: bool = True) -> str:
+    """A cell's solver parameters as the tables write them (column `params`): "k=v, ...", a parameter given as
+    an expression of the resolution as "k=v (= EXPR)", or with values=False as "k=EXPR" alone (what a
+    convergence sequence has in common: its value changes from level to level)."""
+    expressions = result.get("expressions") or {}
+    parts = []
+    for k, v in sorted((result.get("solver_params") or {}).items()):
+        if k not in expressions:
+            parts.append(f"{k}={v}")
+        else:
+            parts.append(f"{k}={v:.6g} (= {expressions[k]})" if values else f"{k}={expressions[k]}")
+    return ", ".join(parts)
+
+
 def scalars(result: dict[str, Any]) -> dict[str, Any]:
     """The scalar summary of a cell, with a list of frequencies spread into f1_hz, f2_hz, ..."""
     summary = result.get("summary") or {}
@@ -41,8 +55,10 @@ def cells_table(results: list[dict[str, Any]]) -> pd.DataFrame:
         row = {k: r.get(k) for k in ("group", "scene", "solver", "n", "refine", "status", "reason", "unknowns",
                                      "wall_s")}
         row["h"] = spacing(r) if r.get("n") else None
-        row["params"] = ", ".join(f"{k}={v}" for k, v in sorted((r.get("solver_params") or {}).items()))
-        row["scene_params"] = ", ".join(f"{k}={v}" for k, v in sorted((r.get("scene_params") or {}).items()))
+        row["params"] = params_label(r)
+        shown = {k.removeprefix("scene."): v for k, v in (r.get("expressions") or {}).items() if k.startswith("scene.")}
+        row["scene_params"] = ", ".join(f"{k}={v:.6g} (= {shown[k]})" if k in shown else f"{k}={v}"
+                                        for k, v in sorted((r.get("scene_params") or {}).items()))
         row.update(scalars(r))
         for k, v in (r.get("work") or {}).items():
             if isinstance(v, (int, float)):
@@ -88,9 +104,11 @@ def convergence(results: list[dict[str, Any]], quantities: list[str],
     rows = []
     for r in results:
         ok = r.get("status") == "ok"
-        row = {"solver": r["solver"], "params": ", ".join(f"{k}={v}" for k, v in sorted(r["solver_params"].items())),
-               "n": r["n"], "refine": r["refine"], "h": spacing(r), "unknowns": r.get("unknowns"),
+        row = {"solver": r["solver"], "params": params_label(r, values=False), "n": r["n"], "refine": r["refine"],
+               "h": spacing(r), "unknowns": r.get("unknowns"),
                "wall_s": r.get("wall_s"), "status": r.get("status"), "reason": r.get("reason") or ""}
+        if r.get("expressions"):
+            row["resolved"] = params_label(r)
         values = scalars(r)
         row.update({q: values.get(q) for q in quantities})
         if ok:

@@ -75,6 +75,8 @@ def cell_identity(cell: Cell) -> tuple[dict[str, Any], str | None]:
                                "refine": cell.refine, "task": cell.task.name}
     if cell.serial:
         payload["timing"] = "serial-after-warm-up"
+    if cell.expressions:  # the same value from another expression is another cell of the tables
+        payload["expressions"] = dict(cell.expressions)
     try:
         load_plugins(cell.plugins, cell.plugin_folder)
         solver = get_solver(cell.solver)
@@ -138,8 +140,9 @@ def _checks_raised(cell: Cell, exc: BaseException) -> str:
 
 def _base(cell: Cell) -> dict[str, Any]:
     """The identity fields of a cell's result: the cell's, whatever the solver says of itself."""
-    return {"group": cell.group, "scene": cell.scene.name, "solver": cell.solver, "n": cell.n,
+    base = {"group": cell.group, "scene": cell.scene.name, "solver": cell.solver, "n": cell.n,
             "refine": cell.refine, "scene_params": dict(cell.scene_params), "solver_params": dict(cell.solver_params)}
+    return base | ({"expressions": dict(cell.expressions)} if cell.expressions else {})
 
 
 def _failed(cell: Cell, reason: str, **extra: Any) -> dict[str, Any]:

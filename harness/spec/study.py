@@ -20,12 +20,21 @@ from typing import Any
 
 from pcverify.harness.spec.analyses import ANALYSES
 from pcverify.harness.spec.calibspec import Calibration, parse_calibrations
-from pcverify.harness.spec.catalogue import make_scene, register_scene, spec_from_table
+from pcverify.harness.spec.catalogue import register_scene, spec_from_table
 from pcverify.harness.spec.claims import Claim, parse_claims
 from pcverify.harness.spec.mutants import BESIDE, Mutant, parse_mutants
 from pcverify.harness.spec.plugins import load_plugins
 from pcverify.harness.spec.schema import NAME, SCENE, as_list, check_value, row_where
-from pcverify.harness.spec.studyfile import check_groups, check_study_document, read_study_document, solver_params_of
+from pcverify.harness.spec.studyfile import (
+    check_groups,
+    check_study_document,
+    read_study_document,
+    resolution_names,
+    resolutions,
+    scene_at,
+    solver_params_at,
+    solver_params_of,
+)
 from pcverify.harness.spec.tasks import SOLVE, CellTask, ask_supports
 from pcverify.scene import Scene, SceneError
 from pcverify.solvers.registry import SolverUnavailable, get_solver, named
@@ -52,9 +61,13 @@ class Cell:
     serial: bool = False  # timed in the serial pass after a warm-up (part of the cache key)
     plugins: tuple[str, ...] = ()
     plugin_folder: str | None = None
+    expressions: tuple[tuple[str, str], ...] = ()  # parameters given as expressions of the resolution ("scene." ...)
 
     def describe(self) -> str:
-        extra = ", ".join(f"{k}={v}" for k, v in self.scene_params + self.solver_params)
+        given = dict(self.expressions)
+        shown = [(k, v, given.get(f"scene.{k}")) for k, v in self.scene_params]
+        shown += [(k, v, given.get(k)) for k, v in self.solver_params]
+        extra = ", ".join(f"{k}={v:.6g} (= {e})" if e else f"{k}={v}" for k, v, e in shown)
         return f"{self.scene.name} / {self.solver} n={self.n} refine={self.refine}" + (f" [{extra}]" if extra else "")
 
 
@@ -194,7 +207,7 @@ def _group(g: dict[str, Any], gi: int, plugins: tuple[str, ...], folder: str) ->
                                                         "refine", "solver_params", "sweep", "analysis", "serial")}
     task = analysis.task(options)
     scene_params = g.get("scene_params", {})
-    scene = make_scene(g["scene"], **scene_params)
+    scene = scene_at(g["scene"], scene_params, *resolutions(g)[0])[0]
     sweep = g.get("sweep", {})
     keys = sorted(sweep)
     combos = list(itertools.product(*[as_list(sweep[k]) for k in keys])) or [()]
@@ -207,11 +220,16 @@ def _group(g: dict[str, Any], gi: int, plugins: tuple[str, ...], folder: str) ->
             solvers.append(solver)
         else:
             unplanned.append(Unplanned(solver, why, len(ns) * len(refines) * len(combos)))
+    at = {(n, r): (scene_at(g["scene"], scene_params, n, r), resolution_names(g["scene"], scene_params, n, r))
+          for n, r in resolutions(g)}
     for solver, n, refine, combo in itertools.product(solvers, ns, refines, combos):
+        (here, values, scene_expressions), names = at[int(n), int(refine)]
         params = solver_params_of(g.get("solver_params", {}), solver) | dict(zip(keys, combo, strict=True))
-        cells.append(Cell(gid, scene, tuple(sorted(scene_params.items())), solver, int(n), int(refine),
-                          tuple(sorted(params.items())), task=task, plugins=plugins,
-                          plugin_folder=folder if plugins else None))
+        params, solver_expressions = solver_params_at(solver, params, names)
+        expressions = {f"scene.{k}": v for k, v in scene_expressions.items()} | solver_expressions
+        cells.append(Cell(gid, here if scene_expressions else scene, tuple(sorted(values.items())), solver, int(n),
+                          int(refine), tuple(sorted(params.items())), task=task, plugins=plugins,
+                          plugin_folder=folder if plugins else None, expressions=tuple(sorted(expressions.items()))))
     if bool(g.get("serial", analysis.serial)):
         cells = [dataclasses.replace(c, serial=True) for c in cells]
     return Group(gid, g.get("title", gid), analysis.name, cells, options, unplanned)
