@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from pcverify.harness.judge.metrics import fit_order, richardson
+from pcverify.harness.judge.metrics import fit_order, richardson, self_convergence
 from pcverify.harness.spec.catalogue import make_scene
 
 
@@ -88,7 +88,8 @@ def _not_ok(seq: pd.DataFrame, refined: bool) -> str:
 
 
 def convergence(results: list[dict[str, Any]], quantities: list[str],
-                reference: dict[str, dict[str, Any]] | None = None) -> tuple[pd.DataFrame, pd.DataFrame]:
+                reference: dict[str, dict[str, Any]] | None = None, self_reference: bool = False
+                ) -> tuple[pd.DataFrame, pd.DataFrame]:
     """(levels, fits): per sequence (solver + params) the values by h, and the fitted orders / GCI.
 
     Every cell is a level row with its status; only ok levels enter a fit, and a fit names the levels it
@@ -99,7 +100,9 @@ def convergence(results: list[dict[str, Any]], quantities: list[str],
     per quantity (value, uncertainty, Richardson class of an extrapolated continuum result) of the relative
     error err.<quantity>, whose uncertainty (`err.<quantity>_unc`) and class (`reference_class`) come with it;
     without either, three-grid Richardson extrapolation with the GCI on each summary quantity
-    (`extrapolated_unc`: the GCI band of the extrapolated value).
+    (`extrapolated_unc`: the GCI band of the extrapolated value).  With `self_reference` each sample set's field
+    is also compared with the sequence's own finest level (`self_fits`): columns self.<set>.l2 / .linf in the
+    levels, fits of reference "self".
     """
     rows = []
     for r in results:
@@ -123,6 +126,8 @@ def convergence(results: list[dict[str, Any]], quantities: list[str],
     fits = []
     if levels.empty:
         return levels, pd.DataFrame()
+    if self_reference:
+        fits += self_fits(levels, results)
     for (solver, params), whole in levels.groupby(["solver", "params"], sort=False):
         refined = whole["refine"].nunique() > 1 or bool((whole["refine"] != 1).any())
         missing = _not_ok(whole, refined)
@@ -131,7 +136,7 @@ def convergence(results: list[dict[str, Any]], quantities: list[str],
         labels = [_level_label(n, k, refined) for n, k in zip(seq["n"], seq["refine"], strict=True)]
         head = {"solver": solver, "params": params, "cells": len(whole), "missing": missing}
         err_cols = [c for c in seq.columns if (c.endswith((".l2", ".linf")) or c.startswith("err."))
-                    and not c.endswith("_unc")]
+                    and not c.endswith("_unc") and not c.startswith("self.")]
         for col in err_cols:
             e = seq[col].to_numpy(float)
             if len(h) >= 2 and np.all(e > 0):
@@ -163,6 +168,38 @@ def convergence(results: list[dict[str, Any]], quantities: list[str],
                                 "extrapolated_unc": rr.uncertainty, "gci_fine": rr.gci_fine, "kind": rr.kind,
                                 "monotone": rr.kind == "monotonic"})
     return levels, pd.DataFrame(fits)
+
+
+def self_fits(levels: pd.DataFrame, results: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Self-convergence of every sequence (solver + params, its ok levels coarse to fine): for each sample set all
+    its levels have and each norm, the levels' difference from the finest level (written into `levels` as
+    self.<set>.<norm>, nan at the finest) and a fit of reference "self" (`metrics.self_convergence`: the order
+    of the successive differences, the finest level's GCI); a set the levels cannot be compared on is a fit
+    row whose kind says why."""
+    fits = []
+    for (solver, params), whole in levels.groupby(["solver", "params"], sort=False):
+        refined = whole["refine"].nunique() > 1 or bool((whole["refine"] != 1).any())
+        seq = whole[whole["status"] == "ok"].sort_values("h", ascending=False)
+        labels = [_level_label(n, k, refined) for n, k in zip(seq["n"], seq["refine"], strict=True)]
+        head = {"solver": solver, "params": params, "cells": len(whole), "missing": _not_ok(whole, refined),
+                "reference": "self", "levels": len(seq), "used": ", ".join(labels)}
+        samples = [results[i].get("samples") or {} for i in seq.index]
+        if len(seq) < 2:
+            continue
+        for name in sorted(set.intersection(*(set(s) for s in samples))):
+            fields = [(np.asarray(s[name]["points"], float), np.asarray(s[name]["values"], float)) for s in samples]
+            for norm in ("l2", "linf"):
+                column = f"self.{name}.{norm}"
+                try:
+                    sc = self_convergence(seq["h"].to_numpy(float), fields, norm)
+                except ValueError as exc:
+                    fits.append(head | {"quantity": column, "kind": f"undefined ({exc})"})
+                    continue
+                levels.loc[seq.index, column] = sc.to_finest
+                fits.append(head | {"quantity": column, "order": sc.order, "order_unc": sc.order_se,
+                                    "finest": sc.to_next[-2], "extrapolated": np.nan, "gci_fine": sc.gci_fine,
+                                    "kind": "self", "monotone": sc.monotone})
+    return fits
 
 
 def _not_ok_row(r: dict[str, Any]) -> dict[str, Any]:

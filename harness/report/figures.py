@@ -228,7 +228,9 @@ def convergence(levels: pd.DataFrame, columns: list[str], path: Path, title: str
     """log-log error (or value) against h, one line per solver sequence and column, with the fitted order.
 
     Columns of one sequence with the same values (e.g. the edges' error equal to the nodes' on a 1-D
-    solution) are one line, labelled with all their names."""
+    solution) are one line, labelled with all their names.  A line draws the levels where its column is finite
+    and positive (two or more): a self-convergence column (self.*, against the sequence's own finest level)
+    has no value at the finest level, and is labelled "self-convergence"."""
     orders = {}
     if fits is not None and not fits.empty and "order" in fits:
         orders = {(r.solver, r.params, r.quantity): r.order for r in fits.itertuples() if pd.notna(r.order)}
@@ -237,9 +239,13 @@ def convergence(levels: pd.DataFrame, columns: list[str], path: Path, title: str
         seq = seq.sort_values("h")
         drawn: list[tuple[list[str], np.ndarray]] = []
         for col in columns:
-            y = pd.to_numeric(seq[col], errors="coerce").abs().to_numpy(float)
-            if not (len(y) and (y > 0).all()):
+            if col not in seq:
                 continue
+            y = pd.to_numeric(seq[col], errors="coerce").abs().to_numpy(float)
+            shown = np.isfinite(y) & (y > 0)
+            if shown.sum() < 2 or (not col.startswith("self.") and not shown.all()):
+                continue
+            y = np.where(shown, y, np.nan)
             same = next((d for d in drawn if same_series(d[1], d[1], y, y)), None)
             if same is None:
                 drawn.append(([col], y))
@@ -248,7 +254,11 @@ def convergence(levels: pd.DataFrame, columns: list[str], path: Path, title: str
         for cols, y in drawn:
             order = orders.get((solver, params, cols[0]))
             slope = f" (fitted order {order:.2f})" if order is not None else ""
-            plot_once(ax, seq["h"], y, "o-", f"{solver} {params} {_columns(cols)}{slope}".replace("  ", " "))
+            kind = "self-convergence " if cols[0].startswith("self.") else ""
+            shown = np.isfinite(y)
+            plot_once(ax, seq["h"].to_numpy(float)[shown], y[shown], "o--" if kind else "o-",
+                      f"{solver} {params} {kind}{_columns([c.removeprefix('self.') for c in cols])}{slope}"
+                      .replace("  ", " "))
     errors = any(c.endswith(("l2", "linf")) or c.startswith("err.") for c in columns)
     log_axes(ax, "h [m]", "error (relative for err.*)" if errors else "|value|")
     return _save(fig, path, title)

@@ -13,12 +13,15 @@ import pandas as pd
 from pcverify.harness.judge.group_tables import Tables, group_tables
 from pcverify.harness.report import figures
 
+NORMS = ("l2", "linf")  # the error norms a convergence figure draws unless its group's `norms` says otherwise
+
 
 def _convergence_figures(g: Any, res: list[dict[str, Any]], t: Tables, folder: Path) -> list[str]:
     levels, fits = t[f"{g.id}-levels"], t[f"{g.id}-fits"]
     levels = _ok(levels)
     quantities = list(g.options.get("quantities", ["volume_mean", "bulk_median"]))
-    err_cols = [c for c in levels.columns if (c.endswith(".linf") or c.startswith("err.")) and not c.endswith("_unc")]
+    norms = tuple(f".{n}" for n in g.options.get("norms", NORMS))
+    err_cols = [c for c in levels.columns if (c.endswith(norms) or c.startswith("err.")) and not c.endswith("_unc")]
     drawn = not levels.empty and figures.convergence(levels, err_cols or quantities, folder / g.id, g.title, fits)
     return [f"{g.id}.png"] if drawn else []
 

@@ -39,7 +39,12 @@ ANALYSES: dict[str, Analysis] = {a.name: a for a in (
                  Field("quantities", "text", "summary quantities to follow (default volume_mean, bulk_median)",
                        shape="list"),
                  Field("reference_table", "text", "an earlier group's fits table whose values are the reference"),
-                 Field("reference_metric", "text", "the column of reference_table taken (default extrapolated)"))),
+                 Field("reference_metric", "text", "the column of reference_table taken (default extrapolated)"),
+                 Field("reference", "text", "self: also each sample set against the sequence's own finest level "
+                       "(self-convergence: columns self.<set>.l2/linf, fits of reference self); scene (default): "
+                       "the scene's reference only", choices=("scene", "self")),
+                 Field("norms", "text", "error norms the convergence figure draws (default l2 and linf)",
+                       shape="list", choices=("l2", "linf")))),
     Analysis("timing", "wall time against unknowns per solver (timed serially after a warm-up)", serial=True),
     Analysis("work-precision", "error against wall time and work per solver (timed serially after a warm-up)",
              serial=True, options=(Field("error", "text", "the error column (default nodes.l2)"),)),

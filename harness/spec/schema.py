@@ -233,7 +233,7 @@ TEXT_TABLE = Field("", "scalar", shape="value or list", min_items=0)  # a value 
 PARAMS = "{ name = value, ... }"
 SCENE_NAME = "a scene name (see `pcverify scenes`)"
 
-REFERENCE_KINDS = ("analytic", "extrapolated", "mesh-dependent", "same-grid", "theory", "paper")
+REFERENCE_KINDS = ("analytic", "extrapolated", "mesh-dependent", "same-grid", "theory", "paper", "self")
 SENSES = ("within", "at-most", "at-least")
 AGGREGATES = ("max", "min", "median", "mean")
 CELL_STATUSES = ("ok", "unstable", "skipped", "non-stationary", "defect", "failed", "missing")
