@@ -29,6 +29,7 @@ from matplotlib.lines import Line2D  # noqa: E402
 from mpl_toolkits.mplot3d import Axes3D  # noqa: E402
 from PIL import Image  # noqa: E402
 
+from pcverify.harness.judge.tables import spacing, stored_errors  # noqa: E402
 from pcverify.harness.run.files import atomic_write  # noqa: E402
 
 EDGES = ("front_top_edge", "bottom_back_edge")
@@ -522,6 +523,55 @@ def stability_map(part: pd.DataFrame, path: Path, title: str) -> bool:
     if handles:
         axes[0][-1].legend(list(handles.values()), list(handles), fontsize=6, loc="upper left",
                            bbox_to_anchor=(1.04, 1.0), borderaxespad=0.0)
+    return _save(fig, path, title)
+
+
+def axis_value(result: dict[str, Any], name: str) -> float:
+    """The value of a cell along a figure axis: n, refine, h, a solver or scene parameter, a summary scalar,
+    or an error err.SET.NORM (nan when the cell has none)."""
+    if name in ("n", "refine"):
+        return float(result[name])
+    if name == "h":
+        return spacing(result)
+    if name.startswith("err."):
+        return stored_errors(result).get(name.removeprefix("err."), math.nan)
+    for part in ("solver_params", "scene_params", "summary"):
+        value = (result.get(part) or {}).get(name)
+        if isinstance(value, (int, float)) and not isinstance(value, bool):
+            return float(value)
+    return math.nan
+
+
+def parameter_figure(results: list[dict[str, Any]], path: Path, title: str, x: str, ys: list[str]) -> bool:
+    """Each metric in `ys` against `x` (a swept parameter, n, refine or h), one panel per metric, one line per
+    solver and setting of the other parameters that vary (n among them): an error against the horizon m at
+    fixed h, a frequency against krot.  Log axes where every drawn value is positive."""
+    ok = [r for r in results if r.get("status") == "ok" and math.isfinite(axis_value(r, x))]
+    panels = [y for y in ys if any(math.isfinite(axis_value(r, y)) for r in ok)]
+    if not panels:
+        return False
+    others = [k for k in _varying(ok) if k != x] + (["n"] if x != "n" and len({r["n"] for r in ok}) > 1 else [])
+    fig, axes = plt.subplots(1, len(panels), figsize=(5.5 * len(panels) + 2.5, 4), squeeze=False)
+    for ax, y in zip(axes[0], panels, strict=True):
+        series: dict[str, list[tuple[float, float]]] = {}
+        for r in ok:
+            label = " ".join([r["solver"], *(f"{k}={r[k] if k == 'n' else (r.get('solver_params') or {}).get(k)}"
+                                             for k in others)])
+            series.setdefault(label, []).append((axis_value(r, x), axis_value(r, y)))
+        values = [v for pts in series.values() for _, v in pts if math.isfinite(v)]
+        for label, pts in series.items():
+            pts = sorted(p for p in pts if math.isfinite(p[1]))
+            if pts:
+                plot_once(ax, [p[0] for p in pts], [abs(p[1]) for p in pts] if all(v > 0 for v in values) else
+                          [p[1] for p in pts], "o-", label)
+        positive_x = all(axis_value(r, x) > 0 for r in ok)
+        if all(v > 0 for v in values):
+            log_axes(ax, x, y, logx=positive_x)
+        else:
+            ax.set_xlabel(x)
+            ax.set_ylabel(y)
+            ax.grid(True, alpha=0.3)
+            legend_outside(ax, 6.5)
     return _save(fig, path, title)
 
 

@@ -13,6 +13,7 @@ import pandas as pd
 from pcverify.harness.judge.group_tables import Tables, group_tables
 from pcverify.harness.report import figures
 
+PARAMETER_Y = ("err.nodes.l2", "err.nodes.linf")  # what a parameter figure draws unless `figure_y` says
 NORMS = ("l2", "linf")  # the error norms a convergence figure draws unless its group's `norms` says otherwise
 
 
@@ -78,6 +79,12 @@ def group_report(g: Any, res: list[dict[str, Any]], cells: pd.DataFrame, folder:
     drawn = FIGURES[g.analysis](g, res, out, folder)
     out.setdefault(f"{g.id}-cells", cells)
     for kind in g.options.get("figures", []):
-        if figures.GROUP_FIGURES[kind](res, folder / f"{g.id}-{kind}", g.title):
+        if kind == "parameter":
+            x = g.options["figure_x"]
+            ys = g.options.get("figure_y", list(PARAMETER_Y))
+            ys = [ys] if isinstance(ys, str) else list(ys)
+            if figures.parameter_figure(res, folder / f"{g.id}-{x}", f"{g.title}: against {x}", x, ys):
+                drawn.append(f"{g.id}-{x}.png")
+        elif figures.GROUP_FIGURES[kind](res, folder / f"{g.id}-{kind}", g.title):
             drawn.append(f"{g.id}-{kind}.png")
     return out, drawn

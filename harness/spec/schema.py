@@ -287,6 +287,9 @@ GROUP = Table("[[group]]", (
     Field("analysis", "text", registry="analyses", default="table"),
     Field("serial", "bool", "timed serially after a warm-up"), Field("vtu", "bool", "write VTU point clouds"),
     Field("figures", "text", registry="figures", shape="value or list", min_items=0),
+    Field("figure_x", "text", "the parameter figure's x axis: a swept solver or scene parameter, n, refine or h"),
+    Field("figure_y", "text", "the parameter figure's metrics (default err.nodes.l2, err.nodes.linf): summary "
+          "scalars or err.SET.NORM", shape="value or list"),
 ), key="id", default_key="group{}", variant="analysis")
 
 CLAIM = Table("[[claim]]", (

@@ -64,6 +64,9 @@ def check_groups(doc: dict[str, Any], path: Path) -> None:
         except SceneError as exc:
             raise SceneError(f"{where}: {exc}") from None
         _check_solver_params(g, as_list(g["solvers"]), where, ANALYSES[g.get("analysis", "table")].task(g))
+        if "parameter" in as_list(g.get("figures", [])) and "figure_x" not in g:
+            raise SceneError(f"{where}: figures = \"parameter\" needs figure_x; allowed: figure_x = a swept solver or "
+                             "scene parameter, n, refine or h")
 
 
 def resolutions(g: dict[str, Any]) -> list[tuple[int, int]]:
