@@ -112,6 +112,8 @@ def convergence(results: list[dict[str, Any]], quantities: list[str],
                "wall_s": r.get("wall_s"), "status": r.get("status"), "reason": r.get("reason") or ""}
         if r.get("expressions"):
             row["resolved"] = params_label(r)
+        row["cpu_s"] = (r.get("cost") or {}).get("cpu_s", np.nan)
+        row["cold"] = (r.get("cost") or {}).get("cold", np.nan)  # a first solve: imports and compilation included
         values = scalars(r)
         row.update({q: values.get(q) for q in quantities})
         if ok:
@@ -208,10 +210,27 @@ def _not_ok_row(r: dict[str, Any]) -> dict[str, Any]:
             "reason": r.get("reason") or "", "unknowns": np.nan, "wall_s": np.nan}
 
 
+def cost_columns(result: dict[str, Any]) -> dict[str, Any]:
+    """The cost of a cell as the timing tables write it: `cpu_s` (the solve's CPU seconds), `kernel_s` and
+    `setup_s` (its time loop or linear solve, and the rest), and for a timed cell its pass (`run`, `machine`,
+    `started`), the solves it took (`repeats`: the least CPU time is the cost) and `timing` (how it was timed:
+    "serial after warm-up", or "parallel pass" for a cell of an untimed group)."""
+    cost = result.get("cost") or {}
+    timing = result.get("timing")
+    timing = timing if isinstance(timing, dict) else {"kind": timing or "parallel pass"}
+    return {"cpu_s": cost.get("cpu_s", np.nan), "kernel_s": cost.get("kernel_s", np.nan),
+            "setup_s": cost.get("setup_s", np.nan), "cold": cost.get("cold", np.nan),
+            "timing": timing.get("kind", "parallel pass"),
+            "repeats": timing.get("repeats", 1), "run": timing.get("run", "unknown"),
+            "machine": timing.get("machine", "unknown"), "started": timing.get("started", "")}
+
+
 def timing(results: list[dict[str, Any]]) -> pd.DataFrame:
-    """Unknowns against wall time (and its parts) per solver; a cell that is not ok is a row with its status."""
+    """Unknowns against CPU and wall time (and the solver's own parts) per solver; a cell that is not ok is a row
+    with its status."""
     rows = [{"solver": r["solver"], "n": r["n"], "refine": r["refine"], "status": "ok", "unknowns": r["unknowns"],
-             "wall_s": r["wall_s"], **{k: v for k, v in (r.get("work") or {}).items() if k != "unknowns"}}
+             "wall_s": r["wall_s"], **cost_columns(r),
+             **{k: v for k, v in (r.get("work") or {}).items() if k not in ("unknowns", "kernel_s")}}
             if r.get("status") == "ok" else _not_ok_row(r) for r in results]
     df = pd.DataFrame(rows)
     return df.sort_values(["solver", "n", "refine"], kind="stable") if not df.empty else df  # not by a clock
@@ -237,9 +256,7 @@ def work_precision(results: list[dict[str, Any]], error: str = "nodes.l2") -> pd
         errors = stored_errors(r)
         name, work = work_counter(r)
         rows.append({"solver": r["solver"], "n": r["n"], "refine": r["refine"], "status": "ok",
-                     "unknowns": r["unknowns"], "wall_s": r["wall_s"],
-                     "kernel_s": (r.get("summary") or {}).get("kernel_s"),
-                     "work": work, "work_kind": name, f"err.{error}": errors.get(error, np.nan),
-                     "timing": r.get("timing", "parallel pass")})
+                     "unknowns": r["unknowns"], "wall_s": r["wall_s"], **cost_columns(r),
+                     "work": work, "work_kind": name, f"err.{error}": errors.get(error, np.nan)})
     df = pd.DataFrame(rows)
     return df.sort_values(["solver", "n", "refine"], kind="stable") if not df.empty else df  # not by a clock

@@ -274,23 +274,53 @@ def _columns(cols: list[str]) -> str:
     return " = ".join(cols)
 
 
-def cost(df: pd.DataFrame, path: Path, title: str) -> bool:
-    """Wall time against unknowns per solver."""
-    fig, ax = plt.subplots(figsize=(8, 4))
-    _lines(ax, df.groupby("solver"), "unknowns", "wall_s")
-    log_axes(ax, "unknowns", "wall time [s]")
+def mixed_runs(df: pd.DataFrame) -> str:
+    """Why the timings of `df` should not be drawn side by side ("" when they may): rows of more than one timed
+    pass (another day, machine or load), or rows without a pass's stamp."""
+    runs = sorted(set(df["run"].astype(str))) if "run" in df else ["unknown"]
+    if len(runs) == 1 and runs[0] != "unknown":
+        return ""
+    if "unknown" in runs:
+        return "some timings carry no timed pass's stamp (computed by an older pcverify)"
+    when = sorted({f"{r.machine} at {r.started}" for r in df.itertuples()})
+    return f"the timings come from {len(runs)} timed passes ({'; '.join(when)})"
+
+
+def refusal(path: Path, title: str, why: str) -> bool:
+    """A figure that says why it draws nothing (timings of different passes are not compared unless asked)."""
+    fig, ax = plt.subplots(figsize=(9, 1.8))
+    ax.axis("off")
+    text = (f"Not drawn: {why}. Rerun the group's cells in one pass (pcverify study STUDY --group GROUP "
+            "--rerun), or set mix_runs = true in the group to draw them anyway.")
+    ax.text(0.5, 0.5, textwrap.fill(text, 110), ha="center", va="center", fontsize=9)
     return _save(fig, path, title)
 
 
-def work_precision(df: pd.DataFrame, error: str, path: Path, title: str) -> bool:
-    """Error against wall time (left) and against the work counter (right), one line per solver."""
+def cost(df: pd.DataFrame, path: Path, title: str, mix_runs: bool = False) -> bool:
+    """CPU seconds of the solve against unknowns per solver (one timed pass unless `mix_runs`)."""
+    why = "" if mix_runs else mixed_runs(df)
+    if why:
+        return refusal(path, title, why)
+    fig, ax = plt.subplots(figsize=(8, 4))
+    _lines(ax, df.groupby("solver"), "unknowns", "cpu_s")
+    log_axes(ax, "unknowns (free degrees of freedom)", "CPU time of the solve [s]")
+    return _save(fig, path, title)
+
+
+def work_precision(df: pd.DataFrame, error: str, path: Path, title: str, mix_runs: bool = False) -> bool:
+    """Error against the CPU seconds of the solve (left: set-up and kernel; right: the kernel alone, for the
+    solvers that report it), one line per solver: one axis for particle and continuum solvers alike, from one
+    timed pass unless `mix_runs`."""
     if df.empty:
         return False
+    why = "" if mix_runs else mixed_runs(df)
+    if why:
+        return refusal(path, title, why)
     fig, (left, right) = plt.subplots(1, 2, figsize=(12, 4))
-    _lines(left, df.groupby("solver"), "wall_s", error)
-    _lines(right, df.groupby("solver"), "work", error, lambda solver, seq: f"{solver} ({seq['work_kind'].iloc[0]})")
-    log_axes(left, "wall time [s]", error, legend=None)
-    log_axes(right, "work (pair-steps or unknowns x time steps)", error)
+    _lines(left, df.dropna(subset=["cpu_s"]).groupby("solver"), "cpu_s", error)
+    _lines(right, df.dropna(subset=["kernel_s"]).groupby("solver"), "kernel_s", error)
+    log_axes(left, "CPU time of the solve [s]", error, legend=None)
+    log_axes(right, "CPU time of its kernel (time loop or linear solve) [s]", error)
     return _save(fig, path, title)
 
 

@@ -34,13 +34,16 @@ def _ok(df: pd.DataFrame) -> pd.DataFrame:
 
 def _timing_figures(g: Any, res: list[dict[str, Any]], t: Tables, folder: Path) -> list[str]:
     df = _ok(t[f"{g.id}-timing"])
-    return [f"{g.id}.png"] if not df.empty and figures.cost(df, folder / g.id, g.title) else []
+    drawn = not df.empty and figures.cost(df, folder / g.id, g.title, bool(g.options.get("mix_runs")))
+    return [f"{g.id}.png"] if drawn else []
 
 
 def _work_precision_figures(g: Any, res: list[dict[str, Any]], t: Tables, folder: Path) -> list[str]:
     error = f"err.{g.options.get('error', 'nodes.l2')}"
     df = _ok(t[f"{g.id}-work-precision"]).dropna(subset=[error]) if error in t[f"{g.id}-work-precision"] else None
-    return [f"{g.id}.png"] if df is not None and figures.work_precision(df, error, folder / g.id, g.title) else []
+    drawn = df is not None and figures.work_precision(df, error, folder / g.id, g.title,
+                                                      bool(g.options.get("mix_runs")))
+    return [f"{g.id}.png"] if drawn else []
 
 
 def _stability_figures(g: Any, res: list[dict[str, Any]], t: Tables, folder: Path) -> list[str]:

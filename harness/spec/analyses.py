@@ -32,6 +32,9 @@ class Analysis:
     task: Callable[[dict[str, Any]], CellTask] = field(default=lambda options: SOLVE)
 
 
+MIX_RUNS = Field("mix_runs", "bool", "draw timings of different timed passes side by side (default false: the "
+                 "figure says why it draws nothing)")
+
 ANALYSES: dict[str, Analysis] = {a.name: a for a in (
     Analysis("table", "one row per cell: status and every summary scalar"),
     Analysis("convergence", "values or errors against h per solver sequence, fitted orders, Richardson and GCI",
@@ -45,9 +48,10 @@ ANALYSES: dict[str, Analysis] = {a.name: a for a in (
                        "the scene's reference only", choices=("scene", "self")),
                  Field("norms", "text", "error norms the convergence figure draws (default l2 and linf)",
                        shape="list", choices=("l2", "linf")))),
-    Analysis("timing", "wall time against unknowns per solver (timed serially after a warm-up)", serial=True),
-    Analysis("work-precision", "error against wall time and work per solver (timed serially after a warm-up)",
-             serial=True, options=(Field("error", "text", "the error column (default nodes.l2)"),)),
+    Analysis("timing", "CPU time of the solve against unknowns per solver (timed serially after a warm-up)",
+             serial=True, options=(MIX_RUNS,)),
+    Analysis("work-precision", "error against the solve's CPU time per solver (timed serially after a warm-up)",
+             serial=True, options=(Field("error", "text", "the error column (default nodes.l2)"), MIX_RUNS)),
     Analysis("stability", "measured time-step limits (probe = limit) or a stability map (probe = map)",
              options=(Field("probe", "text", "limit or map (default limit)", choices=PROBE_KINDS),),
              task=lambda options: TASKS[f"stability-{options.get('probe', 'limit')}"]),
