@@ -31,6 +31,7 @@ from pcverify.harness.spec.claims import parse_claims
 
 REPO = Path(__file__).resolve().parent.parent
 EXAMPLE = REPO / "examples" / "fd-heat-plugin"
+NONLOCAL = REPO / "examples" / "pd-heat-plugin"
 ENV = {**os.environ, "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MPLBACKEND": "Agg"}
 
 
@@ -98,10 +99,11 @@ def test_the_distribution_installs_one_namespace(tmp_path) -> None:
 # ----------------------------------------------------------------------------- the example plugin
 @pytest.fixture(scope="module")
 def plugin_env(tmp_path_factory) -> Path:
-    """A fresh environment with the example plugin installed by pip from examples/fd-heat-plugin."""
+    """A fresh environment with the two example plugins installed by pip from examples/fd-heat-plugin and
+    examples/pd-heat-plugin."""
     where = tmp_path_factory.mktemp("plugin-env")
     python = _fresh_env(where / "env")
-    _pip(python, str(EXAMPLE))
+    _pip(python, str(EXAMPLE), str(NONLOCAL))
     return python
 
 
@@ -149,6 +151,46 @@ def test_the_example_plugins_mutants_are_all_killed_by_its_claims(plugin_env, tm
         ("fd-heat-sign", "killed"), ("fd-heat-rate-doubled", "killed"), ("fd-heat-boundary-node", "killed")]
     assert all(set(m["expect"]) <= set(m["caught_by"]) for m in doc["mutants"])
     assert (out / "fd-heat-plugin" / "mutants.json").is_file()
+
+
+def test_the_nonlocal_example_study(plugin_env, tmp_path) -> None:
+    """The second example, a bond-based peridynamic heat solver (examples/pd-heat-plugin), with --jobs 2:
+    delta-convergence to the classical solution at second order (delta = "3 * h"), m-convergence to its own
+    limit as a self-convergence claim (delta fixed), the error against m in a parameter figure, and the cost of
+    both plugins, MCA, the macromolecule, scikit-fem and FiPy on one CPU-seconds axis."""
+    out = tmp_path / "out"
+    _pcverify(plugin_env, "study", str(NONLOCAL / "study.toml"), "--jobs", "2", "--out", str(out), cwd=tmp_path)
+    folder = out / "pd-heat-plugin"
+    verdicts = pd.read_csv(folder / "verdicts.csv").set_index("claim")
+    assert verdicts["verdict"].to_dict() == {"pd-delta-order": "pass", "pd-m-self-limit": "pass",
+                                             "pd-m-not-classical": "pass"}
+    assert 1.9 < verdicts.loc["pd-delta-order", "value"] < 2.1  # measured 1.999
+    assert verdicts.loc["pd-m-self-limit", "reference"] == "self"
+    levels = pd.read_csv(folder / "delta-levels.csv")
+    assert levels["params"].unique().tolist() == ["delta=3 * h"] and levels["resolved"].nunique() == 4
+    sweep = json.loads((folder / "m-sweep-m.json").read_text())
+    assert [a["ylabel"] for a in sweep["axes"]] == ["err.nodes.l2", "err.nodes.linf"]
+    assert sweep["axes"][0]["series"][0]["x"] == [1.0, 2.0, 3.0, 4.0, 6.0]
+    cost = json.loads((folder / "cost-transient.json").read_text())
+    drawn = {s["label"] for a in cost["axes"] for s in a["series"]}
+    assert {"pd-heat", "fd-heat", "mca", "skfem", "fipy", "macromolecule"} <= drawn
+    assert {a["xlabel"] for a in cost["axes"]} == {"CPU time of the solve [s]"}
+    html = (out / "index.html").read_text()
+    assert "pcverify-pd-heat 0.1.0" in html and "self-convergence" in html
+
+
+def test_the_nonlocal_examples_mutants_are_all_killed(plugin_env, tmp_path) -> None:
+    """Its four mutants (the held face's image, the calibration, the partial volumes, the horizon) are each
+    caught by the claim they name."""
+    out = tmp_path / "out"
+    done = _pcverify(plugin_env, "mutate", str(NONLOCAL / "study.toml"), "--jobs", "2", "--strict", "--out",
+                     str(out), "--json", cwd=tmp_path, check=False)
+    assert done.returncode == 0, done.stderr[-1500:]
+    (doc,) = json.loads(done.stdout)
+    assert {m["name"]: m["status"] for m in doc["mutants"]} == {
+        "pd-heat-even-image-at-held-faces": "killed", "pd-heat-calibration-halved": "killed",
+        "pd-heat-whole-cells": "killed", "pd-heat-horizon-one-spacing": "killed"}
+    assert all(set(m["expect"]) <= set(m["caught_by"]) for m in doc["mutants"])
 
 
 def test_the_example_study_runs_on_a_dask_cluster(plugin_env, tmp_path) -> None:

@@ -307,15 +307,26 @@ def cost(df: pd.DataFrame, path: Path, title: str, mix_runs: bool = False) -> bo
     return _save(fig, path, title)
 
 
-def work_precision(df: pd.DataFrame, error: str, path: Path, title: str, mix_runs: bool = False) -> bool:
+def work_precision(df: pd.DataFrame, error: str, path: Path, title: str, mix_runs: bool = False,
+                   beside: list[tuple[str, pd.DataFrame]] = ()) -> bool:
     """Error against the CPU seconds of the solve (left: set-up and kernel; right: the kernel alone, for the
     solvers that report it), one line per solver: one axis for particle and continuum solvers alike, from one
-    timed pass unless `mix_runs`."""
+    timed pass unless `mix_runs`.  With `beside` (other groups' work-precision tables, by group id), one panel
+    per group (this one first, titled by the figure's file name) instead, all on one shared CPU-seconds axis:
+    solvers that share no scene compared on cost."""
     if df.empty:
         return False
-    why = "" if mix_runs else mixed_runs(df)
+    why = "" if mix_runs else mixed_runs(pd.concat([df, *(b for _, b in beside)], ignore_index=True))
     if why:
         return refusal(path, title, why)
+    if beside:
+        panels = [(path.name, df), *beside]
+        fig, axes = plt.subplots(1, len(panels), figsize=(5.5 * len(panels) + 2.5, 4), sharex=True, squeeze=False)
+        for ax, (name, part) in zip(axes[0], panels, strict=True):
+            _lines(ax, part.dropna(subset=["cpu_s", error]).groupby("solver"), "cpu_s", error)
+            log_axes(ax, "CPU time of the solve [s]", error)
+            ax.set_title(name, fontsize=9)
+        return _save(fig, path, title)
     fig, (left, right) = plt.subplots(1, 2, figsize=(12, 4))
     _lines(left, df.dropna(subset=["cpu_s"]).groupby("solver"), "cpu_s", error)
     _lines(right, df.dropna(subset=["kernel_s"]).groupby("solver"), "kernel_s", error)

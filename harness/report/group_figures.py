@@ -41,8 +41,13 @@ def _timing_figures(g: Any, res: list[dict[str, Any]], t: Tables, folder: Path) 
 def _work_precision_figures(g: Any, res: list[dict[str, Any]], t: Tables, folder: Path) -> list[str]:
     error = f"err.{g.options.get('error', 'nodes.l2')}"
     df = _ok(t[f"{g.id}-work-precision"]).dropna(subset=[error]) if error in t[f"{g.id}-work-precision"] else None
+    beside = []
+    for other in g.options.get("beside", []):
+        table = t.get(f"{other}-work-precision")
+        if table is not None and error in table:
+            beside.append((str(other), _ok(table).dropna(subset=[error])))
     drawn = df is not None and figures.work_precision(df, error, folder / g.id, g.title,
-                                                      bool(g.options.get("mix_runs")))
+                                                      bool(g.options.get("mix_runs")), beside)
     return [f"{g.id}.png"] if drawn else []
 
 
@@ -79,7 +84,7 @@ def group_report(g: Any, res: list[dict[str, Any]], cells: pd.DataFrame, folder:
                  done: Tables) -> tuple[Tables, list[str]]:
     """Tables and figures of one group (its cells table given), by its analysis and its `figures` list."""
     out = group_tables(g, res, done)
-    drawn = FIGURES[g.analysis](g, res, out, folder)
+    drawn = FIGURES[g.analysis](g, res, done | out, folder)  # a figure may draw earlier groups' tables beside
     out.setdefault(f"{g.id}-cells", cells)
     for kind in g.options.get("figures", []):
         if kind == "parameter":

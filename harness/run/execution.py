@@ -213,20 +213,25 @@ def compute_cell(cell: Cell, raise_scene_errors: bool = False) -> dict[str, Any]
     cold = cell.solver not in _SOLVED_HERE
     _SOLVED_HERE.add(cell.solver)
     return out | base | {"resolution": res, "errors": compare.errors(scene, out.get("samples")),
-                         "cost": solve_cost(cpu, out.get("work") or {}) | {"cold": cold}}
+                         "cost": solve_cost(cpu, out.get("wall_s"), out.get("work") or {}) | {"cold": cold}}
 
 
-def solve_cost(cpu_s: float, work: dict[str, Any]) -> dict[str, float | None]:
+def solve_cost(cpu_s: float, wall_s: Any, work: dict[str, Any]) -> dict[str, float | None]:
     """The CPU cost of one solve, one axis for every solver: `cpu_s`, the process's CPU seconds in the solver's
-    run (set-up, time loop and output; compare and checks excluded), split into `kernel_s`, what the solver
-    reports as its time loop or linear solve (`work.kernel_s`, else `work.solve_s`, on the solver's own clock;
-    None when it reports neither), and `setup_s`, the rest (0 when the kernel's clock ran past the CPU time).
-    `cold` (added by the caller): the process's first solve with this solver, whose time includes imports and
-    compilation (a timed cell is never cold: its worker warmed up)."""
+    run (set-up, time loop and output; compare and checks excluded), split into `kernel_s`, the CPU seconds of
+    what the solver reports as its time loop or linear solve (`work.kernel_s`, else `work.solve_s`, timed on
+    the solver's own wall clock, `kernel_wall_s`: its share of the solve's wall time `wall_s` applied to the CPU
+    time, so a loaded machine's waiting counts in neither), and `setup_s`, the rest; None where the solver
+    reports no kernel.  `cold` (added by the caller): the process's first solve with this solver, whose time
+    includes imports and compilation (a timed cell is never cold: its worker warmed up)."""
     kernel = work.get("kernel_s", work.get("solve_s"))
-    kernel = float(kernel) if isinstance(kernel, (int, float)) and not isinstance(kernel, bool) else None
-    return {"cpu_s": float(cpu_s), "kernel_s": kernel,
-            "setup_s": None if kernel is None else max(float(cpu_s) - kernel, 0.0)}
+    real = isinstance(kernel, (int, float)) and not isinstance(kernel, bool) and math.isfinite(kernel)
+    wall = float(wall_s) if isinstance(wall_s, (int, float)) and not isinstance(wall_s, bool) else math.nan
+    if not (real and math.isfinite(wall) and wall > 0):
+        return {"cpu_s": float(cpu_s), "kernel_s": None, "setup_s": None, "kernel_wall_s": kernel if real else None}
+    share = min(max(float(kernel) / wall, 0.0), 1.0)
+    return {"cpu_s": float(cpu_s), "kernel_s": share * float(cpu_s), "setup_s": (1.0 - share) * float(cpu_s),
+            "kernel_wall_s": float(kernel)}
 
 
 def _content_hash(scene: Scene) -> str:

@@ -51,7 +51,9 @@ ANALYSES: dict[str, Analysis] = {a.name: a for a in (
     Analysis("timing", "CPU time of the solve against unknowns per solver (timed serially after a warm-up)",
              serial=True, options=(MIX_RUNS,)),
     Analysis("work-precision", "error against the solve's CPU time per solver (timed serially after a warm-up)",
-             serial=True, options=(Field("error", "text", "the error column (default nodes.l2)"), MIX_RUNS)),
+             serial=True, options=(Field("error", "text", "the error column (default nodes.l2)"), MIX_RUNS,
+                                   Field("beside", "text", "earlier work-precision groups drawn as panels beside this "
+                                         "one on the same CPU-seconds axis", shape="value or list"))),
     Analysis("stability", "measured time-step limits (probe = limit) or a stability map (probe = map)",
              options=(Field("probe", "text", "limit or map (default limit)", choices=PROBE_KINDS),),
              task=lambda options: TASKS[f"stability-{options.get('probe', 'limit')}"]),
