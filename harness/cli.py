@@ -862,7 +862,9 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     try:
         with sigterm_interrupts():  # SIGTERM anywhere in a command: KeyboardInterrupt, the "terminated" line below
-            return args.func(args)
+            code = args.func(args)
+            sys.stdout.flush()  # here, not at exit: a reader gone by now is the BrokenPipeError below, not a traceback
+            return code
     except (SceneError, CliError, SolverUnavailable, FileNotFoundError) as exc:
         if args.debug:
             raise

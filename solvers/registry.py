@@ -12,9 +12,11 @@ from __future__ import annotations
 
 import importlib
 import re
+import sys
 from dataclasses import dataclass
 from functools import cached_property
 from importlib import metadata
+from pathlib import Path
 from typing import Any
 
 from pcverify.scene import Param, SceneError, shown
@@ -197,6 +199,16 @@ def _describe(exc: BaseException) -> str:
     return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
 
 
+def search_first(folder: Path | str) -> None:
+    """Put `folder` first on the module search path of this process (once), as Python does for a script's own
+    folder: a plugin module beside a study file, or in the folder `pcverify` runs from for `--solver
+    module:Class`, is found without PYTHONPATH and before an installed module of the same name."""
+    entry = str(Path(folder).resolve())
+    if entry not in sys.path:
+        sys.path.insert(0, entry)
+        importlib.invalidate_caches()
+
+
 def get_solver(name: str) -> Solver:
     """An instance of the solver called `name`, or of "module:Class".
 
@@ -209,6 +221,7 @@ def get_solver(name: str) -> Solver:
         module_name, _, cls_name = name.partition(":")
         if not MODULE.match(module_name) or not cls_name.isidentifier():
             raise unknown
+        search_first(Path.cwd())
         cls = _load(name, f"solver {name!r}")
         check_solver_class(cls, f"solver {name!r}")
         return _instance(cls, f"solver {name!r}")

@@ -31,6 +31,7 @@ from pcverify.harness.spec.claims import parse_claims
 
 REPO = Path(__file__).resolve().parent.parent
 EXAMPLE = REPO / "examples" / "fd-heat-plugin"
+NONLOCAL = REPO / "examples" / "pd-heat-plugin"
 ENV = {**os.environ, "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MPLBACKEND": "Agg"}
 
 
@@ -98,10 +99,11 @@ def test_the_distribution_installs_one_namespace(tmp_path) -> None:
 # ----------------------------------------------------------------------------- the example plugin
 @pytest.fixture(scope="module")
 def plugin_env(tmp_path_factory) -> Path:
-    """A fresh environment with the example plugin installed by pip from examples/fd-heat-plugin."""
+    """A fresh environment with the two example plugins installed by pip from examples/fd-heat-plugin and
+    examples/pd-heat-plugin."""
     where = tmp_path_factory.mktemp("plugin-env")
     python = _fresh_env(where / "env")
-    _pip(python, str(EXAMPLE))
+    _pip(python, str(EXAMPLE), str(NONLOCAL))
     return python
 
 
@@ -149,6 +151,46 @@ def test_the_example_plugins_mutants_are_all_killed_by_its_claims(plugin_env, tm
         ("fd-heat-sign", "killed"), ("fd-heat-rate-doubled", "killed"), ("fd-heat-boundary-node", "killed")]
     assert all(set(m["expect"]) <= set(m["caught_by"]) for m in doc["mutants"])
     assert (out / "fd-heat-plugin" / "mutants.json").is_file()
+
+
+def test_the_nonlocal_example_study(plugin_env, tmp_path) -> None:
+    """The second example, a bond-based peridynamic heat solver (examples/pd-heat-plugin), with --jobs 2:
+    delta-convergence to the classical solution at second order (delta = "3 * h"), m-convergence to its own
+    limit as a self-convergence claim (delta fixed), the error against m in a parameter figure, and the cost of
+    both plugins, MCA, the macromolecule, scikit-fem and FiPy on one CPU-seconds axis."""
+    out = tmp_path / "out"
+    _pcverify(plugin_env, "study", str(NONLOCAL / "study.toml"), "--jobs", "2", "--out", str(out), cwd=tmp_path)
+    folder = out / "pd-heat-plugin"
+    verdicts = pd.read_csv(folder / "verdicts.csv").set_index("claim")
+    assert verdicts["verdict"].to_dict() == {"pd-delta-order": "pass", "pd-m-self-limit": "pass",
+                                             "pd-m-not-classical": "pass"}
+    assert 1.9 < verdicts.loc["pd-delta-order", "value"] < 2.1  # measured 1.999
+    assert verdicts.loc["pd-m-self-limit", "reference"] == "self"
+    levels = pd.read_csv(folder / "delta-levels.csv")
+    assert levels["params"].unique().tolist() == ["delta=3 * h"] and levels["resolved"].nunique() == 4
+    sweep = json.loads((folder / "m-sweep-m.json").read_text())
+    assert [a["ylabel"] for a in sweep["axes"]] == ["err.nodes.l2", "err.nodes.linf"]
+    assert sweep["axes"][0]["series"][0]["x"] == [1.0, 2.0, 3.0, 4.0, 6.0]
+    cost = json.loads((folder / "cost-transient.json").read_text())
+    drawn = {s["label"] for a in cost["axes"] for s in a["series"]}
+    assert {"pd-heat", "fd-heat", "mca", "skfem", "fipy", "macromolecule"} <= drawn
+    assert {a["xlabel"] for a in cost["axes"]} == {"CPU time of the solve [s]"}
+    html = (out / "index.html").read_text()
+    assert "pcverify-pd-heat 0.1.0" in html and "self-convergence" in html
+
+
+def test_the_nonlocal_examples_mutants_are_all_killed(plugin_env, tmp_path) -> None:
+    """Its four mutants (the held face's image, the calibration, the partial volumes, the horizon) are each
+    caught by the claim they name."""
+    out = tmp_path / "out"
+    done = _pcverify(plugin_env, "mutate", str(NONLOCAL / "study.toml"), "--jobs", "2", "--strict", "--out",
+                     str(out), "--json", cwd=tmp_path, check=False)
+    assert done.returncode == 0, done.stderr[-1500:]
+    (doc,) = json.loads(done.stdout)
+    assert {m["name"]: m["status"] for m in doc["mutants"]} == {
+        "pd-heat-even-image-at-held-faces": "killed", "pd-heat-calibration-halved": "killed",
+        "pd-heat-whole-cells": "killed", "pd-heat-horizon-one-spacing": "killed"}
+    assert all(set(m["expect"]) <= set(m["caught_by"]) for m in doc["mutants"])
 
 
 def test_the_example_study_runs_on_a_dask_cluster(plugin_env, tmp_path) -> None:
@@ -248,6 +290,55 @@ def test_a_solver_given_as_module_and_class(toy) -> None:
                                "--set", "scale=1.0", "--n", "3", "--json", cwd=where, env=env).stdout)
     assert run["solver"] == "toy_plugin:LinearFaces" and run["status"] == "ok"  # as asked, not the class's name
     assert run["samples"]["front_top_edge"]["values"][0] == 1.0 and run["samples"]["front_top_edge"]["values"][-1] == 0
+
+
+def _pcverify_as_installed(*args: str, cwd: Path) -> subprocess.CompletedProcess:
+    """The command as the console script runs it: the working folder is not on the import path (python -P),
+    and no PYTHONPATH."""
+    env = {k: v for k, v in ENV.items() if k != "PYTHONPATH"}
+    return subprocess.run([sys.executable, "-P", "-m", "pcverify.harness.cli", *args], capture_output=True,
+                          text=True, cwd=cwd, env=env, check=False)
+
+
+def test_a_plugin_beside_the_study_file_needs_no_pythonpath(toy) -> None:
+    """`plugins = ["toy_plugin"]` finds toy_plugin.py in the study file's folder, from another working folder and
+    in the --jobs 2 workers."""
+    where, _ = toy
+    elsewhere = where / "elsewhere"
+    elsewhere.mkdir()
+    out = _pcverify_as_installed("study", str(where / "toy.toml"), "--jobs", "2", "--out", "out", "--json",
+                                 cwd=elsewhere)
+    assert out.returncode == 0, out.stderr[-800:]
+    assert json.loads(out.stdout)[0]["failed"] == 0
+    assert pd.read_csv(elsewhere / "out" / "toy" / "verdicts.csv")["verdict"].tolist() == ["pass"]
+
+
+def test_the_provenance_names_the_plugins_commit(toy) -> None:
+    """A plugin module in a git checkout: the report's provenance names its commit and file (a plugin's edit
+    since that commit shows as +modified), beside pcverify's own commit."""
+    where, _ = toy
+    git = ["git", "-C", str(where), "-c", "user.name=t", "-c", "user.email=t@t"]
+    subprocess.run([*git, "init", "-q"], check=True)
+    subprocess.run([*git, "add", "toy_plugin.py"], check=True)
+    subprocess.run([*git, "commit", "-qm", "toy"], check=True)
+    commit = subprocess.run([*git, "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
+                            check=True).stdout.strip()
+    (where / "toy_plugin.py").write_text(TOY + "\n# edited\n")
+    out = _pcverify_as_installed("study", "toy.toml", "--out", "out", "--json", cwd=where)
+    assert out.returncode == 0, out.stderr[-800:]
+    manifest = json.loads((where / "out" / "toy" / "manifest.json").read_text())
+    origin = manifest["plugin_sources"]["toy_plugin"]
+    assert origin == f"commit {commit}+modified · {(where / 'toy_plugin.py').resolve()}"
+    html = (where / "out" / "index.html").read_text()
+    assert f"toy_plugin (commit {commit}+modified" in html
+
+
+def test_module_and_class_found_in_the_working_folder(toy) -> None:
+    where, _ = toy
+    out = _pcverify_as_installed("run", "bar-heat-faces", "--solver", "toy_plugin:LinearFaces", "--n", "2", "--json",
+                                 cwd=where)
+    assert out.returncode == 0, out.stderr[-800:]
+    assert json.loads(out.stdout)["status"] == "ok"
 
 
 def test_a_study_files_plugins_reach_the_workers(toy) -> None:

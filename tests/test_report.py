@@ -218,7 +218,9 @@ def test_every_figure_draws_what_its_legend_lists(report):
     assert series["linear-discrete limit"]["y"] == limits.sort_values("n")["linear_safety"].tolist()
     conv = json.loads((report / "mini" / "conv.json").read_text())["axes"][0]
     labels = [s["label"] for s in conv["series"]]
-    assert len(labels) == 2 and all("nodes=front_top_edge=bottom_back_edge.linf" in x for x in labels)
+    # both norms by default (the group sets no `norms`): per solver one L2 and one Linf line
+    assert len(labels) == 4 and sum("nodes=front_top_edge=bottom_back_edge.linf" in x for x in labels) == 2
+    assert sum("nodes=front_top_edge=bottom_back_edge.l2" in x for x in labels) == 2
 
 
 CHROMIUM = "/usr/bin/chromium"

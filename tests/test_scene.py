@@ -186,3 +186,17 @@ def test_bad_scene_table_interface(interface, word):
     table = {"name": "slab", "interface": interface, "held": [{"face": "z0", "temperature": 0}]}
     with pytest.raises(SceneError, match=word):
         spec_from_table(table, "test")
+
+
+def test_param_kind_inferred_from_default_and_choices():
+    """A plugin's Param with text choices, or a true/false default, parses --set values without kind=."""
+    law = Param("law", "regularised", "", "friction law", choices=("regularised", "static"))
+    assert law.kind is str and law.parse("static") == "static"
+    with pytest.raises(SceneError, match=r"law='dry' is out of range; allowed: one of regularised, static"):
+        law.parse("dry")
+    flag = Param("fast", False, "", "a switch")
+    assert flag.kind is bool and flag.parse("yes") is True
+    assert Param("name", None, "", "optional text", choices=("a", "b"), optional=True).parse("b") == "b"
+    assert Param("delta", 3, "", "an integer default stays a number").parse("2.5") == 2.5
+    with pytest.raises(TypeError, match="kind=<class 'list'> is not valid"):
+        Param("bad", 1, kind=list)

@@ -35,7 +35,8 @@ def _reference_values(g: Any, done: Tables) -> dict[str, dict[str, Any]] | None:
 
 def _convergence_tables(g: Any, res: list[dict[str, Any]], done: Tables) -> Tables:
     quantities = list(g.options.get("quantities", ["volume_mean", "bulk_median"]))
-    levels, fits = tables.convergence(res, quantities, _reference_values(g, done))
+    levels, fits = tables.convergence(res, quantities, _reference_values(g, done),
+                                      self_reference=g.options.get("reference") == "self")
     return {f"{g.id}-levels": levels, f"{g.id}-fits": fits}
 
 

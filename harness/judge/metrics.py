@@ -12,6 +12,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.interpolate import RegularGridInterpolator
+from scipy.spatial import cKDTree
 
 
 def field_errors(values: np.ndarray, reference: np.ndarray) -> dict[str, float]:
@@ -124,3 +126,103 @@ def richardson(h: np.ndarray, phi: np.ndarray, safety: float = 1.25, max_iter: i
     eext = abs((ext - f1) / ext) if ext != 0 else abs(ext - f1)
     gci = safety * ea / (r21**p - 1.0)
     return Richardson(float(p), float(ext), float(gci), float(ea), float(eext), kind)
+
+
+def on_points(points: np.ndarray, values: np.ndarray, at: np.ndarray) -> np.ndarray:
+    """A sampled field (values at `points`, (k, 3)) taken at the points `at`: the value itself where a point is
+    shared (to 1e-9 of the extent), else linear interpolation on the tensor grid the points form (a lattice's
+    nodes, an edge of nodes; a singleton axis must match exactly).  ValueError when `at` needs a value the
+    samples cannot give (points that are neither shared nor on a grid, or outside it)."""
+    points = np.asarray(points, dtype=float).reshape(-1, 3)
+    values = np.asarray(values, dtype=float).ravel()
+    at = np.asarray(at, dtype=float).reshape(-1, 3)
+    scale = max(float(np.ptp(points, axis=0).max()), 1e-300)
+    tol = 1e-9 * scale
+    axes = [_distinct(points[:, k], tol) for k in range(3)]
+    if math.prod(len(a) for a in axes) != len(points):
+        distance, index = cKDTree(points).query(at)
+        if np.all(distance <= tol):
+            return values[index]
+        raise ValueError("the finer level's sample points neither contain these points nor form a grid")
+    index = tuple(np.clip(np.searchsorted(a, points[:, k] - tol), 0, len(a) - 1) for k, a in enumerate(axes))
+    grid = np.full(tuple(len(a) for a in axes), np.nan)
+    grid[index] = values
+    keep = [k for k, a in enumerate(axes) if len(a) > 1]
+    for k, a in enumerate(axes):
+        if len(a) == 1 and np.any(np.abs(at[:, k] - a[0]) > tol):
+            raise ValueError("points off the finer level's sample line or plane")
+    inside = all(np.all((at[:, k] >= axes[k][0] - tol) & (at[:, k] <= axes[k][-1] + tol)) for k in keep)
+    if not inside:
+        raise ValueError("points outside the finer level's samples")
+    squeezed = grid.reshape([len(axes[k]) for k in keep])
+    clipped = np.column_stack([np.clip(at[:, k], axes[k][0], axes[k][-1]) for k in keep])
+    return RegularGridInterpolator([axes[k] for k in keep], squeezed)(clipped)
+
+
+def _difference_order(h: np.ndarray, d: np.ndarray, iterations: int = 50) -> tuple[float, float]:
+    """(order, its standard error) from successive differences d_k = |u_k - u_k+1| = C h_k^p (1 - r_k^-p),
+    r_k = h_k / h_k+1 (h: the levels, one more than d): the slope of log d against log h, refitted with the
+    factor log(1 - r^-p) taken out until p settles (the plain slope is biased when the ratios differ)."""
+    hk, ratio = h[:-1], h[:-1] / h[1:]
+    fit = fit_order(hk, d)
+    for _ in range(iterations):
+        if not (math.isfinite(fit.order) and fit.order > 0):
+            break
+        factor = 1.0 - ratio ** (-fit.order)
+        if np.any(factor <= 0):
+            break
+        new = fit_order(hk, d / factor)
+        done = abs(new.order - fit.order) < 1e-12
+        fit = new
+        if done:
+            break
+    return fit.order, fit.order_se
+
+
+def _distinct(values: np.ndarray, tol: float) -> np.ndarray:
+    """The distinct coordinates among `values` (sorted; values closer than tol are one, the first kept)."""
+    v = np.sort(values)
+    return v[np.concatenate([[True], np.diff(v) > tol])]
+
+
+@dataclass(frozen=True)
+class SelfConvergence:
+    """A solver's field sequence against itself: per level (coarse to fine) its difference from the finest
+    level (`to_finest`, nan at the finest) and from the next finer one (`to_next`, nan at the finest), the
+    order fitted on the successive differences (`order`, `order_se`: a difference d_k = C h_k^p (1 - r^-p) has
+    the order of the error itself, and needs no limit), and the grid convergence index of the finest level
+    (`gci_fine` = 1.25 d / (r^p - 1) with the last difference d and refinement ratio r: an error band of the
+    finest level, in the field's own units)."""
+
+    to_finest: np.ndarray
+    to_next: np.ndarray
+    order: float
+    order_se: float
+    gci_fine: float
+    monotone: bool
+
+
+def self_convergence(h: np.ndarray, fields: list[tuple[np.ndarray, np.ndarray]], norm: str = "l2",
+                     finest: int = 4) -> SelfConvergence:
+    """Self-convergence of fields sampled at levels of spacing `h` (coarse to fine; `fields`: (points, values)
+    per level); `norm` l2 (root mean square) or linf; the order over the `finest` smallest differences."""
+    h = np.asarray(h, dtype=float)
+    if len(fields) < 2 or len(h) != len(fields):
+        raise ValueError("self-convergence needs two or more levels")
+
+    def distance(k: int, other: int) -> float:
+        points, values = fields[k]
+        ref = on_points(*fields[other], points)
+        return field_errors(values, ref)[norm]
+
+    to_finest = np.array([distance(k, len(fields) - 1) for k in range(len(fields) - 1)] + [math.nan])
+    to_next = np.array([distance(k, k + 1) for k in range(len(fields) - 1)] + [math.nan])
+    d = to_next[:-1]
+    order = order_se = gci = math.nan
+    if len(d) >= 2 and np.all(d > 0):
+        order, order_se = _difference_order(h[-(finest + 1):], d[-finest:])
+        ratio = h[-2] / h[-1]
+        if order > 0 and ratio > 1:
+            gci = 1.25 * d[-1] / (ratio**order - 1)
+    monotone = bool(np.all(np.diff(d[-finest:]) < 0)) if len(d) >= 2 else False
+    return SelfConvergence(to_finest, to_next, order, order_se, gci, monotone)

@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from pcverify.harness.judge.metrics import fit_order, richardson
+from pcverify.harness.judge.metrics import fit_order, richardson, self_convergence
 from pcverify.harness.spec.catalogue import make_scene
 
 
@@ -24,6 +24,20 @@ def spacing(result: dict[str, Any]) -> float:
         box = make_scene(result["scene"], **result.get("scene_params", {})).box
         h = box.width / (result["n"] - 1) / result["refine"]
     return float(h)
+
+
+def params_label(result: dict[str, Any], values: bool = True) -> str:
+    """A cell's solver parameters as the tables write them (column `params`): "k=v, ...", a parameter given as
+    an expression of the resolution as "k=v (= EXPR)", or with values=False as "k=EXPR" alone (what a
+    convergence sequence has in common: its value changes from level to level)."""
+    expressions = result.get("expressions") or {}
+    parts = []
+    for k, v in sorted((result.get("solver_params") or {}).items()):
+        if k not in expressions:
+            parts.append(f"{k}={v}")
+        else:
+            parts.append(f"{k}={v:.6g} (= {expressions[k]})" if values else f"{k}={expressions[k]}")
+    return ", ".join(parts)
 
 
 def scalars(result: dict[str, Any]) -> dict[str, Any]:
@@ -41,8 +55,10 @@ def cells_table(results: list[dict[str, Any]]) -> pd.DataFrame:
         row = {k: r.get(k) for k in ("group", "scene", "solver", "n", "refine", "status", "reason", "unknowns",
                                      "wall_s")}
         row["h"] = spacing(r) if r.get("n") else None
-        row["params"] = ", ".join(f"{k}={v}" for k, v in sorted((r.get("solver_params") or {}).items()))
-        row["scene_params"] = ", ".join(f"{k}={v}" for k, v in sorted((r.get("scene_params") or {}).items()))
+        row["params"] = params_label(r)
+        shown = {k.removeprefix("scene."): v for k, v in (r.get("expressions") or {}).items() if k.startswith("scene.")}
+        row["scene_params"] = ", ".join(f"{k}={v:.6g} (= {shown[k]})" if k in shown else f"{k}={v}"
+                                        for k, v in sorted((r.get("scene_params") or {}).items()))
         row.update(scalars(r))
         for k, v in (r.get("work") or {}).items():
             if isinstance(v, (int, float)):
@@ -72,7 +88,8 @@ def _not_ok(seq: pd.DataFrame, refined: bool) -> str:
 
 
 def convergence(results: list[dict[str, Any]], quantities: list[str],
-                reference: dict[str, dict[str, Any]] | None = None) -> tuple[pd.DataFrame, pd.DataFrame]:
+                reference: dict[str, dict[str, Any]] | None = None, self_reference: bool = False
+                ) -> tuple[pd.DataFrame, pd.DataFrame]:
     """(levels, fits): per sequence (solver + params) the values by h, and the fitted orders / GCI.
 
     Every cell is a level row with its status; only ok levels enter a fit, and a fit names the levels it
@@ -83,14 +100,20 @@ def convergence(results: list[dict[str, Any]], quantities: list[str],
     per quantity (value, uncertainty, Richardson class of an extrapolated continuum result) of the relative
     error err.<quantity>, whose uncertainty (`err.<quantity>_unc`) and class (`reference_class`) come with it;
     without either, three-grid Richardson extrapolation with the GCI on each summary quantity
-    (`extrapolated_unc`: the GCI band of the extrapolated value).
+    (`extrapolated_unc`: the GCI band of the extrapolated value).  With `self_reference` each sample set's field
+    is also compared with the sequence's own finest level (`self_fits`): columns self.<set>.l2 / .linf in the
+    levels, fits of reference "self".
     """
     rows = []
     for r in results:
         ok = r.get("status") == "ok"
-        row = {"solver": r["solver"], "params": ", ".join(f"{k}={v}" for k, v in sorted(r["solver_params"].items())),
-               "n": r["n"], "refine": r["refine"], "h": spacing(r), "unknowns": r.get("unknowns"),
+        row = {"solver": r["solver"], "params": params_label(r, values=False), "n": r["n"], "refine": r["refine"],
+               "h": spacing(r), "unknowns": r.get("unknowns"),
                "wall_s": r.get("wall_s"), "status": r.get("status"), "reason": r.get("reason") or ""}
+        if r.get("expressions"):
+            row["resolved"] = params_label(r)
+        row["cpu_s"] = (r.get("cost") or {}).get("cpu_s", np.nan)
+        row["cold"] = (r.get("cost") or {}).get("cold", np.nan)  # a first solve: imports and compilation included
         values = scalars(r)
         row.update({q: values.get(q) for q in quantities})
         if ok:
@@ -105,6 +128,8 @@ def convergence(results: list[dict[str, Any]], quantities: list[str],
     fits = []
     if levels.empty:
         return levels, pd.DataFrame()
+    if self_reference:
+        fits += self_fits(levels, results)
     for (solver, params), whole in levels.groupby(["solver", "params"], sort=False):
         refined = whole["refine"].nunique() > 1 or bool((whole["refine"] != 1).any())
         missing = _not_ok(whole, refined)
@@ -113,7 +138,7 @@ def convergence(results: list[dict[str, Any]], quantities: list[str],
         labels = [_level_label(n, k, refined) for n, k in zip(seq["n"], seq["refine"], strict=True)]
         head = {"solver": solver, "params": params, "cells": len(whole), "missing": missing}
         err_cols = [c for c in seq.columns if (c.endswith((".l2", ".linf")) or c.startswith("err."))
-                    and not c.endswith("_unc")]
+                    and not c.endswith("_unc") and not c.startswith("self.")]
         for col in err_cols:
             e = seq[col].to_numpy(float)
             if len(h) >= 2 and np.all(e > 0):
@@ -147,16 +172,65 @@ def convergence(results: list[dict[str, Any]], quantities: list[str],
     return levels, pd.DataFrame(fits)
 
 
+def self_fits(levels: pd.DataFrame, results: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Self-convergence of every sequence (solver + params, its ok levels coarse to fine): for each sample set all
+    its levels have and each norm, the levels' difference from the finest level (written into `levels` as
+    self.<set>.<norm>, nan at the finest) and a fit of reference "self" (`metrics.self_convergence`: the order
+    of the successive differences, the finest level's GCI); a set the levels cannot be compared on is a fit
+    row whose kind says why."""
+    fits = []
+    for (solver, params), whole in levels.groupby(["solver", "params"], sort=False):
+        refined = whole["refine"].nunique() > 1 or bool((whole["refine"] != 1).any())
+        seq = whole[whole["status"] == "ok"].sort_values("h", ascending=False)
+        labels = [_level_label(n, k, refined) for n, k in zip(seq["n"], seq["refine"], strict=True)]
+        head = {"solver": solver, "params": params, "cells": len(whole), "missing": _not_ok(whole, refined),
+                "reference": "self", "levels": len(seq), "used": ", ".join(labels)}
+        samples = [results[i].get("samples") or {} for i in seq.index]
+        if len(seq) < 2:
+            continue
+        for name in sorted(set.intersection(*(set(s) for s in samples))):
+            fields = [(np.asarray(s[name]["points"], float), np.asarray(s[name]["values"], float)) for s in samples]
+            for norm in ("l2", "linf"):
+                column = f"self.{name}.{norm}"
+                try:
+                    sc = self_convergence(seq["h"].to_numpy(float), fields, norm)
+                except ValueError as exc:
+                    fits.append(head | {"quantity": column, "kind": f"undefined ({exc})"})
+                    continue
+                levels.loc[seq.index, column] = sc.to_finest
+                fits.append(head | {"quantity": column, "order": sc.order, "order_unc": sc.order_se,
+                                    "finest": sc.to_next[-2], "extrapolated": np.nan, "gci_fine": sc.gci_fine,
+                                    "kind": "self", "monotone": sc.monotone})
+    return fits
+
+
 def _not_ok_row(r: dict[str, Any]) -> dict[str, Any]:
     """The row of a cell that is not ok in a table of measurements: who it is, its status and why."""
     return {"solver": r["solver"], "n": r["n"], "refine": r["refine"], "status": r.get("status"),
             "reason": r.get("reason") or "", "unknowns": np.nan, "wall_s": np.nan}
 
 
+def cost_columns(result: dict[str, Any]) -> dict[str, Any]:
+    """The cost of a cell as the timing tables write it: `cpu_s` (the solve's CPU seconds), `kernel_s` and
+    `setup_s` (its time loop or linear solve, and the rest), and for a timed cell its pass (`run`, `machine`,
+    `started`), the solves it took (`repeats`: the least CPU time is the cost) and `timing` (how it was timed:
+    "serial after warm-up", or "parallel pass" for a cell of an untimed group)."""
+    cost = result.get("cost") or {}
+    timing = result.get("timing")
+    timing = timing if isinstance(timing, dict) else {"kind": timing or "parallel pass"}
+    return {"cpu_s": cost.get("cpu_s", np.nan), "kernel_s": cost.get("kernel_s", np.nan),
+            "setup_s": cost.get("setup_s", np.nan), "cold": cost.get("cold", np.nan),
+            "timing": timing.get("kind", "parallel pass"),
+            "repeats": timing.get("repeats", 1), "run": timing.get("run", "unknown"),
+            "machine": timing.get("machine", "unknown"), "started": timing.get("started", "")}
+
+
 def timing(results: list[dict[str, Any]]) -> pd.DataFrame:
-    """Unknowns against wall time (and its parts) per solver; a cell that is not ok is a row with its status."""
+    """Unknowns against CPU and wall time (and the solver's own parts) per solver; a cell that is not ok is a row
+    with its status."""
     rows = [{"solver": r["solver"], "n": r["n"], "refine": r["refine"], "status": "ok", "unknowns": r["unknowns"],
-             "wall_s": r["wall_s"], **{k: v for k, v in (r.get("work") or {}).items() if k != "unknowns"}}
+             "wall_s": r["wall_s"], **cost_columns(r),
+             **{k: v for k, v in (r.get("work") or {}).items() if k not in ("unknowns", "kernel_s")}}
             if r.get("status") == "ok" else _not_ok_row(r) for r in results]
     df = pd.DataFrame(rows)
     return df.sort_values(["solver", "n", "refine"], kind="stable") if not df.empty else df  # not by a clock
@@ -182,9 +256,7 @@ def work_precision(results: list[dict[str, Any]], error: str = "nodes.l2") -> pd
         errors = stored_errors(r)
         name, work = work_counter(r)
         rows.append({"solver": r["solver"], "n": r["n"], "refine": r["refine"], "status": "ok",
-                     "unknowns": r["unknowns"], "wall_s": r["wall_s"],
-                     "kernel_s": (r.get("summary") or {}).get("kernel_s"),
-                     "work": work, "work_kind": name, f"err.{error}": errors.get(error, np.nan),
-                     "timing": r.get("timing", "parallel pass")})
+                     "unknowns": r["unknowns"], "wall_s": r["wall_s"], **cost_columns(r),
+                     "work": work, "work_kind": name, f"err.{error}": errors.get(error, np.nan)})
     df = pd.DataFrame(rows)
     return df.sort_values(["solver", "n", "refine"], kind="stable") if not df.empty else df  # not by a clock

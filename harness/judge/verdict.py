@@ -106,6 +106,22 @@ def _problems(rows: pd.DataFrame, claim: Claim) -> tuple[list[str], list[str]]:
     return bad, skipped
 
 
+def mixed_reference(claim: Claim, rows: pd.DataFrame) -> str:
+    """Why the claim's reference kind does not match what its rows stand on ("" when it does): a self-convergence
+    number (a solver against its own finest level: metric self.*, or a fit of reference "self") is judged only by
+    a claim that says reference = "self", and such a claim only on self-convergence numbers or on a Richardson fit
+    of the solver's own sequence."""
+    kinds = set(rows["reference"].dropna().astype(str)) if "reference" in rows.columns else set()
+    own = claim.metric.startswith("self.") or "self" in kinds
+    if claim.reference != "self":
+        return (f"its rows are self-convergence (the solver against its own finest level), not a {claim.reference} "
+                'reference: the claim must say reference = "self"') if own else ""
+    if own or (kinds and kinds <= {"richardson"}):
+        return ""
+    what = ", ".join(sorted(kinds)) if kinds else "no self-convergence column (self.<set>.<norm>)"
+    return f"the claim is on self-convergence, but its rows stand on {what}"
+
+
 def _suspect(rows: pd.DataFrame) -> list[str]:
     """Richardson sequences the rows stand on that are oscillatory or divergent."""
     out = []
@@ -243,6 +259,9 @@ def _judge_case(claim: Claim, base: dict[str, Any], rows: pd.DataFrame, others: 
         skipped += ref_skipped
     if bad:
         return row | {"verdict": "fail", "note": "not judged on all its cells: " + "; ".join(bad)}
+    mixed = mixed_reference(claim, part)
+    if mixed:
+        return row | {"verdict": "fail", "note": mixed}
     if skipped and (len(skipped) >= len(part) + (0 if ref is None else len(ref))):
         return row | {"verdict": "not-applicable", "note": "skipped: " + "; ".join(skipped)}
     if skipped:

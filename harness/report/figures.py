@@ -29,6 +29,7 @@ from matplotlib.lines import Line2D  # noqa: E402
 from mpl_toolkits.mplot3d import Axes3D  # noqa: E402
 from PIL import Image  # noqa: E402
 
+from pcverify.harness.judge.tables import spacing, stored_errors  # noqa: E402
 from pcverify.harness.run.files import atomic_write  # noqa: E402
 
 EDGES = ("front_top_edge", "bottom_back_edge")
@@ -228,7 +229,9 @@ def convergence(levels: pd.DataFrame, columns: list[str], path: Path, title: str
     """log-log error (or value) against h, one line per solver sequence and column, with the fitted order.
 
     Columns of one sequence with the same values (e.g. the edges' error equal to the nodes' on a 1-D
-    solution) are one line, labelled with all their names."""
+    solution) are one line, labelled with all their names.  A line draws the levels where its column is finite
+    and positive (two or more): a self-convergence column (self.*, against the sequence's own finest level)
+    has no value at the finest level, and is labelled "self-convergence"."""
     orders = {}
     if fits is not None and not fits.empty and "order" in fits:
         orders = {(r.solver, r.params, r.quantity): r.order for r in fits.itertuples() if pd.notna(r.order)}
@@ -237,9 +240,13 @@ def convergence(levels: pd.DataFrame, columns: list[str], path: Path, title: str
         seq = seq.sort_values("h")
         drawn: list[tuple[list[str], np.ndarray]] = []
         for col in columns:
-            y = pd.to_numeric(seq[col], errors="coerce").abs().to_numpy(float)
-            if not (len(y) and (y > 0).all()):
+            if col not in seq:
                 continue
+            y = pd.to_numeric(seq[col], errors="coerce").abs().to_numpy(float)
+            shown = np.isfinite(y) & (y > 0)
+            if shown.sum() < 2 or (not col.startswith("self.") and not shown.all()):
+                continue
+            y = np.where(shown, y, np.nan)
             same = next((d for d in drawn if same_series(d[1], d[1], y, y)), None)
             if same is None:
                 drawn.append(([col], y))
@@ -248,7 +255,11 @@ def convergence(levels: pd.DataFrame, columns: list[str], path: Path, title: str
         for cols, y in drawn:
             order = orders.get((solver, params, cols[0]))
             slope = f" (fitted order {order:.2f})" if order is not None else ""
-            plot_once(ax, seq["h"], y, "o-", f"{solver} {params} {_columns(cols)}{slope}".replace("  ", " "))
+            kind = "self-convergence " if cols[0].startswith("self.") else ""
+            shown = np.isfinite(y)
+            plot_once(ax, seq["h"].to_numpy(float)[shown], y[shown], "o--" if kind else "o-",
+                      f"{solver} {params} {kind}{_columns([c.removeprefix('self.') for c in cols])}{slope}"
+                      .replace("  ", " "))
     errors = any(c.endswith(("l2", "linf")) or c.startswith("err.") for c in columns)
     log_axes(ax, "h [m]", "error (relative for err.*)" if errors else "|value|")
     return _save(fig, path, title)
@@ -263,23 +274,64 @@ def _columns(cols: list[str]) -> str:
     return " = ".join(cols)
 
 
-def cost(df: pd.DataFrame, path: Path, title: str) -> bool:
-    """Wall time against unknowns per solver."""
-    fig, ax = plt.subplots(figsize=(8, 4))
-    _lines(ax, df.groupby("solver"), "unknowns", "wall_s")
-    log_axes(ax, "unknowns", "wall time [s]")
+def mixed_runs(df: pd.DataFrame) -> str:
+    """Why the timings of `df` should not be drawn side by side ("" when they may): rows of more than one timed
+    pass (another day, machine or load), or rows without a pass's stamp."""
+    runs = sorted(set(df["run"].astype(str))) if "run" in df else ["unknown"]
+    if len(runs) == 1 and runs[0] != "unknown":
+        return ""
+    if "unknown" in runs:
+        return "some timings carry no timed pass's stamp (computed by an older pcverify)"
+    when = sorted({f"{r.machine} at {r.started}" for r in df.itertuples()})
+    return f"the timings come from {len(runs)} timed passes ({'; '.join(when)})"
+
+
+def refusal(path: Path, title: str, why: str) -> bool:
+    """A figure that says why it draws nothing (timings of different passes are not compared unless asked)."""
+    fig, ax = plt.subplots(figsize=(9, 1.8))
+    ax.axis("off")
+    text = (f"Not drawn: {why}. Rerun the group's cells in one pass (pcverify study STUDY --group GROUP "
+            "--rerun), or set mix_runs = true in the group to draw them anyway.")
+    ax.text(0.5, 0.5, textwrap.fill(text, 110), ha="center", va="center", fontsize=9)
     return _save(fig, path, title)
 
 
-def work_precision(df: pd.DataFrame, error: str, path: Path, title: str) -> bool:
-    """Error against wall time (left) and against the work counter (right), one line per solver."""
+def cost(df: pd.DataFrame, path: Path, title: str, mix_runs: bool = False) -> bool:
+    """CPU seconds of the solve against unknowns per solver (one timed pass unless `mix_runs`)."""
+    why = "" if mix_runs else mixed_runs(df)
+    if why:
+        return refusal(path, title, why)
+    fig, ax = plt.subplots(figsize=(8, 4))
+    _lines(ax, df.groupby("solver"), "unknowns", "cpu_s")
+    log_axes(ax, "unknowns (free degrees of freedom)", "CPU time of the solve [s]")
+    return _save(fig, path, title)
+
+
+def work_precision(df: pd.DataFrame, error: str, path: Path, title: str, mix_runs: bool = False,
+                   beside: list[tuple[str, pd.DataFrame]] = ()) -> bool:
+    """Error against the CPU seconds of the solve (left: set-up and kernel; right: the kernel alone, for the
+    solvers that report it), one line per solver: one axis for particle and continuum solvers alike, from one
+    timed pass unless `mix_runs`.  With `beside` (other groups' work-precision tables, by group id), one panel
+    per group (this one first, titled by the figure's file name) instead, all on one shared CPU-seconds axis:
+    solvers that share no scene compared on cost."""
     if df.empty:
         return False
+    why = "" if mix_runs else mixed_runs(pd.concat([df, *(b for _, b in beside)], ignore_index=True))
+    if why:
+        return refusal(path, title, why)
+    if beside:
+        panels = [(path.name, df), *beside]
+        fig, axes = plt.subplots(1, len(panels), figsize=(5.5 * len(panels) + 2.5, 4), sharex=True, squeeze=False)
+        for ax, (name, part) in zip(axes[0], panels, strict=True):
+            _lines(ax, part.dropna(subset=["cpu_s", error]).groupby("solver"), "cpu_s", error)
+            log_axes(ax, "CPU time of the solve [s]", error)
+            ax.set_title(name, fontsize=9)
+        return _save(fig, path, title)
     fig, (left, right) = plt.subplots(1, 2, figsize=(12, 4))
-    _lines(left, df.groupby("solver"), "wall_s", error)
-    _lines(right, df.groupby("solver"), "work", error, lambda solver, seq: f"{solver} ({seq['work_kind'].iloc[0]})")
-    log_axes(left, "wall time [s]", error, legend=None)
-    log_axes(right, "work (pair-steps or unknowns x time steps)", error)
+    _lines(left, df.dropna(subset=["cpu_s"]).groupby("solver"), "cpu_s", error)
+    _lines(right, df.dropna(subset=["kernel_s"]).groupby("solver"), "kernel_s", error)
+    log_axes(left, "CPU time of the solve [s]", error, legend=None)
+    log_axes(right, "CPU time of its kernel (time loop or linear solve) [s]", error)
     return _save(fig, path, title)
 
 
@@ -512,6 +564,55 @@ def stability_map(part: pd.DataFrame, path: Path, title: str) -> bool:
     if handles:
         axes[0][-1].legend(list(handles.values()), list(handles), fontsize=6, loc="upper left",
                            bbox_to_anchor=(1.04, 1.0), borderaxespad=0.0)
+    return _save(fig, path, title)
+
+
+def axis_value(result: dict[str, Any], name: str) -> float:
+    """The value of a cell along a figure axis: n, refine, h, a solver or scene parameter, a summary scalar,
+    or an error err.SET.NORM (nan when the cell has none)."""
+    if name in ("n", "refine"):
+        return float(result[name])
+    if name == "h":
+        return spacing(result)
+    if name.startswith("err."):
+        return stored_errors(result).get(name.removeprefix("err."), math.nan)
+    for part in ("solver_params", "scene_params", "summary"):
+        value = (result.get(part) or {}).get(name)
+        if isinstance(value, (int, float)) and not isinstance(value, bool):
+            return float(value)
+    return math.nan
+
+
+def parameter_figure(results: list[dict[str, Any]], path: Path, title: str, x: str, ys: list[str]) -> bool:
+    """Each metric in `ys` against `x` (a swept parameter, n, refine or h), one panel per metric, one line per
+    solver and setting of the other parameters that vary (n among them): an error against the horizon m at
+    fixed h, a frequency against krot.  Log axes where every drawn value is positive."""
+    ok = [r for r in results if r.get("status") == "ok" and math.isfinite(axis_value(r, x))]
+    panels = [y for y in ys if any(math.isfinite(axis_value(r, y)) for r in ok)]
+    if not panels:
+        return False
+    others = [k for k in _varying(ok) if k != x] + (["n"] if x != "n" and len({r["n"] for r in ok}) > 1 else [])
+    fig, axes = plt.subplots(1, len(panels), figsize=(5.5 * len(panels) + 2.5, 4), squeeze=False)
+    for ax, y in zip(axes[0], panels, strict=True):
+        series: dict[str, list[tuple[float, float]]] = {}
+        for r in ok:
+            label = " ".join([r["solver"], *(f"{k}={r[k] if k == 'n' else (r.get('solver_params') or {}).get(k)}"
+                                             for k in others)])
+            series.setdefault(label, []).append((axis_value(r, x), axis_value(r, y)))
+        values = [v for pts in series.values() for _, v in pts if math.isfinite(v)]
+        for label, pts in series.items():
+            pts = sorted(p for p in pts if math.isfinite(p[1]))
+            if pts:
+                plot_once(ax, [p[0] for p in pts], [abs(p[1]) for p in pts] if all(v > 0 for v in values) else
+                          [p[1] for p in pts], "o-", label)
+        positive_x = all(axis_value(r, x) > 0 for r in ok)
+        if all(v > 0 for v in values):
+            log_axes(ax, x, y, logx=positive_x)
+        else:
+            ax.set_xlabel(x)
+            ax.set_ylabel(y)
+            ax.grid(True, alpha=0.3)
+            legend_outside(ax, 6.5)
     return _save(fig, path, title)
 
 

@@ -15,7 +15,8 @@ from pcverify.harness.report.formatting import measured, number, to_float, unit_
 
 REFERENCE_WORDS = {"analytic": "analytic solution", "extrapolated": "extrapolated continuum",
                    "mesh-dependent": "mesh-dependent continuum", "same-grid": "continuum on the same grid",
-                   "theory": "theory", "paper": "the paper"}
+                   "theory": "theory", "paper": "the paper",
+                   "self": "self-convergence: the solver against its own finest level"}
 
 
 def severity(record: dict[str, Any]) -> float:

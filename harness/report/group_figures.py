@@ -13,12 +13,16 @@ import pandas as pd
 from pcverify.harness.judge.group_tables import Tables, group_tables
 from pcverify.harness.report import figures
 
+PARAMETER_Y = ("err.nodes.l2", "err.nodes.linf")  # what a parameter figure draws unless `figure_y` says
+NORMS = ("l2", "linf")  # the error norms a convergence figure draws unless its group's `norms` says otherwise
+
 
 def _convergence_figures(g: Any, res: list[dict[str, Any]], t: Tables, folder: Path) -> list[str]:
     levels, fits = t[f"{g.id}-levels"], t[f"{g.id}-fits"]
     levels = _ok(levels)
     quantities = list(g.options.get("quantities", ["volume_mean", "bulk_median"]))
-    err_cols = [c for c in levels.columns if (c.endswith(".linf") or c.startswith("err.")) and not c.endswith("_unc")]
+    norms = tuple(f".{n}" for n in g.options.get("norms", NORMS))
+    err_cols = [c for c in levels.columns if (c.endswith(norms) or c.startswith("err.")) and not c.endswith("_unc")]
     drawn = not levels.empty and figures.convergence(levels, err_cols or quantities, folder / g.id, g.title, fits)
     return [f"{g.id}.png"] if drawn else []
 
@@ -30,13 +34,21 @@ def _ok(df: pd.DataFrame) -> pd.DataFrame:
 
 def _timing_figures(g: Any, res: list[dict[str, Any]], t: Tables, folder: Path) -> list[str]:
     df = _ok(t[f"{g.id}-timing"])
-    return [f"{g.id}.png"] if not df.empty and figures.cost(df, folder / g.id, g.title) else []
+    drawn = not df.empty and figures.cost(df, folder / g.id, g.title, bool(g.options.get("mix_runs")))
+    return [f"{g.id}.png"] if drawn else []
 
 
 def _work_precision_figures(g: Any, res: list[dict[str, Any]], t: Tables, folder: Path) -> list[str]:
     error = f"err.{g.options.get('error', 'nodes.l2')}"
     df = _ok(t[f"{g.id}-work-precision"]).dropna(subset=[error]) if error in t[f"{g.id}-work-precision"] else None
-    return [f"{g.id}.png"] if df is not None and figures.work_precision(df, error, folder / g.id, g.title) else []
+    beside = []
+    for other in g.options.get("beside", []):
+        table = t.get(f"{other}-work-precision")
+        if table is not None and error in table:
+            beside.append((str(other), _ok(table).dropna(subset=[error])))
+    drawn = df is not None and figures.work_precision(df, error, folder / g.id, g.title,
+                                                      bool(g.options.get("mix_runs")), beside)
+    return [f"{g.id}.png"] if drawn else []
 
 
 def _stability_figures(g: Any, res: list[dict[str, Any]], t: Tables, folder: Path) -> list[str]:
@@ -72,9 +84,15 @@ def group_report(g: Any, res: list[dict[str, Any]], cells: pd.DataFrame, folder:
                  done: Tables) -> tuple[Tables, list[str]]:
     """Tables and figures of one group (its cells table given), by its analysis and its `figures` list."""
     out = group_tables(g, res, done)
-    drawn = FIGURES[g.analysis](g, res, out, folder)
+    drawn = FIGURES[g.analysis](g, res, done | out, folder)  # a figure may draw earlier groups' tables beside
     out.setdefault(f"{g.id}-cells", cells)
     for kind in g.options.get("figures", []):
-        if figures.GROUP_FIGURES[kind](res, folder / f"{g.id}-{kind}", g.title):
+        if kind == "parameter":
+            x = g.options["figure_x"]
+            ys = g.options.get("figure_y", list(PARAMETER_Y))
+            ys = [ys] if isinstance(ys, str) else list(ys)
+            if figures.parameter_figure(res, folder / f"{g.id}-{x}", f"{g.title}: against {x}", x, ys):
+                drawn.append(f"{g.id}-{x}.png")
+        elif figures.GROUP_FIGURES[kind](res, folder / f"{g.id}-{kind}", g.title):
             drawn.append(f"{g.id}-{kind}.png")
     return out, drawn

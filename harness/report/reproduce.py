@@ -16,6 +16,7 @@ from typing import Any
 
 import pandas as pd
 
+from pcverify.harness.judge.tables import params_label
 from pcverify.harness.judge.verdict import Command
 from pcverify.harness.spec.catalogue import entries as scene_entries
 from pcverify.harness.spec.catalogue import get_spec
@@ -113,11 +114,6 @@ def run_command(result: dict[str, Any]) -> str | None:
     return " ".join(shlex.quote(p) for p in parts)
 
 
-def _params(result: dict[str, Any]) -> str:
-    """A cell's solver parameters as the tables write them (column `params`)."""
-    return ", ".join(f"{k}={v}" for k, v in sorted((result.get("solver_params") or {}).items()))
-
-
 def _one_cell(rows: pd.DataFrame, results: list[dict[str, Any]]) -> dict[str, Any] | None:
     """The result behind `rows` when they are one row of a table that names one solve cell."""
     if len(rows) != 1 or not {"solver", "n"} <= set(rows.columns):
@@ -125,7 +121,8 @@ def _one_cell(rows: pd.DataFrame, results: list[dict[str, Any]]) -> dict[str, An
     row = rows.iloc[0]
     found = [r for r in results if r["solver"] == row["solver"] and int(r["n"]) == int(row["n"])
              and ("refine" not in row or int(r["refine"]) == int(row["refine"]))
-             and ("params" not in row or _params(r) == (row["params"] if isinstance(row["params"], str) else ""))]
+             and ("params" not in row or params_label(r, values="resolved" not in row)
+                  == (row["params"] if isinstance(row["params"], str) else ""))]
     return found[0] if len(found) == 1 else None
 
 

@@ -26,7 +26,7 @@ from pcverify.harness.report import figures, page
 from pcverify.harness.report.findings import STATES, findings, summary_lines
 from pcverify.harness.report.group_figures import group_report
 from pcverify.harness.report.mutation import mutation_section
-from pcverify.harness.report.provenance import command, provenance
+from pcverify.harness.report.provenance import code_origin, command, provenance
 from pcverify.harness.report.reproduce import study_command, table_group, verdict_commands
 from pcverify.harness.report.vtu import write_vtu
 from pcverify.harness.run.files import atomic_write, exclusive, read_json, remove_stray_files
@@ -118,7 +118,9 @@ def write_study_report(study: Any, results: list[dict[str, Any]], out: Path, run
     folder.mkdir(parents=True, exist_ok=True)
     manifest: dict[str, Any] = {"name": study.name, "title": study.title, "sections": [], "verdicts": None,
                                 "study_file": str(study.path) if study.path else None,
-                                "plugins": list(study.plugins), "command": run_command or command(),
+                                "plugins": list(study.plugins),
+                                "plugin_sources": {m: code_origin(m) for m in study.plugins},
+                                "command": run_command or command(),
                                 "rerun": study_command(study, []),
                                 "solvers": sorted({c.solver for g in study.groups for c in g.cells}
                                                    | {c.solver for c in getattr(study, "calibrations", [])})}

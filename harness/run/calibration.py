@@ -77,7 +77,7 @@ class _Evaluator:
              refine: int | None = None) -> Cell:
         return Cell(self.cal.id, cc.scene, cc.scene_params, solver, cc.n if n is None else n,
                     cc.refine if refine is None else refine, tuple(sorted(params.items())),
-                    plugins=self.study.plugins)
+                    plugins=self.study.plugins, plugin_folder=self.study.plugin_folder if self.study.plugins else None)
 
     def run(self, cells: list[Cell]) -> list[dict[str, Any]]:
         """Results of `cells` in order, through the harness's execution path and cache."""
@@ -88,7 +88,8 @@ class _Evaluator:
                 if self.cache.load(identify(c).key)[0] is None:
                     raise NotCached(f"calibration {self.cal.id}: {c.describe()} is not cached")
         mini = Study(f"{self.study.name}.{self.cal.id}", self.cal.title,
-                     [Group(self.cal.id, self.cal.title, "table", cells)], plugins=self.study.plugins)
+                     [Group(self.cal.id, self.cal.title, "table", cells)], plugins=self.study.plugins,
+                     path=self.study.path)
         results, counts = execute(mini, self.cache, jobs=self.jobs, progress=False, rerun=self.rerun,
                                   allow_large=self.allow_large)
         self.hits += counts["cached"]

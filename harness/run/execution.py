@@ -17,10 +17,15 @@ from __future__ import annotations
 import contextlib
 import contextvars
 import copy
+import datetime
+import math
 import os
+import platform
 import re
 import sys
 import threading
+import time
+import uuid
 from collections import Counter
 from collections.abc import Iterator
 from typing import Any, NamedTuple
@@ -50,6 +55,8 @@ SCHEDULER_ADDRESS = re.compile(r"^(tcp|tls|ws|wss|ucx)://[A-Za-z0-9._\-\[\]:]+:[
 
 
 _TIME_LIMIT: contextvars.ContextVar[float] = contextvars.ContextVar("pcverify_time_limit", default=DEFAULT_TIME_LIMIT)
+_SOLVED_HERE: set[str] = set()  # solvers this process has solved with: a first solve pays imports and compilation
+REPEAT_BELOW_S = 2.0  # a timed cell is solved again only while one solve takes less CPU time than this
 _SCENE_ERROR = "pcverify-scene-error"  # a worker's reply that is a SceneError for the command line to report
 
 
@@ -74,9 +81,11 @@ def cell_identity(cell: Cell) -> tuple[dict[str, Any], str | None]:
     payload: dict[str, Any] = {"scene": cell.scene.content_hash(), "solver": cell.solver, "n": cell.n,
                                "refine": cell.refine, "task": cell.task.name}
     if cell.serial:
-        payload["timing"] = "serial-after-warm-up"
+        payload["timing"] = "serial-after-warm-up" + (f", least of {cell.repeats}" if cell.repeats > 1 else "")
+    if cell.expressions:  # the same value from another expression is another cell of the tables
+        payload["expressions"] = dict(cell.expressions)
     try:
-        load_plugins(cell.plugins)
+        load_plugins(cell.plugins, cell.plugin_folder)
         solver = get_solver(cell.solver)
     except SolverUnavailable as exc:
         return payload | {"unavailable": True, "params": dict(cell.solver_params)}, str(exc)
@@ -138,8 +147,9 @@ def _checks_raised(cell: Cell, exc: BaseException) -> str:
 
 def _base(cell: Cell) -> dict[str, Any]:
     """The identity fields of a cell's result: the cell's, whatever the solver says of itself."""
-    return {"group": cell.group, "scene": cell.scene.name, "solver": cell.solver, "n": cell.n,
+    base = {"group": cell.group, "scene": cell.scene.name, "solver": cell.solver, "n": cell.n,
             "refine": cell.refine, "scene_params": dict(cell.scene_params), "solver_params": dict(cell.solver_params)}
+    return base | ({"expressions": dict(cell.expressions)} if cell.expressions else {})
 
 
 def _failed(cell: Cell, reason: str, **extra: Any) -> dict[str, Any]:
@@ -161,7 +171,7 @@ def compute_cell(cell: Cell, raise_scene_errors: bool = False) -> dict[str, Any]
     scene = copy.deepcopy(cell.scene)
     before = scene.content_hash()
     try:
-        load_plugins(cell.plugins)
+        load_plugins(cell.plugins, cell.plugin_folder)
         solver = named(get_solver(cell.solver), cell.solver)
     except SolverUnavailable as exc:
         return base | {"status": "skipped", "reason": str(exc)}
@@ -183,7 +193,9 @@ def compute_cell(cell: Cell, raise_scene_errors: bool = False) -> dict[str, Any]
         return base | {"status": "failed", "reason": _checks_raised(cell, exc)}
     try:
         with threadpool_limits(limits=1, user_api="blas"):  # results must not depend on --jobs
+            cpu = time.process_time()
             out = cell.task.run(solver, scene, resolution, dict(cell.solver_params))
+            cpu = time.process_time() - cpu
     except KeyboardInterrupt:
         raise
     except BaseException as exc:  # noqa: BLE001 - whatever a solver raises is its cell's failure, never a traceback
@@ -198,7 +210,28 @@ def compute_cell(cell: Cell, raise_scene_errors: bool = False) -> dict[str, Any]
                        "and never changes it"}
     res = dict(out.get("resolution") or {})
     res.setdefault("h", resolution.spacing(scene.box.width))
-    return out | base | {"resolution": res, "errors": compare.errors(scene, out.get("samples"))}
+    cold = cell.solver not in _SOLVED_HERE
+    _SOLVED_HERE.add(cell.solver)
+    return out | base | {"resolution": res, "errors": compare.errors(scene, out.get("samples")),
+                         "cost": solve_cost(cpu, out.get("wall_s"), out.get("work") or {}) | {"cold": cold}}
+
+
+def solve_cost(cpu_s: float, wall_s: Any, work: dict[str, Any]) -> dict[str, float | None]:
+    """The CPU cost of one solve, one axis for every solver: `cpu_s`, the process's CPU seconds in the solver's
+    run (set-up, time loop and output; compare and checks excluded), split into `kernel_s`, the CPU seconds of
+    what the solver reports as its time loop or linear solve (`work.kernel_s`, else `work.solve_s`, timed on
+    the solver's own wall clock, `kernel_wall_s`: its share of the solve's wall time `wall_s` applied to the CPU
+    time, so a loaded machine's waiting counts in neither), and `setup_s`, the rest; None where the solver
+    reports no kernel.  `cold` (added by the caller): the process's first solve with this solver, whose time
+    includes imports and compilation (a timed cell is never cold: its worker warmed up)."""
+    kernel = work.get("kernel_s", work.get("solve_s"))
+    real = isinstance(kernel, (int, float)) and not isinstance(kernel, bool) and math.isfinite(kernel)
+    wall = float(wall_s) if isinstance(wall_s, (int, float)) and not isinstance(wall_s, bool) else math.nan
+    if not (real and math.isfinite(wall) and wall > 0):
+        return {"cpu_s": float(cpu_s), "kernel_s": None, "setup_s": None, "kernel_wall_s": kernel if real else None}
+    share = min(max(float(kernel) / wall, 0.0), 1.0)
+    return {"cpu_s": float(cpu_s), "kernel_s": share * float(cpu_s), "setup_s": (1.0 - share) * float(cpu_s),
+            "kernel_wall_s": float(kernel)}
 
 
 def _content_hash(scene: Scene) -> str:
@@ -468,9 +501,36 @@ def _run(study: Study, cells: list[Cell], identities: list[CellId], todo: list[i
     if timed:
         bar.set_description(f"{study.name}: warm-up before the timed serial pass")
         _warm_up([cells[i] for i in timed])
+    stamp = run_stamp()
     for i in timed:
         bar.set_description(f"{study.name}: timed {cells[i].describe()}"[:70])
-        finish(i, run_cell(cells[i]) | {"timing": "serial after warm-up"})
+        finish(i, timed_result(cells[i], stamp))
+
+
+def run_stamp() -> dict[str, str]:
+    """What identifies one timed pass: its id, the machine (host, processor, cores) and the time it started;
+    timings of different passes are not compared side by side unless a figure is asked to."""
+    return {"run": uuid.uuid4().hex[:12], "machine": f"{platform.node()} {platform.machine()} "
+            f"{platform.processor() or ''} {os.cpu_count()} cores".replace("  ", " "),
+            "started": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")}
+
+
+def timed_result(cell: Cell, stamp: dict[str, str]) -> dict[str, Any]:
+    """A timed cell's result: solved `cell.repeats` times in the timed worker (after its warm-up), again only
+    while a solve takes under REPEAT_BELOW_S of CPU (a longer one's noise is a smaller part of it); its cost
+    the least CPU and wall time of the solves, every sample kept, with the pass's stamp."""
+    runs = [run_cell(cell)]
+    while (len(runs) < cell.repeats and all(r.get("status") == "ok" for r in runs)
+           and (runs[-1].get("cost") or {}).get("cpu_s", math.inf) < REPEAT_BELOW_S):
+        runs.append(run_cell(cell))
+    first = runs[0]
+    if first.get("status") != "ok" or not all("cost" in r for r in runs):
+        return first | {"timing": {"kind": "serial after warm-up", **stamp}}
+    best = min(runs, key=lambda r: r["cost"]["cpu_s"])
+    samples = [r["cost"]["cpu_s"] for r in runs]
+    return first | {"wall_s": min(r["wall_s"] for r in runs), "cost": best["cost"],
+                    "timing": {"kind": "serial after warm-up", "repeats": len(runs), "cpu_s_samples": samples,
+                               **stamp}}
 
 
 def first_of_each_kind(cells: list[Cell], todo: list[int]) -> list[int]:

@@ -11,15 +11,19 @@ from functools import cache
 
 from pcverify.harness.spec.catalogue import register_scene
 from pcverify.scene import SceneError, SceneSpec, shown
-from pcverify.solvers.registry import MODULE, is_solver_class, register_solver
+from pcverify.solvers.registry import MODULE, is_solver_class, register_solver, search_first
 
 
 class PluginError(SceneError):
     """A plugin that cannot be imported or that clashes with another (one line, names it)."""
 
 
-def load_plugins(modules: Iterable[str]) -> None:
-    """Import each plugin module once per process and register what it defines."""
+def load_plugins(modules: Iterable[str], folder: str | None = None) -> None:
+    """Import each plugin module once per process and register what it defines; `folder` (the study file's
+    folder) is searched first, so a module beside the study file needs no PYTHONPATH."""
+    modules = tuple(modules)
+    if folder and modules:
+        search_first(folder)
     for name in modules:
         _load(name)
 

@@ -233,7 +233,7 @@ TEXT_TABLE = Field("", "scalar", shape="value or list", min_items=0)  # a value 
 PARAMS = "{ name = value, ... }"
 SCENE_NAME = "a scene name (see `pcverify scenes`)"
 
-REFERENCE_KINDS = ("analytic", "extrapolated", "mesh-dependent", "same-grid", "theory", "paper")
+REFERENCE_KINDS = ("analytic", "extrapolated", "mesh-dependent", "same-grid", "theory", "paper", "self")
 SENSES = ("within", "at-most", "at-least")
 AGGREGATES = ("max", "min", "median", "mean")
 CELL_STATUSES = ("ok", "unstable", "skipped", "non-stationary", "defect", "failed", "missing")
@@ -286,7 +286,12 @@ GROUP = Table("[[group]]", (
           values=Field("", "scalar", shape="value or list")),
     Field("analysis", "text", registry="analyses", default="table"),
     Field("serial", "bool", "timed serially after a warm-up"), Field("vtu", "bool", "write VTU point clouds"),
+    Field("repeats", "int", "a timed group's solves per cell (the least CPU time is kept; repeated only while a solve "
+          "takes under 2 s)", low=1, high=20),
     Field("figures", "text", registry="figures", shape="value or list", min_items=0),
+    Field("figure_x", "text", "the parameter figure's x axis: a swept solver or scene parameter, n, refine or h"),
+    Field("figure_y", "text", "the parameter figure's metrics (default err.nodes.l2, err.nodes.linf): summary "
+          "scalars or err.SET.NORM", shape="value or list"),
 ), key="id", default_key="group{}", variant="analysis")
 
 CLAIM = Table("[[claim]]", (

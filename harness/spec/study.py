@@ -20,17 +20,27 @@ from typing import Any
 
 from pcverify.harness.spec.analyses import ANALYSES
 from pcverify.harness.spec.calibspec import Calibration, parse_calibrations
-from pcverify.harness.spec.catalogue import make_scene, register_scene, spec_from_table
+from pcverify.harness.spec.catalogue import register_scene, spec_from_table
 from pcverify.harness.spec.claims import Claim, parse_claims
 from pcverify.harness.spec.mutants import BESIDE, Mutant, parse_mutants
 from pcverify.harness.spec.plugins import load_plugins
 from pcverify.harness.spec.schema import NAME, SCENE, as_list, check_value, row_where
-from pcverify.harness.spec.studyfile import check_groups, check_study_document, read_study_document, solver_params_of
+from pcverify.harness.spec.studyfile import (
+    check_groups,
+    check_study_document,
+    read_study_document,
+    resolution_names,
+    resolutions,
+    scene_at,
+    solver_params_at,
+    solver_params_of,
+)
 from pcverify.harness.spec.tasks import SOLVE, CellTask, ask_supports
 from pcverify.scene import Scene, SceneError
 from pcverify.solvers.registry import SolverUnavailable, get_solver, named
 
 MAX_CELLS = 10_000  # a larger study needs --allow-large
+DEFAULT_REPEATS = 3  # a timed cell's solves (the least CPU time is its cost; `execution.timed_result`)
 
 
 @dataclass(frozen=True)
@@ -38,7 +48,8 @@ class Cell:
     """One unit of work: a scene value, a solver, a resolution, solver parameters, and the task to run.
 
     `scene_params` are the parameters the study gave the scene (the scene holds the effective ones);
-    `plugins` are imported before the solver is looked up, in whatever process runs the cell."""
+    `plugins` are imported before the solver is looked up, in whatever process runs the cell, with
+    `plugin_folder` (the study file's folder) searched first."""
 
     group: str
     scene: Scene
@@ -50,9 +61,15 @@ class Cell:
     task: CellTask = SOLVE
     serial: bool = False  # timed in the serial pass after a warm-up (part of the cache key)
     plugins: tuple[str, ...] = ()
+    plugin_folder: str | None = None
+    expressions: tuple[tuple[str, str], ...] = ()  # parameters given as expressions of the resolution ("scene." ...)
+    repeats: int = 1  # a timed cell: solved up to this many times in the timed worker, the least CPU time kept
 
     def describe(self) -> str:
-        extra = ", ".join(f"{k}={v}" for k, v in self.scene_params + self.solver_params)
+        given = dict(self.expressions)
+        shown = [(k, v, given.get(f"scene.{k}")) for k, v in self.scene_params]
+        shown += [(k, v, given.get(k)) for k, v in self.solver_params]
+        extra = ", ".join(f"{k}={v:.6g} (= {e})" if e else f"{k}={v}" for k, v, e in shown)
         return f"{self.scene.name} / {self.solver} n={self.n} refine={self.refine}" + (f" [{extra}]" if extra else "")
 
 
@@ -88,6 +105,11 @@ class Study:
     selected: tuple[str, ...] = ()  # `--group` ids: a report of this study merges with the study's full report
     mutants: list[Mutant] = field(default_factory=list)  # its own [[mutant]] tables (`pcverify mutate`)
 
+    @property
+    def plugin_folder(self) -> str | None:
+        """Where the study's plugin modules are searched first: the study file's folder."""
+        return str(self.path.parent) if self.path is not None else None
+
 
 def study_files() -> dict[str, Path]:
     """The study files shipped with the package, by name (not the mutants files beside them)."""
@@ -119,12 +141,12 @@ def load_study(name_or_path: str, allow_large: bool = False) -> Study:
                          "--allow-large")
     check_study_document(doc, path)  # one-line errors for bad fields, before any cell is built
     plugins = tuple(as_list(doc.get("plugins", [])))
-    load_plugins(plugins)
+    load_plugins(plugins, str(path.resolve().parent))
     for number, table in enumerate(doc.get("scene", []), 1):
         register_scene(spec_from_table(table, row_where(f"study file {path.name}", "scene", number, table, SCENE)),
                        f"study file {path}")
     check_groups(doc, path)
-    groups = [_group(g, gi, plugins) for gi, g in enumerate(doc.get("group", []))]
+    groups = [_group(g, gi, plugins, str(path.resolve().parent)) for gi, g in enumerate(doc.get("group", []))]
     claims = parse_claims(doc.get("claim", []), f"study file {path.name}")
     calibrations = parse_calibrations(doc["calibration"], f"study file {path.name}") if "calibration" in doc else []
     require_solvers(sorted({c.solver for g in groups for c in g.cells} | {c.solver for c in calibrations}),
@@ -180,14 +202,15 @@ def cell_count(doc: dict[str, Any], path: Path) -> int:
     return total
 
 
-def _group(g: dict[str, Any], gi: int, plugins: tuple[str, ...]) -> Group:
+def _group(g: dict[str, Any], gi: int, plugins: tuple[str, ...], folder: str) -> Group:
     gid = g.get("id", f"group{gi + 1}")
     analysis = ANALYSES[g.get("analysis", "table")]
     options = {k: v for k, v in g.items() if k not in ("id", "title", "scene", "scene_params", "solvers", "n",
-                                                        "refine", "solver_params", "sweep", "analysis", "serial")}
+                                                        "refine", "solver_params", "sweep", "analysis", "serial",
+                                                        "repeats")}
     task = analysis.task(options)
     scene_params = g.get("scene_params", {})
-    scene = make_scene(g["scene"], **scene_params)
+    scene = scene_at(g["scene"], scene_params, *resolutions(g)[0])[0]
     sweep = g.get("sweep", {})
     keys = sorted(sweep)
     combos = list(itertools.product(*[as_list(sweep[k]) for k in keys])) or [()]
@@ -200,12 +223,19 @@ def _group(g: dict[str, Any], gi: int, plugins: tuple[str, ...]) -> Group:
             solvers.append(solver)
         else:
             unplanned.append(Unplanned(solver, why, len(ns) * len(refines) * len(combos)))
+    at = {(n, r): (scene_at(g["scene"], scene_params, n, r), resolution_names(g["scene"], scene_params, n, r))
+          for n, r in resolutions(g)}
     for solver, n, refine, combo in itertools.product(solvers, ns, refines, combos):
+        (here, values, scene_expressions), names = at[int(n), int(refine)]
         params = solver_params_of(g.get("solver_params", {}), solver) | dict(zip(keys, combo, strict=True))
-        cells.append(Cell(gid, scene, tuple(sorted(scene_params.items())), solver, int(n), int(refine),
-                          tuple(sorted(params.items())), task=task, plugins=plugins))
+        params, solver_expressions = solver_params_at(solver, params, names)
+        expressions = {f"scene.{k}": v for k, v in scene_expressions.items()} | solver_expressions
+        cells.append(Cell(gid, here if scene_expressions else scene, tuple(sorted(values.items())), solver, int(n),
+                          int(refine), tuple(sorted(params.items())), task=task, plugins=plugins,
+                          plugin_folder=folder if plugins else None, expressions=tuple(sorted(expressions.items()))))
     if bool(g.get("serial", analysis.serial)):
-        cells = [dataclasses.replace(c, serial=True) for c in cells]
+        repeats = int(g.get("repeats", DEFAULT_REPEATS))
+        cells = [dataclasses.replace(c, serial=True, repeats=repeats) for c in cells]
     return Group(gid, g.get("title", gid), analysis.name, cells, options, unplanned)
 
 

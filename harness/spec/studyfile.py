@@ -11,14 +11,16 @@ trust.
 
 from __future__ import annotations
 
+import itertools
 import tomllib
 from pathlib import Path
 from typing import Any
 
 from pcverify.harness.spec.analyses import ANALYSES, REGISTRIES
-from pcverify.harness.spec.catalogue import make_scene
+from pcverify.harness.spec.catalogue import get_spec, make_scene
+from pcverify.harness.spec.expressions import is_expression, resolve, variables
 from pcverify.harness.spec.schema import GROUP, STUDY, as_list, check, row_where
-from pcverify.scene import SceneError
+from pcverify.scene import Scene, SceneError
 from pcverify.solvers.registry import SolverUnavailable, get_solver
 
 
@@ -51,15 +53,52 @@ def check_study_document(doc: dict[str, Any], path: Path) -> None:
 
 
 def check_groups(doc: dict[str, Any], path: Path) -> None:
-    """What a group's keys mean, once the study's scenes are known: its scene built with its scene_params, and
-    every solver parameter and sweep value within the solver's declared ranges."""
+    """What a group's keys mean, once the study's scenes are known: its scene built with its scene_params (at each
+    of its resolutions, where a parameter is an expression of the resolution), and every solver parameter and
+    sweep value within the solver's declared ranges."""
     for number, g in enumerate(doc.get("group", []), 1):
         where = row_where(f"study file {path.name}", "group", number, g, GROUP)
         try:
-            make_scene(g["scene"], **g.get("scene_params", {}))
+            for n, refine in resolutions(g):
+                scene_at(g["scene"], g.get("scene_params", {}), n, refine)
         except SceneError as exc:
             raise SceneError(f"{where}: {exc}") from None
         _check_solver_params(g, as_list(g["solvers"]), where, ANALYSES[g.get("analysis", "table")].task(g))
+        if "parameter" in as_list(g.get("figures", [])) and "figure_x" not in g:
+            raise SceneError(f"{where}: figures = \"parameter\" needs figure_x; allowed: figure_x = a swept solver or "
+                             "scene parameter, n, refine or h")
+
+
+def resolutions(g: dict[str, Any]) -> list[tuple[int, int]]:
+    """The (n, refine) pairs of a group."""
+    return [(int(n), int(r)) for n in as_list(g.get("n", [4])) for r in as_list(g.get("refine", [1]))]
+
+
+def resolution_names(scene: str, scene_params: dict[str, Any], n: int, refine: int) -> dict[str, float]:
+    """What an expression sees at (n, refine) on this scene: n, refine, a (the box's lattice spacing) and h; the
+    box is built from the parameters that are not expressions (an extent cannot depend on the resolution)."""
+    specs = {p.name: p for p in get_spec(scene).parameters}
+    fixed = {k: v for k, v in scene_params.items() if not is_expression(specs.get(k), v)}
+    return variables(n, refine, make_scene(scene, **fixed).box.lattice_spacing(n))
+
+
+def scene_at(scene: str, scene_params: dict[str, Any], n: int, refine: int
+             ) -> tuple[Scene, dict[str, Any], dict[str, str]]:
+    """The scene at (n, refine), the scene parameters' values there and the expressions among them."""
+    names = resolution_names(scene, scene_params, n, refine)
+    values, expressions = resolve(scene_params, get_spec(scene).parameters, names)
+    return make_scene(scene, **values), values, expressions
+
+
+def solver_params_at(solver: str, params: dict[str, Any], names: dict[str, float]
+                     ) -> tuple[dict[str, Any], dict[str, str]]:
+    """A solver's parameters at one resolution: expressions replaced by their values (unchanged when the solver
+    cannot be loaded: its cells report that)."""
+    try:
+        specs = get_solver(solver).parameters
+    except SolverUnavailable:
+        return dict(params), {}
+    return resolve(params, specs, names)
 
 
 def _check_solver_params(g: dict[str, Any], solvers: list[str], where: str, task: Any) -> None:
@@ -70,10 +109,11 @@ def _check_solver_params(g: dict[str, Any], solvers: list[str], where: str, task
         if isinstance(value, dict) and key not in solvers:
             raise SceneError(f"{where}: solver_params.{key} is a per-solver table, but {key!r} is not among the "
                              f"group's solvers; allowed: one of {', '.join(map(str, solvers))}")
-    scene = make_scene(g["scene"], **g.get("scene_params", {}))
+    scene_params = g.get("scene_params", {})
+    scene = scene_at(g["scene"], scene_params, *resolutions(g)[0])[0]
     for name in solvers:
         base = solver_params_of(table, name)
-        variants = [base] + [dict(base, **{k: v}) for k, vals in g.get("sweep", {}).items() for v in as_list(vals)]
+        raw = [base] + [dict(base, **{k: v}) for k, vals in g.get("sweep", {}).items() for v in as_list(vals)]
         try:
             solver = get_solver(name)
         except SolverUnavailable:
@@ -87,11 +127,16 @@ def _check_solver_params(g: dict[str, Any], solvers: list[str], where: str, task
             raise
         except BaseException:  # noqa: BLE001 - a plugin's supports that raises: its cells fail with the reason
             continue
-        for params in variants:
+        for params, (n, refine) in itertools.product(raw, resolutions(g)):
+            expressions: dict[str, str] = {}
             try:
-                task.check(solver, params)
+                values, expressions = solver_params_at(name, params, resolution_names(g["scene"], scene_params, n,
+                                                                                        refine))
+                task.check(solver, values)
             except SceneError as exc:
-                raise SceneError(f"{where}: {exc}") from None
+                at = f" (given as {', '.join(f'{k} = {v!r}' for k, v in expressions.items())} at n={n}, " \
+                     f"refine={refine})" if expressions else ""
+                raise SceneError(f"{where}: {exc}{at}") from None
             except KeyboardInterrupt:
                 raise
             except BaseException:  # noqa: BLE001 - a plugin's own check that raises: its cells fail with the reason

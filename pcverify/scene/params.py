@@ -41,8 +41,14 @@ class Param:
     low_open: bool = False
     high_open: bool = False
     choices: tuple[Any, ...] | None = None
-    kind: type = float
+    kind: type | None = None  # None: inferred (`_inferred_kind`)
     optional: bool = False  # None is an allowed value
+
+    def __post_init__(self) -> None:
+        if self.kind is None:
+            object.__setattr__(self, "kind", _inferred_kind(self.default, self.choices))
+        if self.kind not in (int, float, bool, str):
+            raise TypeError(f"Param {self.name!r}: kind={self.kind!r} is not valid; allowed: int, float, bool, str")
 
     def allowed(self) -> str:
         """Human-readable allowed range, used in every error message."""
@@ -110,6 +116,17 @@ class Param:
         if self.high is not None and (value > self.high or (self.high_open and value == self.high)):
             raise bad
         return value
+
+
+def _inferred_kind(default: Any, choices: tuple[Any, ...] | None) -> type:
+    """The kind a Param takes when none is given: text or true/false when its default (or every choice) is; a
+    number otherwise, a float (an integer default does not make an int parameter: give kind=int)."""
+    values = [default] if default is not None else []
+    values += list(choices or ())
+    for kind in (bool, str):
+        if values and all(isinstance(v, kind) for v in values):
+            return kind
+    return float
 
 
 def shown(value: Any) -> str:

@@ -506,8 +506,8 @@ class FipyHeat:
         return Solution(
             scene=scene.name, solver=self.name, params=p,
             resolution={"n": resolution.n, "refine": resolution.refine, "h": hs[0], "nodes": int(K.shape[0])},
-            samples=out, unknowns=int(K.shape[0]), wall_s=time.perf_counter() - t_wall, status="ok",
-            work={"unknowns": int(K.shape[0]), "time_steps": steps_taken, "iterations": iterations,
+            samples=out, unknowns=int(nfree), wall_s=time.perf_counter() - t_wall, status="ok",
+            work={"unknowns": int(nfree), "time_steps": steps_taken, "iterations": iterations,
                   "assembly_s": sysd["assembly_s"], "solve_s": solve_s},
             summary=heat_summary(nodes_vals, volume_mean),
             diagnostics={"linear_method": method, "free_unknowns": nfree, "fixed_cells": int(fixed.sum()),

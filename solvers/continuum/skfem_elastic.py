@@ -285,9 +285,10 @@ class SkfemElastic:
         return Solution(
             scene=scene.name, solver=self.name, params=p,
             resolution={"n": n, "refine": refine, "h": grid.h, "nodes": len(grid.points)},
-            samples=out, unknowns=ndof, wall_s=wall, status="ok",
+            samples=out, unknowns=int(np.count_nonzero(~is_fixed)), wall_s=wall, status="ok",
             quantity="mode-1 shape (max |u| = 1)" if "modes" in scene.physics else "u (m)",
-            work={"unknowns": ndof, "iterations": int(solver.iterations), "solves": int(solver.solves),
+            work={"unknowns": int(np.count_nonzero(~is_fixed)), "iterations": int(solver.iterations),
+                  "solves": int(solver.solves),
                   "assembly_s": assembly_s, "solve_s": solve_s, "postprocess_s": post_s},
             summary=summary, diagnostics=diag,
         )

@@ -280,8 +280,8 @@ class SkfemHeat:
         return Solution(
             scene=scene.name, solver=self.name, params=p,
             resolution={"n": n, "refine": refine, "h": grid.h, "nodes": n_nodes},
-            samples=out, unknowns=n_nodes, wall_s=wall, status="ok",
-            work={"unknowns": n_nodes, "time_steps": n_solves if scene.conduction.mode == "transient" else 0,
+            samples=out, unknowns=int(free.size), wall_s=wall, status="ok",
+            work={"unknowns": int(free.size), "time_steps": n_solves if scene.conduction.mode == "transient" else 0,
                   "iterations": int(iterations), "assembly_s": assembly_s, "solve_s": solve_s},
             summary=summary, diagnostics=diag,
         )

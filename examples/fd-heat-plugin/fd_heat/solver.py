@@ -87,6 +87,6 @@ class FiniteDifferenceHeat:
                    / weights.sum() / heat.t_max), "dt": dt, "steps": steps}
         return Solution(scene=scene.name, solver=self.name, params=p,
                         resolution={"n": resolution.n, "refine": resolution.refine, "h": h},
-                        samples=out, unknowns=int(temp.size), wall_s=time.perf_counter() - t0, quantity="T/t_max",
-                        work={"unknowns": int(temp.size), "time_steps": steps}, summary=summary,
+                        samples=out, unknowns=int((~held).sum()), wall_s=time.perf_counter() - t0, quantity="T/t_max",
+                        work={"unknowns": int((~held).sum()), "time_steps": steps}, summary=summary,
                         diagnostics={"pcverify_api": pcverify.API_VERSION})

@@ -192,7 +192,8 @@ class Macromolecule:
         if {c.face for c in scene.constraints if isinstance(c, FaceTemperature)} == {"z0", "zL"}:
             # held faces at both ends: the layer profile along z against Fourier's linear law
             summary.update(self._faces(lat, H, fx, diagnostics))
-        work = {"pair_steps": len(lat.pairs) * run.steps, "time_steps": run.steps, "unknowns": 3 * lat.size}
+        work = {"pair_steps": len(lat.pairs) * run.steps, "time_steps": run.steps,
+                "unknowns": 3 * int(np.count_nonzero(fx.kind == codes.FREE)), "kernel_s": run.wall_s}
         summary.update(checks.cold_kinetic_max(scene, s, H, free))
         summary.update(checks.red_pair_summary(scene, s, p, run))
         if x0 is not None:
@@ -216,7 +217,7 @@ class Macromolecule:
         out = {k: {"points": np.asarray(v, float), "values": rel[lat.node_at(v)]} for k, v in nodes.items()}
         return Solution(scene=scene.name, solver=self.name, params=p, samples=out,
                         resolution={"n": n, "refine": 1, "h": lat.a, "nodes": lat.size},
-                        unknowns=3 * lat.size, wall_s=time.perf_counter() - t_wall, status=status, reason=reason,
+                        unknowns=work["unknowns"], wall_s=time.perf_counter() - t_wall, status=status, reason=reason,
                         quantity="relative hotness H/H_max (hottest free particle)", work=work, summary=summary,
                         diagnostics=diagnostics)
 
