@@ -185,12 +185,12 @@ def _cross(a0, a1, a2, b0, b1, b2):
 
 
 @njit(inline="always")
-def _rotated(v0, v1, v2, w0, w1, w2, ra, rb):
-    """v + ra w x v + rb w x (w x v): the Rodrigues rotation of v by the rotation vector w (ra, rb its
-    coefficients sin|w| / |w|, (1 - cos|w|) / |w|^2)."""
+def _turn(v0, v1, v2, w0, w1, w2, ra, rb):
+    """(R - I) v = ra w x v + rb w x (w x v): what the rotation by the rotation vector w adds to v (Rodrigues;
+    ra, rb its coefficients sin|w| / |w|, (1 - cos|w|) / |w|^2)."""
     c0, c1, c2 = _cross(w0, w1, w2, v0, v1, v2)
     b0, b1, b2 = _cross(w0, w1, w2, c0, c1, c2)
-    return v0 + ra * c0 + rb * b0, v1 + ra * c1 + rb * b1, v2 + ra * c2 + rb * b2
+    return ra * c0 + rb * b0, ra * c1 + rb * b1, ra * c2 + rb * b2
 
 
 @njit(cache=True)
@@ -237,9 +237,10 @@ def _forces(st, par, rot, inel, load, con, nvec, rr, theta_new):
         d2 = x[j, 2] - x[i, 2]
         r = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
         rr[p] = r
-        nvec[p, 0] = d0 / r
-        nvec[p, 1] = d1 / r
-        nvec[p, 2] = d2 / r
+        ir = 1.0 / r
+        nvec[p, 0] = d0 * ir
+        nvec[p, 1] = d1 * ir
+        nvec[p, 2] = d2 * ir
         if linked[p] == 1 or r < r0[p]:
             e = 0.5 * area[p] * (r - r0[p])
             theta_new[i] += e / st.vol[i]
@@ -255,20 +256,19 @@ def _forces(st, par, rot, inel, load, con, nvec, rr, theta_new):
         n1 = nvec[p, 1]
         n2 = nvec[p, 2]
         r = rr[p]
-        d0 = r * n0
-        d1 = r * n1
-        d2 = r * n2
+        ir0 = 1.0 / r0[p]
         if linked[p] == 1:
-            sig[p] += kn * (r - rprev[p]) / r0[p] + 0.5 * lam * ((theta_new[i] - theta[i]) + (theta_new[j] - theta[j]))
+            sig[p] += kn * (r - rprev[p]) * ir0 + 0.5 * lam * ((theta_new[i] - theta[i]) + (theta_new[j] - theta[j]))
         else:
-            sig[p] = kc * min(0.0, (r - r0[p]) / r0[p])
-        # the pair's separation before the step, and the pair's rotation R over the step: the exact rotation
-        # by the mean spin increment w = (dphi_i + dphi_j) / 2 (identity without rotations), Rodrigues
-        # R v = v + a w x v + b w x (w x v), a = sin|w| / |w|, b = (1 - cos|w|) / |w|^2 (series below |w| = 0.01,
-        # exact to round-off there and no trigonometry in the common case)
-        g0 = d0 - (dx[j, 0] - dx[i, 0])
-        g1 = d1 - (dx[j, 1] - dx[i, 1])
-        g2 = d2 - (dx[j, 2] - dx[i, 2])
+            sig[p] = kc * min(0.0, (r - r0[p]) * ir0)
+        # the step's relative displacement, the pair's rotation R over the step (the exact rotation by the mean
+        # spin increment w = (dphi_i + dphi_j) / 2, the identity without rotations; Rodrigues: R v = v + a w x v
+        # + b w x (w x v), a = sin|w| / |w|, b = (1 - cos|w|) / |w|^2, by series below |w| = 0.01, exact to
+        # round-off there and no trigonometry in the common case) and the tangential increment e = d_new -
+        # R d_old = (dx_j - dx_i) - (R - I) d_old, zero for a rigid motion
+        e0 = dx[j, 0] - dx[i, 0]
+        e1 = dx[j, 1] - dx[i, 1]
+        e2 = dx[j, 2] - dx[i, 2]
         t0 = tau[p, 0]
         t1 = tau[p, 1]
         t2 = tau[p, 2]
@@ -279,39 +279,34 @@ def _forces(st, par, rot, inel, load, con, nvec, rr, theta_new):
             w2 = 0.5 * (dphi[i, 2] + dphi[j, 2])
             ww = w0 * w0 + w1 * w1 + w2 * w2
             if ww < 1e-4:
-                ra = 1.0 - ww / 6.0 * (1.0 - ww / 20.0)
-                rb = 0.5 - ww / 24.0 * (1.0 - ww / 30.0)
+                ra = 1.0 - ww * (1.0 / 6.0) * (1.0 - ww * (1.0 / 20.0))
+                rb = 0.5 - ww * (1.0 / 24.0) * (1.0 - ww * (1.0 / 30.0))
             else:
                 wn = math.sqrt(ww)
                 ra = math.sin(wn) / wn
                 rb = math.sin(0.5 * wn) / wn
                 rb = 2.0 * rb * rb
-            g0, g1, g2 = _rotated(g0, g1, g2, w0, w1, w2, ra, rb)
-            t0, t1, t2 = _rotated(t0, t1, t2, w0, w1, w2, ra, rb)
-        # the tangential increment: the separation less the pair's rotation of its old separation, in the new
-        # tangent plane (zero for a rigid motion: the separation then turned by the same R)
-        e0 = d0 - g0
-        e1 = d1 - g1
-        e2 = d2 - g2
-        en = e0 * n0 + e1 * n1 + e2 * n2
-        # tau turned by R, then by the smallest rotation taking R's normal m to the new normal n (k = m x n:
-        # v + k x v + k x (k x v) / (1 + m.n)); its round-off off the tangent plane is dropped
-        rg = 1.0 / math.sqrt(g0 * g0 + g1 * g1 + g2 * g2)
-        m0 = g0 * rg
-        m1 = g1 * rg
-        m2 = g2 * rg
-        k0, k1, k2 = _cross(m0, m1, m2, n0, n1, n2)
-        c0, c1, c2 = _cross(k0, k1, k2, t0, t1, t2)
-        b0, b1, b2 = _cross(k0, k1, k2, c0, c1, c2)
-        s = 1.0 / (1.0 + m0 * n0 + m1 * n1 + m2 * n2)
-        t0 += c0 + s * b0
-        t1 += c1 + s * b1
-        t2 += c2 + s * b2
+            g0, g1, g2 = _turn(r * n0 - e0, r * n1 - e1, r * n2 - e2, w0, w1, w2, ra, rb)
+            e0 -= g0
+            e1 -= g1
+            e2 -= g2
+            g0, g1, g2 = _turn(t0, t1, t2, w0, w1, w2, ra, rb)
+            t0 += g0
+            t1 += g1
+            t2 += g2
+        # tau turned by R is tangent to m = R n_old; the smallest rotation taking m to n turns such a vector v
+        # into v - (n.v) (m + n) / (1 + m.n), tangent to n; with m = (d - e) / rprev (|R d_old| = the old
+        # length), d = r n: v - (n.v) ((r + rprev) n - e) / (r + rprev - n.e)
         tn = t0 * n0 + t1 * n1 + t2 * n2
-        kt = 2.0 * g_mod / r0[p]
-        t0 += kt * (e0 - en * n0) - tn * n0
-        t1 += kt * (e1 - en * n1) - tn * n1
-        t2 += kt * (e2 - en * n2) - tn * n2
+        en = e0 * n0 + e1 * n1 + e2 * n2
+        rs = r + rprev[p]
+        s = tn / (rs - en)
+        kt = 2.0 * g_mod * ir0
+        ke = kt + s
+        cn = kt * en + s * rs
+        t0 += ke * e0 - cn * n0
+        t1 += ke * e1 - cn * n1
+        t2 += ke * e2 - cn * n2
         if linked[p] == 0:
             cap = mu * abs(sig[p])
             mag = math.sqrt(t0 * t0 + t1 * t1 + t2 * t2)
