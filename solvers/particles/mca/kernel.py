@@ -11,23 +11,25 @@ at rest; the contact point is the pair's midpoint, r/2 from either centre):
 Increments over one step (strain split: equal automata, so q_ij = q_ji and equal stresses give equal pair
 strains on both sides; model.py derives the many-body coefficient):
     d sig = kn d r / r0 + lam (d theta_i + d theta_j) / 2,
-    tau_new = P_n Q R tau_old + (2 G / r0) P_n (d_new - R d_old),
+    tau_new = Q R tau_old + (2 G / r0) P_n (d_new - R d_old),
 theta_i = sum_j S_ij (r_ij - r0_ij) / (2 Omega_i) is the automaton's volume strain from the displacements
 of its contact points (eq. 9 of PHYSICS.md §4); kn = 2G and lam = 1 - 2G/(3K) times K with the many-body
 term, kn = E and lam = 0 without it (pair-only).  d = x_j - x_i is the pair's separation (d_old = d_new -
 (dx_j - dx_i)), R the exact (Rodrigues) rotation by the pair's mean spin increment w = (dphi_i + dphi_j)/2
-(the identity without rotations), Q the smallest rotation taking R n_old to n_new, P_n the projection on
-the new tangent plane (it removes round-off only: Q R tau_old is tangent already).  To first order the
-increment is the relative displacement of the contact points at the pair's midpoint, dx_j - dx_i -
-(r/2)(dphi_i + dphi_j) x n: the MCA pair law, unchanged in the linearised model (stiffness.py).
+(the identity without rotations), P_n the projection on the new tangent plane and Q the smallest rotation
+taking m = R n_old to n_new, applied as v - (n.v)(m + n)/(1 + m.n): exact for v tangent to m, as R tau_old
+is, and with no component along n by construction (no drift off the plane).  To first order the increment
+is the relative displacement of the contact points at the pair's midpoint, dx_j - dx_i - (r/2)(dphi_i +
+dphi_j) x n: the MCA pair law, unchanged in the linearised model (stiffness.py); in a deforming body the
+update differs from the one it replaces at second order in the step and in strain times rotation.
 Why it is objective: under a rigid motion every automaton turns by the same R (dphi_i = dphi_j = w) and
 d_new = R d_old exactly, so the increment is zero and tau_new = R tau_old (Q = I), for any axis and any
 step, to round-off; the moments use the same arm r/2, so the pair forces do work only on the increment
 (energy) and their net couple is zero (angular momentum).  The update it replaces (tau projected on the new
 plane with its magnitude kept, increment dx_j - dx_i - (r0/2)(dphi_i + dphi_j) x n_new) left, for a 90°
 turn about (0.3, 0.5, 0.8), a spurious shear first order in the step (3.16e5 / 3.16e6 / 3.16e7 Pa at
-0.001° / 0.01° / 0.1° increments), and, in a pre-strained body (strain 1e-3), 2 G eps times the angle
-(78 MPa) at any step size: the r0/2 arms counted the turn of the pair's elastic gap r - r0 as shear.
+0.001° / 0.01° / 0.1° increments), and, in a pre-strained body (strain 1e-3), about 2 G eps times the angle
+(58-83 MPa) at any step size: the r0/2 arms counted the turn of the pair's elastic gap r - r0 as shear.
 Without rotations (`rotations = false`) the automata are held unturned, so a rigid turn of the body is not a
 rigid motion of the automata and the pair law reads it as shear (about 2 G per radian: 78-83 GPa after a 90°
 turn, measured, before and after this update); that model is for small rotations only.
