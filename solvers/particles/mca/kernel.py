@@ -1,19 +1,38 @@
 """Numba kernel of the MCA mechanics: pair and many-body forces in incremental form, velocity Verlet.
 
-Pair state (per listed pair p = (i, j), n the unit vector from i to j, q = r0/2 on either side):
+Pair state (per listed pair p = (i, j), n the unit vector from i to j, r its length, q = r0/2 on either side
+at rest; the contact point is the pair's midpoint, r/2 from either centre):
 - normal stress sig (tension > 0) and tangential stress vector tau (in the pair's tangent plane), both
   "effective" (undamaged) stresses carried incrementally; the force on i is S (1 - d_ij) (sig n + tau),
   d_ij the mean damage of the two automata;
 - linked (1) or unlinked (0).  Unlinked pairs carry compression only, sig = kc min(0, (r - r0)/r0), and
-  Coulomb friction |tau| <= mu |sig|.
-Increments over one step (strain split: equal automata, so q_ij = q_ji = r0/2 and equal stresses give
-equal pair strains on both sides; model.py derives the many-body coefficient):
+  Coulomb friction |tau| <= mu |sig| (the same objective update, then the cap: a tangential spring with a
+  Coulomb limit).
+Increments over one step (strain split: equal automata, so q_ij = q_ji and equal stresses give equal pair
+strains on both sides; model.py derives the many-body coefficient):
     d sig = kn d r / r0 + lam (d theta_i + d theta_j) / 2,
-    d tau = (2 G / r0) d delta_t,   d delta = d x_j - d x_i - q (d phi_i + d phi_j) x n  (contact points),
+    tau_new = Q R tau_old + (2 G / r0) P_n (d_new - R d_old),
 theta_i = sum_j S_ij (r_ij - r0_ij) / (2 Omega_i) is the automaton's volume strain from the displacements
 of its contact points (eq. 9 of PHYSICS.md §4); kn = 2G and lam = 1 - 2G/(3K) times K with the many-body
-term, kn = E and lam = 0 without it (pair-only).  tau is carried to the new tangent plane each step
-(projection, magnitude kept).
+term, kn = E and lam = 0 without it (pair-only).  d = x_j - x_i is the pair's separation (d_old = d_new -
+(dx_j - dx_i)), R the exact (Rodrigues) rotation by the pair's mean spin increment w = (dphi_i + dphi_j)/2
+(the identity without rotations), P_n the projection on the new tangent plane and Q the smallest rotation
+taking m = R n_old to n_new, applied as v - (n.v)(m + n)/(1 + m.n): exact for v tangent to m, as R tau_old
+is, and with no component along n by construction (no drift off the plane).  To first order the increment
+is the relative displacement of the contact points at the pair's midpoint, dx_j - dx_i - (r/2)(dphi_i +
+dphi_j) x n: the MCA pair law, unchanged in the linearised model (stiffness.py); in a deforming body the
+update differs from the one it replaces at second order in the step and in strain times rotation.
+Why it is objective: under a rigid motion every automaton turns by the same R (dphi_i = dphi_j = w) and
+d_new = R d_old exactly, so the increment is zero and tau_new = R tau_old (Q = I), for any axis and any
+step, to round-off; the moments use the same arm r/2, so the pair forces do work only on the increment
+(energy) and their net couple is zero (angular momentum).  The update it replaces (tau projected on the new
+plane with its magnitude kept, increment dx_j - dx_i - (r0/2)(dphi_i + dphi_j) x n_new) left, for a 90°
+turn about (0.3, 0.5, 0.8), a spurious shear first order in the step (3.16e5 / 3.16e6 / 3.16e7 Pa at
+0.001° / 0.01° / 0.1° increments), and, in a pre-strained body (strain 1e-3), about 2 G eps times the angle
+(58-83 MPa) at any step size: the r0/2 arms counted the turn of the pair's elastic gap r - r0 as shear.
+Without rotations (`rotations = false`) the automata are held unturned, so a rigid turn of the body is not a
+rigid motion of the automata and the pair law reads it as shear (about 2 G per radian: 78-83 GPa after a 90°
+turn, measured, before and after this update); that model is for small rotations only.
 Automaton state (the inelastic part): average stress (from the pair stresses, sigma = (1/Omega) sum q S
 (sig n n + sym(n tau))), equivalent plastic strain alpha (radial return), kappa (largest effective stress
 intensity) and damage d.
@@ -167,6 +186,15 @@ def _cross(a0, a1, a2, b0, b1, b2):
     return a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
 
 
+@njit(inline="always")
+def _turn(v0, v1, v2, w0, w1, w2, ra, rb):
+    """(R - I) v = ra w x v + rb w x (w x v): what the rotation by the rotation vector w adds to v (Rodrigues;
+    ra, rb its coefficients sin|w| / |w|, (1 - cos|w|) / |w|^2)."""
+    c0, c1, c2 = _cross(w0, w1, w2, v0, v1, v2)
+    b0, b1, b2 = _cross(w0, w1, w2, c0, c1, c2)
+    return ra * c0 + rb * b0, ra * c1 + rb * b1, ra * c2 + rb * b2
+
+
 @njit(cache=True)
 def forces(st, par):
     """Forces (and moments) of the current positions for the step's increments st.dx (and dphi): one
@@ -211,9 +239,10 @@ def _forces(st, par, rot, inel, load, con, nvec, rr, theta_new):
         d2 = x[j, 2] - x[i, 2]
         r = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
         rr[p] = r
-        nvec[p, 0] = d0 / r
-        nvec[p, 1] = d1 / r
-        nvec[p, 2] = d2 / r
+        ir = 1.0 / r
+        nvec[p, 0] = d0 * ir
+        nvec[p, 1] = d1 * ir
+        nvec[p, 2] = d2 * ir
         if linked[p] == 1 or r < r0[p]:
             e = 0.5 * area[p] * (r - r0[p])
             theta_new[i] += e / st.vol[i]
@@ -229,39 +258,57 @@ def _forces(st, par, rot, inel, load, con, nvec, rr, theta_new):
         n1 = nvec[p, 1]
         n2 = nvec[p, 2]
         r = rr[p]
+        ir0 = 1.0 / r0[p]
         if linked[p] == 1:
-            sig[p] += kn * (r - rprev[p]) / r0[p] + 0.5 * lam * ((theta_new[i] - theta[i]) + (theta_new[j] - theta[j]))
+            sig[p] += kn * (r - rprev[p]) * ir0 + 0.5 * lam * ((theta_new[i] - theta[i]) + (theta_new[j] - theta[j]))
         else:
-            sig[p] = kc * min(0.0, (r - r0[p]) / r0[p])
-        t0 = tau[p, 0]
-        t1 = tau[p, 1]
-        t2 = tau[p, 2]
-        tn = t0 * n0 + t1 * n1 + t2 * n2
-        mag = math.sqrt(t0 * t0 + t1 * t1 + t2 * t2)
-        t0 -= tn * n0
-        t1 -= tn * n1
-        t2 -= tn * n2
-        mag2 = math.sqrt(t0 * t0 + t1 * t1 + t2 * t2)
-        if mag2 > 0.0:
-            s = mag / mag2
-            t0 *= s
-            t1 *= s
-            t2 *= s
+            sig[p] = kc * min(0.0, (r - r0[p]) * ir0)
+        # the step's relative displacement, the pair's rotation R over the step (the exact rotation by the mean
+        # spin increment w = (dphi_i + dphi_j) / 2, the identity without rotations; Rodrigues: R v = v + a w x v
+        # + b w x (w x v), a = sin|w| / |w|, b = (1 - cos|w|) / |w|^2, by series below |w| = 0.01, exact to
+        # round-off there and no trigonometry in the common case) and the tangential increment e = d_new -
+        # R d_old = (dx_j - dx_i) - (R - I) d_old, zero for a rigid motion
         e0 = dx[j, 0] - dx[i, 0]
         e1 = dx[j, 1] - dx[i, 1]
         e2 = dx[j, 2] - dx[i, 2]
+        t0 = tau[p, 0]
+        t1 = tau[p, 1]
+        t2 = tau[p, 2]
         if rot is not None:
-            q = 0.5 * r0[p]
             dphi = rot.dphi
-            c0, c1, c2 = _cross(dphi[i, 0] + dphi[j, 0], dphi[i, 1] + dphi[j, 1], dphi[i, 2] + dphi[j, 2], n0, n1, n2)
-            e0 -= q * c0
-            e1 -= q * c1
-            e2 -= q * c2
+            w0 = 0.5 * (dphi[i, 0] + dphi[j, 0])
+            w1 = 0.5 * (dphi[i, 1] + dphi[j, 1])
+            w2 = 0.5 * (dphi[i, 2] + dphi[j, 2])
+            ww = w0 * w0 + w1 * w1 + w2 * w2
+            if ww < 1e-4:
+                ra = 1.0 - ww * (1.0 / 6.0) * (1.0 - ww * (1.0 / 20.0))
+                rb = 0.5 - ww * (1.0 / 24.0) * (1.0 - ww * (1.0 / 30.0))
+            else:
+                wn = math.sqrt(ww)
+                ra = math.sin(wn) / wn
+                rb = math.sin(0.5 * wn) / wn
+                rb = 2.0 * rb * rb
+            g0, g1, g2 = _turn(r * n0 - e0, r * n1 - e1, r * n2 - e2, w0, w1, w2, ra, rb)
+            e0 -= g0
+            e1 -= g1
+            e2 -= g2
+            g0, g1, g2 = _turn(t0, t1, t2, w0, w1, w2, ra, rb)
+            t0 += g0
+            t1 += g1
+            t2 += g2
+        # tau turned by R is tangent to m = R n_old; the smallest rotation taking m to n turns such a vector v
+        # into v - (n.v) (m + n) / (1 + m.n), tangent to n; with m = (d - e) / rprev (|R d_old| = the old
+        # length), d = r n: v - (n.v) ((r + rprev) n - e) / (r + rprev - n.e)
+        tn = t0 * n0 + t1 * n1 + t2 * n2
         en = e0 * n0 + e1 * n1 + e2 * n2
-        kt = 2.0 * g_mod / r0[p]
-        t0 += kt * (e0 - en * n0)
-        t1 += kt * (e1 - en * n1)
-        t2 += kt * (e2 - en * n2)
+        rs = r + rprev[p]
+        s = tn / (rs - en)
+        kt = 2.0 * g_mod * ir0
+        ke = kt + s
+        cn = kt * en + s * rs
+        t0 += ke * e0 - cn * n0
+        t1 += ke * e1 - cn * n1
+        t2 += ke * e2 - cn * n2
         if linked[p] == 0:
             cap = mu * abs(sig[p])
             mag = math.sqrt(t0 * t0 + t1 * t1 + t2 * t2)
@@ -299,7 +346,7 @@ def _forces(st, par, rot, inel, load, con, nvec, rr, theta_new):
             f[j, c] -= fc
         if rot is not None:
             mom = rot.mom
-            q = 0.5 * r0[p]
+            q = 0.5 * rr[p]  # the contact point at the pair's midpoint, as in the tangential increment
             m0, m1, m2 = _cross(nvec[p, 0], nvec[p, 1], nvec[p, 2], tau[p, 0], tau[p, 1], tau[p, 2])
             mom[i, 0] += q * db * m0
             mom[i, 1] += q * db * m1

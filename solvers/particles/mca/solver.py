@@ -78,7 +78,9 @@ PARAMETERS: tuple[Param, ...] = (
     Param("many_body", True, "", "many-body (volume) term on; off = pair-only (sig = E eps)", kind=bool),
     Param("coefficient", "hooke", "", "many-body coefficient: hooke = 1 - 2G/(3K), psakhie-2G/K = 1 - 2G/K",
           choices=COEFFICIENTS, kind=str),
-    Param("rotations", True, "", "automata rotate (moments of the tangential forces)", kind=bool),
+    Param("rotations", True, "", "automata rotate (moments of the tangential forces); false holds them unturned, "
+          "so a rigid turn of the body is shear to the pair law (about 2G per radian: 0.92 GPa after 1 degree, "
+          "measured): small rotations only", kind=bool),
     Param("krot", 0.01, "", "rotational pair spring k_r = krot G S r0 on phi_j - phi_i (removes the zero-energy "
           "rotation modes; 0 = none)", low=0.0, high=10.0),
     Param("friction", 0.3, "", "Coulomb friction coefficient of unlinked pairs", low=0.0, high=5.0),
