@@ -20,22 +20,38 @@ and l_i / r_ij of eqs. 11-12 and 14-15.
   the pair law of kernel.py.  In uniaxial stress it is eq. 10's E (h - h0) / h0 (2G eps + lam (1 - 2 nu)
   eps = E eps), and a stack compressed across a flat interface is exactly its bonded lattice.
   Force on k: -sigma_c S_k n, S_k the face of k's cell normal to the facet's dominant axis.
-- Friction (eq. 16), the project's choice of the dry part f:
+- Forces at the contact point: every force of a contact acts at c = x_k - (h / 2) n, midway between the slave
+  and its foot point (at rest the plane where the two cells touch; symmetric in the two bodies), with its
+  moment about each automaton's centre: on k, F and (c - x_k) x F; on each facet automaton v, -w_v F and
+  (c - x_v) x (-w_v F).  The weights sum to 1, so a contact exerts no net force and no net couple (eqs. 13-15's
+  tangential force on the triangle k-i-j with the moment F_R h it implies).  Without rotations (rotations=false)
+  there is nowhere to put the moments: the forces act at the centres, and a contact carrying friction F_R leaves
+  the couple h F_R; the sliding scenes refuse rotations=false (contact_scenes.law_of), the pressed ones carry
+  friction only while they settle.
+- Slip velocity: that of the two contact points, spins included, V = v_k + w_k x (c - x_k) - sum_v w_v (v_v +
+  w_v x (c - x_v)), its tangential part V_t: bodies moving rigidly together (turning too) do not slip.
+- Friction (eq. 16), the project's choice of the dry part f (friction_law):
+  regularised (the default):
       tau = mu0 |V_t| + mu1 (1 + K_mu) min(sigma_N, sigma0) min(1, |V_t| / v_reg),   sigma_N = -sigma_c,
-  against the relative tangential velocity V_t of k and the foot point (sum_v w_v v_v); force on k
-  -tau S_k V_t / |V_t| (at the automata's centres: the couple F_R h of eqs. 13-15 is not applied either).
-  Below v_reg the dry part is a viscous regularisation (no static friction); above it, it is Coulomb's
-  mu1 (1 + K) sigma_N exactly.  The explicit step caps the regularised slope: the friction force never
-  exceeds what stops the relative velocity in one step, m_red |V_t| / dt (1/m_red = 1/m_k + sum_v w_v/m_v),
-  so a sticking contact neither chatters nor grows; the width of the regularisation is then in effect
-  max(v_reg, tau S dt / m_red).  Without the cap a pressed stack (70 MPa, n = 2 and 4) never relaxed: the
-  stiff regularised damper chattered.
-- Heat: the dissipated power tau S |V_t| enters k and the facet's automata as heat, half to each body (the
-  record of the mechanics; the frictional-heating analysis splits the window's power by the bodies'
-  conductivities, contact_scenes.py).
+  force on k -tau S_k V_t / |V_t|.  Below v_reg the dry part is a viscous regularisation (no static friction);
+  above it, it is Coulomb's mu1 (1 + K) sigma_N exactly.  The explicit step caps the regularised slope: the
+  friction force never exceeds what stops the relative velocity in one step, m_red |V_t| / dt (1/m_red = 1/m_k
+  + sum_v w_v/m_v, plus the rotations' share |c - x|^2 / J when the automata rotate), so a sticking contact
+  neither chatters nor grows; the width of the regularisation is then in effect max(v_reg, tau S dt / m_red).
+  Without the cap a pressed stack (70 MPa, n = 2 and 4) never relaxed: the stiff regularised damper chattered.
+  static (Cundall-Strack): a tangential spring per contact, stress tau (kt V_t dt per step, kt per unit area,
+  by default the bonded pair's shear stiffness 2 G / h0), carried with the contact's frame; Coulomb limit
+  mu_s (1 + K) min(sigma_N, sigma0) while it sticks, the kinetic mu1 (1 + K) min(sigma_N, sigma0) once it slips
+  until the slip velocity stops or reverses (`_static`); plus the viscous mu0 V_t.  Only the slip dissipates:
+  the spring's energy S |tau|^2 / (2 kt) is elastic (`energy`).
+- Heat: the dissipated power (friction force times slip velocity; static: the slip's share) enters k and the facet's
+  automata as heat, half to each body (the record of the mechanics; the frictional-heating analysis splits the
+  window's power by the bodies' conductivities, contact_scenes.py).
 - Reactions: the automata's degrees of freedom the scene holds (`held`: 1 body 1's, 2 body 2's) record the
   force their constraint exerts, -sum f over them (pair and contact forces; the loads are the caller's), and
-  its time integral (`impulse`).  A drive's and a clamp's reactions measure what the friction and the normal
+  its time integral (`impulse`); with the held rotations (`held_rot`), the reactions' moment about the origin
+  (`moment`, -sum x x f over the held translations and -sum M over the held rotations) and its time integral
+  (`angular_impulse`).  A drive's and a clamp's reactions measure what the friction and the normal
   force transmit through the bodies, outside the contact law's own bookkeeping.
 
 The candidate list (facets whose centroid lies within h0 + 0.75 d + 2 skin of a slave that faces them,

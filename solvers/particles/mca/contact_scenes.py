@@ -31,7 +31,10 @@ onto the model and summarises the run).
   clamp (the base's held automata), against the law's mu_dr for the normal force each measures, with the
   drift between the halves (`mu_drive_drift`: how stationary the window is); Newton's third law, the drive's,
   the clamp's, the load's and the damping's forces less the momentum change (`newton_error`, relative to the
-  applied normal force); the power the drive delivers to friction, its and the load's work less the change of
+  applied normal force); the balance of angular momentum, the held automata's reaction moments, the loads' and
+  the damping's, less the change of sum m x x v + J w (`angular_momentum_error`, relative to F_N h0: the
+  couple h0 F_R that contact forces at the automata's centres would leave is mu1 in these units); the power
+  the drive delivers to friction, its and the load's work less the change of
   kinetic and elastic energy and the damping's dissipation (`drive_power_W`, its halves' drift).
   With a platen (Contact.platen) the far face is held at its preloaded height while it slides, and F_N is
   the normal force the contacts carry.  The run is ok only if the bodies stayed in contact over the whole
@@ -312,16 +315,46 @@ def sliding(scene: Scene, aut: Automata, bonded: Automata, el: Elastic, law: ct.
 
 class Mark(NamedTuple):
     """The state at an instant of the sliding window: time (s), the held degrees of freedom's reaction impulses
-    (2, 3; N s), the momentum (3,; kg m/s) and the positions (N, 3)."""
+    (2, 3; N s), the momentum (3,; kg m/s), the positions (N, 3), the held degrees of freedom's angular impulses
+    about the origin (2, 3; N m s), the angular momentum about the origin (3,; sum m x x v + J w, kg m^2/s) and
+    the rotation angles (N, 3)."""
 
     t: float
     impulse: np.ndarray
     momentum: np.ndarray
     x: np.ndarray
+    angular_impulse: np.ndarray
+    angular: np.ndarray
+    phi: np.ndarray
 
 
 def _mark(st: mk.State) -> Mark:
-    return Mark(float(st.clock[0]), st.contact.impulse.copy(), (st.mass[:, None] * st.v).sum(axis=0), st.x.copy())
+    spin = st.rot.inertia[:, None] * st.rot.w if st.rot is not None else np.zeros_like(st.x)
+    phi = st.rot.phi.copy() if st.rot is not None else np.zeros_like(st.x)
+    return Mark(float(st.clock[0]), st.contact.impulse.copy(), (st.mass[:, None] * st.v).sum(axis=0), st.x.copy(),
+                st.contact.angular_impulse.copy(), (np.cross(st.x, st.mass[:, None] * st.v) + spin).sum(axis=0), phi)
+
+
+def angular_balance(a: Mark, b: Mark, st: mk.State, gamma: float) -> np.ndarray:
+    """Mean external moments about the origin over [a.t, b.t] less the change of angular momentum (3,; N m), which
+    the balance of angular momentum makes zero when the bodies' internal forces and moments (pairs, contacts)
+    exert no net couple.  External: the held degrees of freedom's reactions (their moments, recorded every step),
+    the loads on the free ones (at the mean of their positions: the drive moves them uniformly), the damping's
+    (-gamma m (v - v_ref) on the free translations, at the mean position of each automaton over the window,
+    -gamma J w on the free rotations)."""
+    span = b.t - a.t
+    mid = 0.5 * (a.x + b.x)
+    free = st.fixm[:, :3] == mk.FREE
+    load = st.load.force if st.load is not None else np.zeros_like(st.x)
+    loads = np.cross(mid, np.where(free, load, 0.0)).sum(axis=0)
+    ref = st.frame.vel if st.frame is not None else np.zeros_like(st.x)
+    drift = st.mass[:, None] * np.where(free, b.x - a.x - ref * span, 0.0)
+    damping = -gamma * np.cross(mid, drift).sum(axis=0) / span
+    if st.rot is not None:
+        turn = np.where(st.fixm[:, 3:] == mk.FREE, b.phi - a.phi, 0.0)
+        damping -= gamma * (st.rot.inertia[:, None] * turn).sum(axis=0) / span
+    held = (b.angular_impulse - a.angular_impulse).sum(axis=0) / span
+    return held + loads + damping - (b.angular - a.angular) / span
 
 
 def external_forces(a: Mark, b: Mark, st: mk.State, gamma: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -347,7 +380,8 @@ def _reaction_summary(marks: list[Mark], st: mk.State, aut: Automata, law: ct.Co
                       f_applied: float, gamma: float) -> dict[str, Any]:
     """mu measured at the drive and at the clamp (their mean tangential reaction over their normal one, over
     the window and over each half of it), against the law's mu_dr for the normal force each measures; the
-    external forces' balance (Newton's third law) relative to the applied normal force."""
+    external forces' balance (Newton's third law) relative to the applied normal force, and the external moments'
+    (angular_balance) relative to the applied normal force times the spacing h0 across the interface."""
     ax, dr = contact.axis_index, contact.direction_index
     load = st.load.force if st.load is not None else np.zeros_like(st.x)
     on_base, on_slider = (load[aut.body == g].sum(axis=0) for g in (0, 1))
@@ -361,10 +395,12 @@ def _reaction_summary(marks: list[Mark], st: mk.State, aut: Automata, law: ct.Co
         return mu_clamp, mu_drive, n_clamp, n_drive, damping, residual
 
     mu_clamp, mu_drive, n_clamp, n_drive, damping, residual = measured(marks[0], marks[2])
+    couple = angular_balance(marks[0], marks[2], st, gamma)
     halves = [measured(marks[0], marks[1]), measured(marks[1], marks[2])]
     out: dict[str, Any] = {"mu_drive": mu_drive, "mu_clamp": mu_clamp, "normal_drive_ratio": n_drive / f_applied,
                            "normal_clamp_ratio": n_clamp / f_applied,
                            "newton_error": float(np.linalg.norm(residual)) / f_applied,
+                           "angular_momentum_error": float(np.linalg.norm(couple)) / (f_applied * law.h0),
                            "damping_force_ratio": float(np.linalg.norm(damping)) / f_applied}
     for name, mu, normal, k in (("drive", mu_drive, n_drive, 1), ("clamp", mu_clamp, n_clamp, 0)):
         expected = mu_dr_expected(law, contact.speed, contact.normal_stress * normal / f_applied)
