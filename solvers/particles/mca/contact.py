@@ -20,14 +20,15 @@ and l_i / r_ij of eqs. 11-12 and 14-15.
   the pair law of kernel.py.  In uniaxial stress it is eq. 10's E (h - h0) / h0 (2G eps + lam (1 - 2 nu)
   eps = E eps), and a stack compressed across a flat interface is exactly its bonded lattice.
   Force on k: -sigma_c S_k n, S_k the face of k's cell normal to the facet's dominant axis.
-- Forces at the contact point: every force of a contact acts at c = x_k - (h / 2) n, midway between the slave
-  and its foot point (at rest the plane where the two cells touch; symmetric in the two bodies), with its
-  moment about each automaton's centre: on k, F and (c - x_k) x F; on each facet automaton v, -w_v F and
-  (c - x_v) x (-w_v F).  The weights sum to 1, so a contact exerts no net force and no net couple (eqs. 13-15's
-  tangential force on the triangle k-i-j with the moment F_R h it implies).  Without rotations (rotations=false)
-  there is nowhere to put the moments: the forces act at the centres, and a contact carrying friction F_R leaves
-  the couple h F_R; the sliding scenes refuse rotations=false (contact_scenes.law_of), the pressed ones carry
-  friction only while they settle.
+- Forces at the contact point: the friction F_R acts at c = x_k - (h / 2) n, midway between the slave and its
+  foot point (at rest the plane where the two cells touch; symmetric in the two bodies), with its moment about
+  each automaton's centre: on k, F_R and (c - x_k) x F_R; on each facet automaton v, -w_v F_R and
+  (c - x_v) x (-w_v F_R) (eqs. 13-15's tangential force on the triangle k-i-j with the moment F_R h it
+  implies).  The normal force acts at the centres, as the gradient of the contact's elastic energy (central,
+  like the bonded pair's; see `forces` for why not at c).  The weights sum to 1, so a contact exerts no net
+  force and no net couple.  Without rotations (rotations=false) there is nowhere to put the moments: the
+  friction acts at the centres, and a contact carrying F_R leaves the couple h F_R; the sliding scenes refuse
+  rotations=false (contact_scenes.law_of), the pressed ones carry friction only while they settle.
 - Slip velocity: that of the two contact points, spins included, V = v_k + w_k x (c - x_k) - sum_v w_v (v_v +
   w_v x (c - x_v)), its tangential part V_t: bodies moving rigidly together (turning too) do not slip.
 - Friction (eq. 16), the project's choice of the dry part f (friction_law):
@@ -352,11 +353,17 @@ def _sub_area(u0, u1, u2, v0, v1, v2, n0, n1, n2):
 @njit(cache=True)
 def forces(x, v, f, theta, mass, kn, lam, dt, con, rot):
     """Pass 2 of the contact (after the volume strains are updated): normal stress, friction and the forces
-    on each slave and its facet's automata, applied at the contact point c = x_k - (h / 2) n, midway between
-    the slave and its foot point (at rest the plane where the two cells touch, symmetric in the two bodies):
-    on k the force F and the moment (c - x_k) x F, on each facet automaton v the force -w_v F and the moment
-    (c - x_v) x (-w_v F), so a contact exerts no net force and no net couple (the weights sum to 1).  The
-    slip velocity is that of the two contact points, spins included: v_k + w_k x (c - x_k) minus
+    on each slave and its facet's automata, so that a contact exerts no net force and no net couple:
+    - the friction F_R acts at the contact point c = x_k - (h / 2) n, midway between the slave and its foot
+      point (at rest the plane where the two cells touch, symmetric in the two bodies): on k F_R and the moment
+      (c - x_k) x F_R, on each facet automaton v -w_v F_R and (c - x_v) x (-w_v F_R);
+    - the normal force F_n n acts at the centres (k: F_n n; v: -w_v F_n n), as the gradient of the contact's
+      elastic energy, a function of the centres' height h: conservative, and like the bonded pair's normal
+      force central.  Applied at c, its moments on the facet's automata do work on their spins that the
+      elastic energy does not hold (measured: the sliding energy balance 2.5e-6 of the drive's work instead of
+      2.3e-7).  Its couple (x_k - sum_v w_v x_v) x F_n n is zero when the foot lies in the facet; a clipped
+      foot's (up to EDGE outside) is taken up by moments on the facet's automata by their weights.
+    The slip velocity is that of the two contact points, spins included: v_k + w_k x (c - x_k) minus
     sum_v w_v (v_v + w_v x (c - x_v)), zero for bodies moving rigidly together.  rot None (a run without
     rotations): forces at the centres, no moments, slip from the centres' velocities -- a contact carrying
     friction F_R then leaves the couple h F_R (the sliding scenes refuse rotations=false, contact_scenes.py).
@@ -457,17 +464,24 @@ def forces(x, v, f, theta, mass, kn, lam, dt, con, rot):
         f[d, 2] -= wd * g2
         if rot is not None:
             mom = rot.mom
-            m0, m1, m2 = _cross(-half * n0, -half * n1, -half * n2, g0, g1, g2)
+            m0, m1, m2 = _cross(-half * n0, -half * n1, -half * n2, fr0, fr1, fr2)
             mom[k, 0] += m0
             mom[k, 1] += m1
             mom[k, 2] += m2
+            # the normal force at the centres leaves the couple (x_k - sum_v w_v x_v) x F_n: zero when the foot
+            # lies in the facet, not when its weights were clipped (a foot up to EDGE outside); the facet's
+            # automata take its opposite by their weights
+            e0 = x[k, 0] - (wa * x[a, 0] + wb * x[b, 0] + wd * x[d, 0])
+            e1 = x[k, 1] - (wa * x[a, 1] + wb * x[b, 1] + wd * x[d, 1])
+            e2 = x[k, 2] - (wa * x[a, 2] + wb * x[b, 2] + wd * x[d, 2])
+            c0, c1, c2 = _cross(e0, e1, e2, fn * n0, fn * n1, fn * n2)
             for q in range(3):
                 j = con.facets[fct, q]
                 wq = con.w[s, q]
-                m0, m1, m2 = _cross(cx0 - x[j, 0], cx1 - x[j, 1], cx2 - x[j, 2], g0, g1, g2)
-                mom[j, 0] -= wq * m0
-                mom[j, 1] -= wq * m1
-                mom[j, 2] -= wq * m2
+                m0, m1, m2 = _cross(cx0 - x[j, 0], cx1 - x[j, 1], cx2 - x[j, 2], fr0, fr1, fr2)
+                mom[j, 0] -= wq * (m0 + c0)
+                mom[j, 1] -= wq * (m1 + c1)
+                mom[j, 2] -= wq * (m2 + c2)
         con.fric[s, 0] = fr0
         con.fric[s, 1] = fr1
         con.fric[s, 2] = fr2
