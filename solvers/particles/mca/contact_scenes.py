@@ -145,10 +145,13 @@ def _supports(scene: Scene, aut: Automata, rate_of: dict[str, float]) -> tuple[n
 
 
 def contact_summary(st: mk.State) -> dict[str, Any]:
-    """Contact pressure of the closed contacts: area-weighted mean, uniformity, count."""
+    """Contact pressure of the closed contacts: area-weighted mean, uniformity, count (static law: and how many
+    slip)."""
     con = st.contact
     closed = con.facet >= 0
     out: dict[str, Any] = {"contacts": int(closed.sum()), "slaves": int(len(con.slave))}
+    if con.law.static:  # the static law: how many closed contacts slip (the others stick on their springs)
+        out["contacts_slipping"] = int((con.slipping[closed] == 1).sum())
     if closed.any():
         pres = -con.sigma[closed]
         area = con.area[closed]
@@ -608,10 +611,12 @@ def mu_dr_expected(law: ct.ContactLaw, speed: float, pressure: float) -> float:
     viscous regularisation, above sigma0 the normal stress that counts is capped.  Exact for a uniform pressure,
     or one wholly above sigma0; with a pressure that straddles sigma0 the cap bites less than this says.  Not in
     it: the explicit step's own cap of the regularised slope (contact.py), which widens the regularisation to
-    tau S dt / m_red -- friction_step_ratio says how close a run comes to it."""
+    tau S dt / m_red -- friction_step_ratio says how close a run comes to it.  With the static law every contact
+    slipping carries the kinetic mu1 (1 + K) min(sigma, sigma0) whatever its speed (no regularisation)."""
     if not pressure > 0:
         return math.nan
-    dry = law.mu1 * (1 + rg.mean(law.rough)) * min(1.0, law.sigma0 / pressure) * min(1.0, speed / law.v_reg)
+    slope = 1.0 if law.static else min(1.0, speed / law.v_reg)  # a slipping static contact carries mu1 at any speed
+    dry = law.mu1 * (1 + rg.mean(law.rough)) * min(1.0, law.sigma0 / pressure) * slope
     return dry + law.mu0 * speed / pressure
 
 
