@@ -15,8 +15,9 @@ onto the model and summarises the run).
   relaxation rate; 0 = none) acts on each automaton's velocity relative to its body's drive (body 1 at
   rest, body 2 at the drive's velocity), so it damps vibrations and not the sliding itself.  Undamped,
   the slider on its elastic base develops a friction-induced vibration (measured at n = 4, V = 1 m/s,
-  1 MPa: after ~0.4 ms the contacts open and close and mu_dr(t) swings by +-0.2 about 0.3; 12 of the window's
-  1900 history rows have no closed contact, so the run is failed, its numbers kept).
+  1 MPa: after ~0.4 ms the contacts open and close and mu_dr(t) swings by +-0.2 about 0.3; 87 of the window's
+  1900 history rows have no closed contact (12 while the friction acted at the centres), so the run is failed,
+  its numbers kept).
   mu_dr(t) = F_dr / F_N (eq. 17): F_dr the friction resistance of the contacts on body 2 along the
   direction, F_N = normal_stress x the far face's area.  The expected value follows the law as implemented
   (`mu_dr_expected`: mu0 V / sigma + mu1 (1 + K_av) min(1, sigma0 / sigma) min(1, V / v_reg), every contact
