@@ -15,8 +15,9 @@ onto the model and summarises the run).
   relaxation rate; 0 = none) acts on each automaton's velocity relative to its body's drive (body 1 at
   rest, body 2 at the drive's velocity), so it damps vibrations and not the sliding itself.  Undamped,
   the slider on its elastic base develops a friction-induced vibration (measured at n = 4, V = 1 m/s,
-  1 MPa: after ~0.4 ms the contacts open and close and mu_dr(t) swings by +-0.2 about 0.3; 12 of the window's
-  1900 history rows have no closed contact, so the run is failed, its numbers kept).
+  1 MPa: after ~0.4 ms the contacts open and close and mu_dr(t) swings by +-0.2 about 0.3; 87 of the window's
+  1900 history rows have no closed contact (12 while the friction acted at the centres), so the run is failed,
+  its numbers kept).
   mu_dr(t) = F_dr / F_N (eq. 17): F_dr the friction resistance of the contacts on body 2 along the
   direction, F_N = normal_stress x the far face's area.  The expected value follows the law as implemented
   (`mu_dr_expected`: mu0 V / sigma + mu1 (1 + K_av) min(1, sigma0 / sigma) min(1, V / v_reg), every contact
@@ -31,7 +32,10 @@ onto the model and summarises the run).
   clamp (the base's held automata), against the law's mu_dr for the normal force each measures, with the
   drift between the halves (`mu_drive_drift`: how stationary the window is); Newton's third law, the drive's,
   the clamp's, the load's and the damping's forces less the momentum change (`newton_error`, relative to the
-  applied normal force); the power the drive delivers to friction, its and the load's work less the change of
+  applied normal force); the balance of angular momentum, the held automata's reaction moments, the loads' and
+  the damping's, less the change of sum m x x v + J w (`angular_momentum_error`, relative to F_N h0: the
+  couple h0 F_R that contact forces at the automata's centres would leave is mu1 in these units); the power
+  the drive delivers to friction, its and the load's work less the change of
   kinetic and elastic energy and the damping's dissipation (`drive_power_W`, its halves' drift).
   With a platen (Contact.platen) the far face is held at its preloaded height while it slides, and F_N is
   the normal force the contacts carry.  The run is ok only if the bodies stayed in contact over the whole
@@ -59,7 +63,7 @@ from typing import Any, NamedTuple
 import numpy as np
 from scipy.special import erfc
 
-from pcverify.scene import Contact, FaceClamp, FaceSupport, Scene, SceneError
+from pcverify.scene import Contact, FaceClamp, FaceSupport, Scene, SceneError, shown
 from pcverify.solvers.energy import balance_error
 from pcverify.solvers.protocol import heat_summary
 
@@ -74,14 +78,28 @@ from .model import Elastic, Model, rebuild_pairs, relax, relax_status
 FACE_AXES = "xyz"
 
 
-def law_of(aut: Automata, contact: Contact, p: dict[str, Any]) -> ct.ContactLaw:
-    """The contact law of the solver parameters: h0 = the spacing across the interface."""
+def law_of(aut: Automata, contact: Contact, p: dict[str, Any], shear: float) -> ct.ContactLaw:
+    """The contact law of the solver parameters: h0 = the spacing across the interface; the dry law
+    (`friction_law`), with static friction mu_s (default mu1; at least mu1) and the tangential stiffness
+    `contact_stiffness` (default the bonded pair's shear stiffness 2 G / h0, `shear` = G).  A sliding scene
+    needs the automata's rotations: the contact's moments have nowhere to go without them."""
     rough = rg.Roughness(on=bool(p["roughness_a1"] > 0 or p["roughness_a2"] > 0), a1=float(p["roughness_a1"]),
                          a2=float(p["roughness_a2"]), d1=float(p["roughness_d1"]), d2=float(p["roughness_d2"]),
                          spread=float(p["roughness_spread"]), seed=int(p["seed"]))
-    return ct.ContactLaw(h0=float(aut.spacing[contact.axis_index]), mu0=float(p["mu0"]), mu1=float(p["mu1"]),
+    h0 = float(aut.spacing[contact.axis_index])
+    mu1 = float(p["mu1"])
+    mu_s = mu1 if p["mu_s"] is None else float(p["mu_s"])
+    if mu_s < mu1:
+        raise SceneError(f"mu_s={shown(p['mu_s'])} is below the kinetic coefficient mu1={shown(mu1)}; allowed: "
+                         "mu_s >= mu1 (none: mu_s = mu1)")
+    if contact.sliding and not p["rotations"]:
+        raise SceneError("rotations=false with a sliding contact: the contact's friction acts at the contact "
+                         "point and its moments need the automata's rotations; allowed: rotations=true")
+    kt = 2.0 * shear / h0 if p["contact_stiffness"] is None else float(p["contact_stiffness"])
+    return ct.ContactLaw(h0=h0, mu0=float(p["mu0"]), mu1=mu1,
                          sigma0=math.inf if p["sigma0"] is None else float(p["sigma0"]), v_reg=float(p["v_reg"]),
-                         rough=rough, axis=contact.axis_index, direction=contact.direction_index)
+                         rough=rough, axis=contact.axis_index, direction=contact.direction_index,
+                         static=p["friction_law"] == "static", mu_s=mu_s, kt=kt)
 
 
 def far_faces(contact: Contact) -> tuple[str, str]:
@@ -128,10 +146,13 @@ def _supports(scene: Scene, aut: Automata, rate_of: dict[str, float]) -> tuple[n
 
 
 def contact_summary(st: mk.State) -> dict[str, Any]:
-    """Contact pressure of the closed contacts: area-weighted mean, uniformity, count."""
+    """Contact pressure of the closed contacts: area-weighted mean, uniformity, count (static law: and how many
+    slip)."""
     con = st.contact
     closed = con.facet >= 0
     out: dict[str, Any] = {"contacts": int(closed.sum()), "slaves": int(len(con.slave))}
+    if con.law.static:  # the static law: how many closed contacts slip (the others stick on their springs)
+        out["contacts_slipping"] = int((con.slipping[closed] == 1).sum())
     if closed.any():
         pres = -con.sigma[closed]
         area = con.area[closed]
@@ -246,6 +267,7 @@ def sliding(scene: Scene, aut: Automata, bonded: Automata, el: Elastic, law: ct.
     st = st._replace(frame=mk.Frame(frame))
     held = np.where(fixm[:, :3] == mk.PRESCRIBED, 1 + aut.body[:, None], 0)
     st.contact.held[:] = held  # the clamp's (body 1) and the drive's (body 2) reactions are recorded
+    st.contact.held_rot[:] = np.where(fixm[:, 3:] == mk.PRESCRIBED, 1 + aut.body[:, None], 0)
     gamma = rate if p["slide_damping"] is None else p["slide_damping"]
     model.params = model.params._replace(gamma=float(gamma), t_stop=math.inf, ramp_start=t0, ramp=t_ramp)
     total = ramp_steps + window_steps
@@ -297,16 +319,46 @@ def sliding(scene: Scene, aut: Automata, bonded: Automata, el: Elastic, law: ct.
 
 class Mark(NamedTuple):
     """The state at an instant of the sliding window: time (s), the held degrees of freedom's reaction impulses
-    (2, 3; N s), the momentum (3,; kg m/s) and the positions (N, 3)."""
+    (2, 3; N s), the momentum (3,; kg m/s), the positions (N, 3), the held degrees of freedom's angular impulses
+    about the origin (2, 3; N m s), the angular momentum about the origin (3,; sum m x x v + J w, kg m^2/s) and
+    the rotation angles (N, 3)."""
 
     t: float
     impulse: np.ndarray
     momentum: np.ndarray
     x: np.ndarray
+    angular_impulse: np.ndarray
+    angular: np.ndarray
+    phi: np.ndarray
 
 
 def _mark(st: mk.State) -> Mark:
-    return Mark(float(st.clock[0]), st.contact.impulse.copy(), (st.mass[:, None] * st.v).sum(axis=0), st.x.copy())
+    spin = st.rot.inertia[:, None] * st.rot.w if st.rot is not None else np.zeros_like(st.x)
+    phi = st.rot.phi.copy() if st.rot is not None else np.zeros_like(st.x)
+    return Mark(float(st.clock[0]), st.contact.impulse.copy(), (st.mass[:, None] * st.v).sum(axis=0), st.x.copy(),
+                st.contact.angular_impulse.copy(), (np.cross(st.x, st.mass[:, None] * st.v) + spin).sum(axis=0), phi)
+
+
+def angular_balance(a: Mark, b: Mark, st: mk.State, gamma: float) -> np.ndarray:
+    """Mean external moments about the origin over [a.t, b.t] less the change of angular momentum (3,; N m), which
+    the balance of angular momentum makes zero when the bodies' internal forces and moments (pairs, contacts)
+    exert no net couple.  External: the held degrees of freedom's reactions (their moments, recorded every step),
+    the loads on the free ones (at the mean of their positions: the drive moves them uniformly), the damping's
+    (-gamma m (v - v_ref) on the free translations, at the mean position of each automaton over the window,
+    -gamma J w on the free rotations)."""
+    span = b.t - a.t
+    mid = 0.5 * (a.x + b.x)
+    free = st.fixm[:, :3] == mk.FREE
+    load = st.load.force if st.load is not None else np.zeros_like(st.x)
+    loads = np.cross(mid, np.where(free, load, 0.0)).sum(axis=0)
+    ref = st.frame.vel if st.frame is not None else np.zeros_like(st.x)
+    drift = st.mass[:, None] * np.where(free, b.x - a.x - ref * span, 0.0)
+    damping = -gamma * np.cross(mid, drift).sum(axis=0) / span
+    if st.rot is not None:
+        turn = np.where(st.fixm[:, 3:] == mk.FREE, b.phi - a.phi, 0.0)
+        damping -= gamma * (st.rot.inertia[:, None] * turn).sum(axis=0) / span
+    held = (b.angular_impulse - a.angular_impulse).sum(axis=0) / span
+    return held + loads + damping - (b.angular - a.angular) / span
 
 
 def external_forces(a: Mark, b: Mark, st: mk.State, gamma: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -332,7 +384,8 @@ def _reaction_summary(marks: list[Mark], st: mk.State, aut: Automata, law: ct.Co
                       f_applied: float, gamma: float) -> dict[str, Any]:
     """mu measured at the drive and at the clamp (their mean tangential reaction over their normal one, over
     the window and over each half of it), against the law's mu_dr for the normal force each measures; the
-    external forces' balance (Newton's third law) relative to the applied normal force."""
+    external forces' balance (Newton's third law) relative to the applied normal force, and the external moments'
+    (angular_balance) relative to the applied normal force times the spacing h0 across the interface."""
     ax, dr = contact.axis_index, contact.direction_index
     load = st.load.force if st.load is not None else np.zeros_like(st.x)
     on_base, on_slider = (load[aut.body == g].sum(axis=0) for g in (0, 1))
@@ -346,10 +399,12 @@ def _reaction_summary(marks: list[Mark], st: mk.State, aut: Automata, law: ct.Co
         return mu_clamp, mu_drive, n_clamp, n_drive, damping, residual
 
     mu_clamp, mu_drive, n_clamp, n_drive, damping, residual = measured(marks[0], marks[2])
+    couple = angular_balance(marks[0], marks[2], st, gamma)
     halves = [measured(marks[0], marks[1]), measured(marks[1], marks[2])]
     out: dict[str, Any] = {"mu_drive": mu_drive, "mu_clamp": mu_clamp, "normal_drive_ratio": n_drive / f_applied,
                            "normal_clamp_ratio": n_clamp / f_applied,
                            "newton_error": float(np.linalg.norm(residual)) / f_applied,
+                           "angular_momentum_error": float(np.linalg.norm(couple)) / (f_applied * law.h0),
                            "damping_force_ratio": float(np.linalg.norm(damping)) / f_applied}
     for name, mu, normal, k in (("drive", mu_drive, n_drive, 1), ("clamp", mu_clamp, n_clamp, 0)):
         expected = mu_dr_expected(law, contact.speed, contact.normal_stress * normal / f_applied)
@@ -557,10 +612,12 @@ def mu_dr_expected(law: ct.ContactLaw, speed: float, pressure: float) -> float:
     viscous regularisation, above sigma0 the normal stress that counts is capped.  Exact for a uniform pressure,
     or one wholly above sigma0; with a pressure that straddles sigma0 the cap bites less than this says.  Not in
     it: the explicit step's own cap of the regularised slope (contact.py), which widens the regularisation to
-    tau S dt / m_red -- friction_step_ratio says how close a run comes to it."""
+    tau S dt / m_red -- friction_step_ratio says how close a run comes to it.  With the static law every contact
+    slipping carries the kinetic mu1 (1 + K) min(sigma, sigma0) whatever its speed (no regularisation)."""
     if not pressure > 0:
         return math.nan
-    dry = law.mu1 * (1 + rg.mean(law.rough)) * min(1.0, law.sigma0 / pressure) * min(1.0, speed / law.v_reg)
+    slope = 1.0 if law.static else min(1.0, speed / law.v_reg)  # a slipping static contact carries mu1 at any speed
+    dry = law.mu1 * (1 + rg.mean(law.rough)) * min(1.0, law.sigma0 / pressure) * slope
     return dry + law.mu0 * speed / pressure
 
 
@@ -614,7 +671,7 @@ def on_bodies(run: Callable[..., dict[str, Any]]) -> Callable[[Scene, int, dict[
         aut, bonded = body_automata(scene.box, n, scene.material.density, contact)
         mat = scene.material
         el = Elastic(mat.youngs_modulus, mat.poisson_ratio, many_body=p["many_body"], coefficient=p["coefficient"])
-        law = law_of(aut, contact, p)
+        law = law_of(aut, contact, p, el.shear)
         out = run(scene, aut, bonded, el, law, p)
         out.pop("power", None)
         model, st = out.pop("model"), out.pop("state")
