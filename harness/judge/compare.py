@@ -5,7 +5,9 @@ reference at the same points (in the units of the solution's `quantity`), with t
 stand on: "analytic" (the exact solution, `pcverify.references.analytic`).  The errors are stored with the
 cell (its `errors`), so the tables, the calibrations and `pcverify run` read the numbers computed here from
 the cell's own Scene, never from a scene rebuilt by name.  A scene without a reference has no errors, nor
-has a set of vector values (a displacement): the reference is one scalar per point.  The
+has a set of vector values (a displacement): the reference is one scalar per point.  A scene whose reference
+is a set of scalars (the stick-slip cycle, `pcverify.references.stick_slip.expected`) gets, per scalar the
+solution's summary reports under the same name, its expected value and relative error (`scalar_errors`).  The
 cell key holds this module's fingerprint (and that of the references it imports).
 """
 
@@ -17,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from pcverify.harness.judge.metrics import field_errors
-from pcverify.references import analytic
+from pcverify.references import analytic, stick_slip
 from pcverify.scene import Scene
 
 
@@ -36,3 +38,17 @@ def errors(scene: Scene, samples: dict[str, Any] | None) -> dict[str, dict[str, 
         out[name] = {k: v if math.isfinite(v) else None for k, v in found.items()} | {"reference": "analytic"}
     return out
 
+
+
+def scalar_errors(scene: Scene, summary: dict[str, Any] | None) -> dict[str, dict[str, Any]]:
+    """{quantity: {"value", "expected", "error", "reference"}} for each scalar of the scene's analytic reference
+    that the summary reports: the relative error |value / expected - 1| (None where it is not finite)."""
+    out: dict[str, dict[str, Any]] = {}
+    for name, exact in stick_slip.expected(scene).items():
+        value = (summary or {}).get(name)
+        if not isinstance(value, (int, float)) or isinstance(value, bool):
+            continue
+        err = abs(value / exact - 1.0) if exact != 0 else math.nan
+        out[name] = {"value": float(value), "expected": float(exact), "error": err if math.isfinite(err) else None,
+                     "reference": "analytic"}
+    return out

@@ -198,7 +198,8 @@ def compute_cell(cell: Cell, raise_scene_errors: bool = False) -> dict[str, Any]
                        "and never changes it"}
     res = dict(out.get("resolution") or {})
     res.setdefault("h", resolution.spacing(scene.box.width))
-    return out | base | {"resolution": res, "errors": compare.errors(scene, out.get("samples"))}
+    return out | base | {"resolution": res, "errors": compare.errors(scene, out.get("samples")),
+                         "scalar_errors": compare.scalar_errors(scene, out.get("summary"))}
 
 
 def _content_hash(scene: Scene) -> str:

@@ -59,6 +59,7 @@ from . import contact_scenes as cs
 from . import heat as mca_heat
 from . import kernel as mk
 from . import response as rf
+from . import stick_slip as ss
 from .automata import Automata, bar_automata
 from .kernels import timed
 from .model import COEFFICIENTS, Elastic, Model, rebuild_pairs, relax, relax_status
@@ -561,6 +562,11 @@ def _slide_steps(scene: Scene, h: float, p: dict[str, Any]) -> int:
     return _relax_steps(scene, h, p) + sum(cs.slide_steps(scene.contact, t_ramp, dt))
 
 
+def _stick_slip_steps(scene: Scene, h: float, p: dict[str, Any]) -> int:
+    """Stick-slip: the preload's relaxation, then the spring's whole duration."""
+    return ss.steps(scene, h, p, _relax_steps(scene, h, p), _wave(scene, h, p)[1])
+
+
 def _heating_steps(scene: Scene, h: float, p: dict[str, Any]) -> int:
     """Frictional heating: the sliding run, then the heat's explicit steps to t_end."""
     return _slide_steps(scene, h, p) + _heat_steps(scene, h, p)
@@ -595,6 +601,7 @@ ANALYSES: tuple[Analysis, ...] = (
     Analysis("sliding contact", CONTACT, cs.on_bodies(cs.sliding), _slide_steps, sliding=True, bodies=2),
     Analysis("frictional heating", CONTACT | {"conduction", "frictional-heating"}, cs.on_bodies(cs.heating),
              _heating_steps, allows=frozenset({"interface-flux"}), conduction="transient", sliding=True, bodies=2),
+    Analysis("stick-slip", CONTACT | {"stick-slip"}, ss.run, _stick_slip_steps, sliding=True, bodies=2),
 )
 
 
