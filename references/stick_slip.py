@@ -9,7 +9,8 @@ the time since the slip began, F'' = -omega^2 (F - mu_k N) during the slip, from
     x' = V (1 - cos(omega tau)) + (omega Delta / k) sin(omega tau)   (the block's velocity),
 and the slip ends when x' is 0 again: tan(omega tau / 2) = -omega Delta / (k V), i.e. after
     t_slip = (pi + 2 atan(k V / (omega Delta))) / omega,
-where F - mu_k N = -Delta: the trough is (2 mu_k - mu_s) N, the force drop 2 Delta.  The block then sticks
+where F - mu_k N = -Delta: the trough is (2 mu_k - mu_s) N, the force drop 2 Delta.  While the block slips the
+force first still rises (F' = k (V - x')), to its largest value mu_k N + sqrt(Delta^2 + (k V / omega)^2).  The block then sticks
 (|F| <= mu_s N) until F is back at mu_s N:
     t_stick = 2 Delta / (k V),   period = t_stick + t_slip,
 and the largest slip velocity is V + sqrt(V^2 + (omega Delta / k)^2).  With mu_s = mu_k there is no stick:
@@ -29,7 +30,8 @@ from pcverify.scene import Scene
 
 class Cycle(NamedTuple):
     """The steady cycle: spring force at slip onset (peak) and at slip end (trough) and their difference (N),
-    stick and slip times and their sum (s), the largest slip velocity (m/s), the first stick (s), omega (1/s)."""
+    stick and slip times and their sum (s), the largest slip velocity (m/s), the first stick (s), omega (1/s), the
+    largest spring force (N, reached while slipping)."""
 
     peak: float
     trough: float
@@ -40,6 +42,7 @@ class Cycle(NamedTuple):
     slip_velocity: float
     first_stick: float
     omega: float
+    largest: float
 
 
 def cycle(mass: float, normal_force: float, stiffness: float, speed: float, mu_static: float,
@@ -52,7 +55,8 @@ def cycle(mass: float, normal_force: float, stiffness: float, speed: float, mu_s
     return Cycle(peak=mu_static * normal_force, trough=(2.0 * mu_kinetic - mu_static) * normal_force,
                  drop=2.0 * delta, stick=stick, slip=slip, period=stick + slip,
                  slip_velocity=speed + math.hypot(speed, omega * delta / stiffness),
-                 first_stick=mu_static * normal_force / (stiffness * speed), omega=omega)
+                 first_stick=mu_static * normal_force / (stiffness * speed), omega=omega,
+                 largest=mu_kinetic * normal_force + math.hypot(delta, stiffness * speed / omega))
 
 
 def spring_force(t: np.ndarray, mass: float, normal_force: float, stiffness: float, speed: float, mu_static: float,
@@ -103,10 +107,12 @@ def setting(scene: Scene) -> Setting | None:
 
 def expected(scene: Scene) -> dict[str, float]:
     """The cycle of a stick-slip scene by the summary names a solver reports it under (empty for other scenes):
-    spring_peak_N, spring_trough_N, force_drop_N, stick_s, slip_s, period_s, slip_velocity_peak (m/s)."""
+    spring_peak_N, spring_trough_N, force_drop_N, spring_max_N, stick_s, slip_s, period_s, slip_velocity_peak
+    (m/s)."""
     s = setting(scene)
     if s is None:
         return {}
     c = cycle(*s)
-    return {"spring_peak_N": c.peak, "spring_trough_N": c.trough, "force_drop_N": c.drop, "stick_s": c.stick,
+    return {"spring_peak_N": c.peak, "spring_trough_N": c.trough, "force_drop_N": c.drop, "spring_max_N": c.largest,
+            "stick_s": c.stick,
             "slip_s": c.slip, "period_s": c.period, "slip_velocity_peak": c.slip_velocity}

@@ -41,14 +41,14 @@ def errors(scene: Scene, samples: dict[str, Any] | None) -> dict[str, dict[str, 
 
 
 def scalar_errors(scene: Scene, summary: dict[str, Any] | None) -> dict[str, dict[str, Any]]:
-    """{quantity: {"value", "expected", "error", "reference"}} for each scalar of the scene's analytic reference
-    that the summary reports: the relative error |value / expected - 1| (None where it is not finite)."""
+    """{quantity: {"value", "expected", "error", "reference"}} for each scalar of the scene's analytic reference:
+    the summary's value under the same name and the relative error |value / expected - 1| (None where the
+    solution does not report it as a finite number)."""
     out: dict[str, dict[str, Any]] = {}
     for name, exact in stick_slip.expected(scene).items():
         value = (summary or {}).get(name)
-        if not isinstance(value, (int, float)) or isinstance(value, bool):
-            continue
-        err = abs(value / exact - 1.0) if exact != 0 else math.nan
-        out[name] = {"value": float(value), "expected": float(exact), "error": err if math.isfinite(err) else None,
-                     "reference": "analytic"}
+        number = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+        err = abs(value / exact - 1.0) if number and exact != 0 else math.nan
+        out[name] = {"value": float(value) if number else None, "expected": float(exact),
+                     "error": err if math.isfinite(err) else None, "reference": "analytic"}
     return out

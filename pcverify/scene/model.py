@@ -33,7 +33,7 @@ PHYSICS = {
     "fracture": "loading to failure with a response function (Elasticity.response, strain_rate > 0)",
     "contact": "two bodies touching across a plane, pressed and possibly sliding (a Contact part)",
     "frictional-heating": "the power dissipated by friction heats the bodies (Contact.heating, with conduction)",
-    "stick-slip": "body 2 pulled along the contact by a spring with static and kinetic friction (Contact.spring_stiffness)",
+    "stick-slip": "body 2 pulled along the contact by a spring, static and kinetic friction (Contact.spring_stiffness)",
 }
 MODES = ("steady", "transient")
 
