@@ -9,9 +9,9 @@ the time since the slip began, F'' = -omega^2 (F - mu_k N) during the slip, from
     x' = V (1 - cos(omega tau)) + (omega Delta / k) sin(omega tau)   (the block's velocity),
 and the slip ends when x' is 0 again: tan(omega tau / 2) = -omega Delta / (k V), i.e. after
     t_slip = (pi + 2 atan(k V / (omega Delta))) / omega,
-where F - mu_k N = -Delta: the trough is (2 mu_k - mu_s) N, the force drop 2 Delta.  While the block slips the
-force first still rises (F' = k (V - x')), to its largest value mu_k N + sqrt(Delta^2 + (k V / omega)^2).  The block then sticks
-(|F| <= mu_s N) until F is back at mu_s N:
+where F - mu_k N = -Delta: the trough is (2 mu_k - mu_s) N, the force drop 2 Delta. While the block slips the force
+first still rises (F' = k (V - x')), to its largest value mu_k N + sqrt(Delta^2 + (k V / omega)^2). The block then
+sticks (|F| <= mu_s N) until F is back at mu_s N:
     t_stick = 2 Delta / (k V),   period = t_stick + t_slip,
 and the largest slip velocity is V + sqrt(V^2 + (omega Delta / k)^2).  With mu_s = mu_k there is no stick:
 t_stick = 0 and the block slides on (its velocity touches 0 once a period 2 pi / omega).

@@ -33,7 +33,7 @@ def rigid_block(mass, normal_force, stiffness, speed, mu_static, mu_kinetic, t_e
     t_grid = np.linspace(0.0, t_end, rows)
     out = np.zeros((rows, 4))
     out[:, 0] = t_grid
-    t, x, v = 0.0, 0.0, 0.0
+    t, x = 0.0, 0.0
     k = 0
     while t < t_end:
         # stick: x constant until k (V t - x) = mu_s N

@@ -18,11 +18,11 @@ spring force where it starts: the static limit), trough (where it ends), force d
 force (reached while slipping, as the force still rises at k (V - x') first), slip time, largest velocity, the
 stick before it and the period from its start to the next; the summary holds their means over the cycles
 and their spreads (standard deviation over the cycles, `<name>_spread`), `stick_slip_cycles` the number of slips
-after the first (whole ones: a slip cut by the run's end is not counted).  The rest threshold biases the ends
-inward by REST_SPEED V m / (mu_s - mu_k) N (1.4 us at the scene's defaults, measured on the integrated rigid
-block, tests/test_stick_slip.py): slip time -0.4 %, stick +0.35 %, force drop +0.35 %; the period and the
-largest force and velocity are unbiased.  A run with fewer than two of them has no stick-slip cycle to measure: failed, with the
-first peak and the rows kept.
+after the first (whole ones: a slip cut by the run's end is not counted). The rest threshold biases the ends inward
+by REST_SPEED V m / (mu_s - mu_k) N (1.4 us at the scene's defaults, measured on the integrated rigid block,
+tests/test_stick_slip.py): slip time -0.4 %, stick +0.35 %, force drop +0.35 %; the period and the largest force and
+velocity are unbiased. A run with fewer than two of them has no stick-slip cycle to measure: failed, with the first
+peak and the rows kept.
 """
 
 from __future__ import annotations
