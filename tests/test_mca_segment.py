@@ -52,11 +52,13 @@ def _one_facet(x_slave: np.ndarray, v_slave: np.ndarray, law: ct.ContactLaw, mas
         facet=np.full(1, -1), w=np.zeros((1, 3)), nrm=np.zeros((1, 3)), gap=np.zeros(1), area=np.zeros(1),
         sigma=np.zeros(1), fric=np.zeros((1, 3)), speed=np.zeros(1), power=np.zeros(1), dissipated=np.zeros(1),
         heat=np.zeros(4), held=held if held is not None else np.zeros((4, 3), dtype=np.int64),
-        reaction=np.zeros((2, 3)), impulse=np.zeros((2, 3)), rough=rg.new_state(1), law=law)
+        reaction=np.zeros((2, 3)), impulse=np.zeros((2, 3)), held_rot=np.zeros((4, 3), dtype=np.int64),
+        moment=np.zeros((2, 3)), angular_impulse=np.zeros((2, 3)), tang=np.zeros((1, 3)), tnrm=np.zeros((1, 3)),
+        slipping=np.zeros(1, dtype=np.int64), rough=rg.new_state(1), law=law)
     theta = np.zeros(4)
     ct.geometry(x, np.full(4, r**3), con, theta)
     f = np.zeros((4, 3))
-    ct.forces(x, v, f, np.zeros(4), np.full(4, mass), E, 0.0, 1e-9, con)
+    ct.forces(x, v, f, np.zeros(4), np.full(4, mass), E, 0.0, 1e-9, con, None)
     return f, con, theta
 
 

@@ -91,7 +91,7 @@ def _stack_models() -> dict[str, tuple[Model, object]]:
     single = build_automata(np.full(3, 21 * a), (22, 22, 22), 2800.0)
     box = Box(21 * a, 21 * a, 43 * a)
     pair, bonded = body_automata(box, 22, 2800.0, Contact(axis="z", position=21.5 * a))
-    law = law_of(pair, Contact(axis="z", position=21.5 * a), effective_params(Mca(), {}))
+    law = law_of(pair, Contact(axis="z", position=21.5 * a), effective_params(Mca(), {}), 70e9 / 2.66)
     for name, aut, contact in (("one body", single, None), ("bonded stack", bonded, None), ("contact", pair, law)):
         ext = aut.positions.max(axis=0)
         fixm = np.zeros((aut.size, 6), dtype=np.uint8)

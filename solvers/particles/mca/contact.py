@@ -60,7 +60,9 @@ EDGE = 0.5  # a foot point this far outside a facet (barycentric units) still co
 class ContactLaw(NamedTuple):
     """Constants of the contact: rest height h0 (m), viscous coefficient mu0 (Pa s/m), dry coefficient mu1,
     normal-stress cap sigma0 (Pa), regularisation width v_reg (m/s), the roughness process, and the axes
-    (indices) along which the record resolves the forces: the contact axis and the sliding direction."""
+    (indices) along which the record resolves the forces: the contact axis and the sliding direction.  The
+    dry law: regularised (static False, the default) or static friction (static True: Coulomb limit mu_s
+    while stuck, mu1 while slipping, tangential spring kt in Pa/m)."""
 
     h0: float
     mu0: float
@@ -70,6 +72,9 @@ class ContactLaw(NamedTuple):
     rough: rg.Roughness
     axis: int
     direction: int
+    static: bool = False
+    mu_s: float = 0.0
+    kt: float = 0.0
 
 
 class ContactState(NamedTuple):
@@ -78,7 +83,9 @@ class ContactState(NamedTuple):
     height, area, normal stress, friction force, tangential speed, power) and the energy its friction
     dissipated; per automaton the heat received (J); the held degrees of freedom (N, 3: 0 free, 1 body 1's,
     2 body 2's), their constraints' current reactions (2, 3) and the reactions' time integrals (2, 3; N s);
-    the roughness process; and the law."""
+    per automaton the held rotations, and the reactions' moments about the origin with their time integrals;
+    per slave the static law's spring stress, the normal it was carried with, and whether it slips; the
+    roughness process; and the law."""
 
     slave: np.ndarray
     faces: np.ndarray  # (ns, 6) open sides of each slave
@@ -101,6 +108,12 @@ class ContactState(NamedTuple):
     held: np.ndarray  # (N, 3) int64: 0 free, 1 held in body 1 (a clamp), 2 held in body 2 (a drive, a platen)
     reaction: np.ndarray  # (2, 3) -sum f over the held degrees of freedom of body 1, body 2 (N)
     impulse: np.ndarray  # (2, 3) time integral of `reaction` (N s)
+    held_rot: np.ndarray  # (N, 3) int64: the held rotations, as `held`
+    moment: np.ndarray  # (2, 3) the held degrees of freedom's reaction moment about the origin (N m)
+    angular_impulse: np.ndarray  # (2, 3) time integral of `moment` (N m s)
+    tang: np.ndarray  # (ns, 3) static law: tangential stress of the contact's spring (Pa), resisting the slip
+    tnrm: np.ndarray  # (ns, 3) static law: the normal `tang` was last carried with (0: the contact was open)
+    slipping: np.ndarray  # (ns,) int64 static law: 1 while the contact slips (kinetic limit), 0 stuck
     rough: rg.RoughState
     law: ContactLaw
 
@@ -207,7 +220,9 @@ def new_state(aut: Automata, x: np.ndarray, law: ContactLaw, skin: float) -> Con
                         gap=np.zeros(ns), area=np.zeros(ns), sigma=np.zeros(ns), fric=np.zeros((ns, 3)),
                         speed=np.zeros(ns), power=np.zeros(ns), dissipated=np.zeros(ns), heat=np.zeros(aut.size),
                         held=np.zeros((aut.size, 3), dtype=np.int64), reaction=np.zeros((2, 3)),
-                        impulse=np.zeros((2, 3)), rough=rs, law=law)
+                        impulse=np.zeros((2, 3)), held_rot=np.zeros((aut.size, 3), dtype=np.int64),
+                        moment=np.zeros((2, 3)), angular_impulse=np.zeros((2, 3)), tang=np.zeros((ns, 3)),
+                        tnrm=np.zeros((ns, 3)), slipping=np.zeros(ns, dtype=np.int64), rough=rs, law=law)
 
 
 def rest_partners(con: ContactState, aut: Automata) -> ContactState:
@@ -319,9 +334,17 @@ def _sub_area(u0, u1, u2, v0, v1, v2, n0, n1, n2):
 
 
 @njit(cache=True)
-def forces(x, v, f, theta, mass, kn, lam, dt, con):
+def forces(x, v, f, theta, mass, kn, lam, dt, con, rot):
     """Pass 2 of the contact (after the volume strains are updated): normal stress, friction and the forces
-    on each slave and its facet's automata; each slave's friction power and tangential speed."""
+    on each slave and its facet's automata, applied at the contact point c = x_k - (h / 2) n, midway between
+    the slave and its foot point (at rest the plane where the two cells touch, symmetric in the two bodies):
+    on k the force F and the moment (c - x_k) x F, on each facet automaton v the force -w_v F and the moment
+    (c - x_v) x (-w_v F), so a contact exerts no net force and no net couple (the weights sum to 1).  The
+    slip velocity is that of the two contact points, spins included: v_k + w_k x (c - x_k) minus
+    sum_v w_v (v_v + w_v x (c - x_v)), zero for bodies moving rigidly together.  rot None (a run without
+    rotations): forces at the centres, no moments, slip from the centres' velocities -- a contact carrying
+    friction F_R then leaves the couple h F_R (the sliding scenes refuse rotations=false, contact_scenes.py).
+    Each slave's friction power and tangential speed."""
     law = con.law
     h0 = law.h0
     for s in range(con.slave.shape[0]):
@@ -333,6 +356,11 @@ def forces(x, v, f, theta, mass, kn, lam, dt, con):
         con.fric[s, 2] = 0.0
         fct = con.facet[s]
         if fct < 0:
+            if law.static:  # an open contact forgets its spring
+                for c in range(3):
+                    con.tang[s, c] = 0.0
+                    con.tnrm[s, c] = 0.0
+                con.slipping[s] = 0
             continue
         k = con.slave[s]
         a = con.facets[fct, 0]
@@ -350,22 +378,51 @@ def forces(x, v, f, theta, mass, kn, lam, dt, con):
         u0 = v[k, 0] - (wa * v[a, 0] + wb * v[b, 0] + wd * v[d, 0])
         u1 = v[k, 1] - (wa * v[a, 1] + wb * v[b, 1] + wd * v[d, 1])
         u2 = v[k, 2] - (wa * v[a, 2] + wb * v[b, 2] + wd * v[d, 2])
+        # what one step can stop: a kick of dt coef / m_red (1/m_red = 1/m_k + sum_v w_v / m_v, plus the
+        # rotations' share |c - x|^2 / J when the automata rotate) must not reverse the relative velocity, else
+        # the explicit damper chatters (or grows beyond 2)
+        inv = 1.0 / mass[k] + wa / mass[a] + wb / mass[b] + wd / mass[d]
+        half = 0.5 * con.gap[s]
+        cx0 = x[k, 0] - half * n0
+        cx1 = x[k, 1] - half * n1
+        cx2 = x[k, 2] - half * n2
+        if rot is not None:
+            w = rot.w
+            s0, s1, s2 = _cross(w[k, 0], w[k, 1], w[k, 2], -half * n0, -half * n1, -half * n2)
+            u0 += s0
+            u1 += s1
+            u2 += s2
+            inv += half * half / rot.inertia[k]
+            for q in range(3):
+                j = con.facets[fct, q]
+                wq = con.w[s, q]
+                r0 = cx0 - x[j, 0]
+                r1 = cx1 - x[j, 1]
+                r2 = cx2 - x[j, 2]
+                s0, s1, s2 = _cross(w[j, 0], w[j, 1], w[j, 2], r0, r1, r2)
+                u0 -= wq * s0
+                u1 -= wq * s1
+                u2 -= wq * s2
+                inv += wq * (r0 * r0 + r1 * r1 + r2 * r2) / rot.inertia[j]
         un = u0 * n0 + u1 * n1 + u2 * n2
         t0 = u0 - un * n0
         t1 = u1 - un * n1
         t2 = u2 - un * n2
         speed = math.sqrt(t0 * t0 + t1 * t1 + t2 * t2)
         rough = rg.value(con.rough, s) if law.rough.on else 0.0
-        dry = law.mu1 * (1.0 + rough) * min(-sig, law.sigma0)
         area = con.area[s]
-        coef = area * (law.mu0 + dry / max(speed, law.v_reg))
-        # what one step can stop: a kick of dt coef / m_red (1/m_red = 1/m_k + sum_v w_v / m_v) must not reverse
-        # the relative velocity, else the explicit damper chatters (or grows beyond 2)
-        stop = 1.0 / (dt * (1.0 / mass[k] + wa / mass[a] + wb / mass[b] + wd / mass[d]))
-        coef = min(coef, stop)
-        fr0 = -coef * t0
-        fr1 = -coef * t1
-        fr2 = -coef * t2
+        stop = 1.0 / (dt * inv)
+        if law.static:
+            fr0, fr1, fr2, power = _static(con, s, rot, n0, n1, n2, t0, t1, t2, speed, sig, rough, area, stop, dt,
+                                           k, fct)
+        else:
+            dry = law.mu1 * (1.0 + rough) * min(-sig, law.sigma0)
+            coef = area * (law.mu0 + dry / max(speed, law.v_reg))
+            coef = min(coef, stop)
+            fr0 = -coef * t0
+            fr1 = -coef * t1
+            fr2 = -coef * t2
+            power = coef * speed * speed
         fn = -sig * area
         g0 = fn * n0 + fr0
         g1 = fn * n1 + fr1
@@ -382,26 +439,137 @@ def forces(x, v, f, theta, mass, kn, lam, dt, con):
         f[d, 0] -= wd * g0
         f[d, 1] -= wd * g1
         f[d, 2] -= wd * g2
+        if rot is not None:
+            mom = rot.mom
+            m0, m1, m2 = _cross(-half * n0, -half * n1, -half * n2, g0, g1, g2)
+            mom[k, 0] += m0
+            mom[k, 1] += m1
+            mom[k, 2] += m2
+            for q in range(3):
+                j = con.facets[fct, q]
+                wq = con.w[s, q]
+                m0, m1, m2 = _cross(cx0 - x[j, 0], cx1 - x[j, 1], cx2 - x[j, 2], g0, g1, g2)
+                mom[j, 0] -= wq * m0
+                mom[j, 1] -= wq * m1
+                mom[j, 2] -= wq * m2
         con.fric[s, 0] = fr0
         con.fric[s, 1] = fr1
         con.fric[s, 2] = fr2
         con.speed[s] = speed
-        con.power[s] = coef * speed * speed
-    _reactions(f, con)
+        con.power[s] = power
+    _reactions(x, f, con, rot)
 
 
 @njit(cache=True)
-def _reactions(f, con):
+def _static(con, s, rot, n0, n1, n2, t0, t1, t2, speed, sig, rough, area, stop, dt, k, fct):
+    """Static friction of slave s (Cundall-Strack): its spring's stress, carried with the contact's frame
+    (rotated from the normal it was last carried with to n, then about n by the two sides' mean spin about n
+    over the step: objective, not just projected), plus kt V_t dt, is the trial stress.  Stuck, the limit is
+    mu_s (1 + K) sigma_N; beyond it the contact slips and the limit is the kinetic mu1 (1 + K) sigma_N (the
+    stress drops to it, along the trial stress).  A slipping contact sticks again (limit back to mu_s) when
+    its slip velocity stops or reverses against the stress it carries (V_t . tau <= 0): the end of a slip
+    phase, where the slider comes to rest; a drop of |tau| below the kinetic limit alone (the normal stress
+    rising while it slides) does not re-stick it.  Plus the viscous mu0 V_t (capped at what a step can stop).
+    Dissipated: the stress times the slip increment (tau_trial - tau) / kt, tau the step's mean (the
+    trapezoid rule of the work, so the spring's stored energy S |tau|^2 / (2 kt) and the dissipation add up to
+    the work done on the contact).  Returns the friction force on the slave and the dissipated power."""
+    law = con.law
+    a0 = con.tang[s, 0]
+    a1 = con.tang[s, 1]
+    a2 = con.tang[s, 2]
+    o0 = con.tnrm[s, 0]
+    o1 = con.tnrm[s, 1]
+    o2 = con.tnrm[s, 2]
+    if o0 * o0 + o1 * o1 + o2 * o2 > 0.0:
+        cc = o0 * n0 + o1 * n1 + o2 * n2
+        if cc > 0.0:  # the minimal rotation taking the old normal onto n (Rodrigues)
+            k0, k1, k2 = _cross(o0, o1, o2, n0, n1, n2)
+            kv = (k0 * a0 + k1 * a1 + k2 * a2) / (1.0 + cc)
+            c0, c1, c2 = _cross(k0, k1, k2, a0, a1, a2)
+            a0, a1, a2 = cc * a0 + c0 + kv * k0, cc * a1 + c1 + kv * k1, cc * a2 + c2 + kv * k2
+        else:  # turned by more than 90 degrees within a step: nothing to carry
+            a0 = a1 = a2 = 0.0
+    if rot is not None:
+        w = rot.w
+        spin = w[k, 0] * n0 + w[k, 1] * n1 + w[k, 2] * n2
+        for q in range(3):
+            j = con.facets[fct, q]
+            spin += con.w[s, q] * (w[j, 0] * n0 + w[j, 1] * n1 + w[j, 2] * n2)
+        ang = 0.5 * dt * spin
+        if ang != 0.0:
+            c0, c1, c2 = _cross(n0, n1, n2, a0, a1, a2)
+            ca = math.cos(ang)
+            sa = math.sin(ang)
+            a0, a1, a2 = ca * a0 + sa * c0, ca * a1 + sa * c1, ca * a2 + sa * c2
+    an = a0 * n0 + a1 * n1 + a2 * n2  # round-off off the plane
+    a0 -= an * n0
+    a1 -= an * n1
+    a2 -= an * n2
+    kdt = law.kt * dt
+    p0 = a0 + kdt * t0
+    p1 = a1 + kdt * t1
+    p2 = a2 + kdt * t2
+    mag = math.sqrt(p0 * p0 + p1 * p1 + p2 * p2)
+    normal = (1.0 + rough) * min(-sig, law.sigma0)
+    slipping = con.slipping[s]
+    if slipping == 1 and a0 * t0 + a1 * t1 + a2 * t2 <= 0.0:
+        slipping = 0
+    limit = law.mu1 * normal if slipping == 1 else law.mu_s * normal
+    if mag > limit:
+        slipping = 1
+        sc = law.mu1 * normal / mag
+        b0 = sc * p0
+        b1 = sc * p1
+        b2 = sc * p2
+    else:
+        b0 = p0
+        b1 = p1
+        b2 = p2
+    dissipated = 0.0
+    if law.kt > 0.0:
+        dissipated = area * (0.5 * (a0 + b0) * (p0 - b0) + 0.5 * (a1 + b1) * (p1 - b1) + 0.5 * (a2 + b2) * (p2 - b2)) \
+            / law.kt
+    con.tang[s, 0] = b0
+    con.tang[s, 1] = b1
+    con.tang[s, 2] = b2
+    con.tnrm[s, 0] = n0
+    con.tnrm[s, 1] = n1
+    con.tnrm[s, 2] = n2
+    con.slipping[s] = slipping
+    vis = min(area * law.mu0, stop)
+    return (-area * b0 - vis * t0, -area * b1 - vis * t1, -area * b2 - vis * t2,
+            dissipated / dt + vis * speed * speed)
+
+
+@njit(inline="always")
+def _cross(a0, a1, a2, b0, b1, b2):
+    return a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
+
+
+@njit(cache=True)
+def _reactions(x, f, con, rot):
     """The held degrees of freedom's constraint reactions, -sum f over each body's (f: the pair and contact
-    forces of the step, before the loads)."""
+    forces of the step, before the loads), and their moment about the origin: sum x x (-f) over the held
+    translations, -sum M over the held rotations."""
     for g in range(2):
         for c in range(3):
             con.reaction[g, c] = 0.0
+            con.moment[g, c] = 0.0
     for i in range(con.held.shape[0]):
         for c in range(3):
             g = con.held[i, c]
             if g > 0:
-                con.reaction[g - 1, c] -= f[i, c]
+                r = -f[i, c]
+                con.reaction[g - 1, c] += r
+                # x_i x (r e_c)
+                c1 = (c + 1) % 3
+                c2 = (c + 2) % 3
+                con.moment[g - 1, c1] += x[i, c2] * r
+                con.moment[g - 1, c2] -= x[i, c1] * r
+            if rot is not None:
+                g = con.held_rot[i, c]
+                if g > 0:
+                    con.moment[g - 1, c] -= rot.mom[i, c]
 
 
 @njit(cache=True)
@@ -413,6 +581,7 @@ def after_step(con, dt):
     for g in range(2):
         for c in range(3):
             con.impulse[g, c] += con.reaction[g, c] * dt
+            con.angular_impulse[g, c] += con.moment[g, c] * dt
     total = 0.0
     for s in range(con.slave.shape[0]):
         fct = con.facet[s]
@@ -430,14 +599,19 @@ def after_step(con, dt):
 
 
 @njit(cache=True)
-def energy(con):
-    """Elastic energy of the closed contacts: sum kn S (h - h0)^2 / (2 h0) without kn (the caller's factor)."""
+def energy(con, kn):
+    """Elastic energy of the closed contacts: sum kn S (h - h0)^2 / (2 h0), and with static friction the
+    tangential springs' sum S |tau|^2 / (2 kt)."""
     u = 0.0
+    spring = 0.0
     for s in range(con.slave.shape[0]):
         if con.facet[s] >= 0:
             dh = con.gap[s] - con.law.h0
             u += 0.5 * con.area[s] * dh * dh / con.law.h0
-    return u
+            if con.law.static and con.law.kt > 0.0:
+                tt = con.tang[s, 0] ** 2 + con.tang[s, 1] ** 2 + con.tang[s, 2] ** 2
+                spring += 0.5 * con.area[s] * tt / con.law.kt
+    return kn * u + spring
 
 
 @njit(cache=True)

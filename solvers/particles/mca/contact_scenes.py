@@ -59,7 +59,7 @@ from typing import Any, NamedTuple
 import numpy as np
 from scipy.special import erfc
 
-from pcverify.scene import Contact, FaceClamp, FaceSupport, Scene, SceneError
+from pcverify.scene import Contact, FaceClamp, FaceSupport, Scene, SceneError, shown
 from pcverify.solvers.energy import balance_error
 from pcverify.solvers.protocol import heat_summary
 
@@ -74,14 +74,28 @@ from .model import Elastic, Model, rebuild_pairs, relax, relax_status
 FACE_AXES = "xyz"
 
 
-def law_of(aut: Automata, contact: Contact, p: dict[str, Any]) -> ct.ContactLaw:
-    """The contact law of the solver parameters: h0 = the spacing across the interface."""
+def law_of(aut: Automata, contact: Contact, p: dict[str, Any], shear: float) -> ct.ContactLaw:
+    """The contact law of the solver parameters: h0 = the spacing across the interface; the dry law
+    (`friction_law`), with static friction mu_s (default mu1; at least mu1) and the tangential stiffness
+    `contact_stiffness` (default the bonded pair's shear stiffness 2 G / h0, `shear` = G).  A sliding scene
+    needs the automata's rotations: the contact's moments have nowhere to go without them."""
     rough = rg.Roughness(on=bool(p["roughness_a1"] > 0 or p["roughness_a2"] > 0), a1=float(p["roughness_a1"]),
                          a2=float(p["roughness_a2"]), d1=float(p["roughness_d1"]), d2=float(p["roughness_d2"]),
                          spread=float(p["roughness_spread"]), seed=int(p["seed"]))
-    return ct.ContactLaw(h0=float(aut.spacing[contact.axis_index]), mu0=float(p["mu0"]), mu1=float(p["mu1"]),
+    h0 = float(aut.spacing[contact.axis_index])
+    mu1 = float(p["mu1"])
+    mu_s = mu1 if p["mu_s"] is None else float(p["mu_s"])
+    if mu_s < mu1:
+        raise SceneError(f"mu_s={shown(p['mu_s'])} is below the kinetic coefficient mu1={shown(mu1)}; allowed: "
+                         "mu_s >= mu1 (none: mu_s = mu1)")
+    if contact.sliding and not p["rotations"]:
+        raise SceneError("rotations=false with a sliding contact: the contact's friction acts at the contact "
+                         "point and its moments need the automata's rotations; allowed: rotations=true")
+    kt = 2.0 * shear / h0 if p["contact_stiffness"] is None else float(p["contact_stiffness"])
+    return ct.ContactLaw(h0=h0, mu0=float(p["mu0"]), mu1=mu1,
                          sigma0=math.inf if p["sigma0"] is None else float(p["sigma0"]), v_reg=float(p["v_reg"]),
-                         rough=rough, axis=contact.axis_index, direction=contact.direction_index)
+                         rough=rough, axis=contact.axis_index, direction=contact.direction_index,
+                         static=p["friction_law"] == "static", mu_s=mu_s, kt=kt)
 
 
 def far_faces(contact: Contact) -> tuple[str, str]:
@@ -246,6 +260,7 @@ def sliding(scene: Scene, aut: Automata, bonded: Automata, el: Elastic, law: ct.
     st = st._replace(frame=mk.Frame(frame))
     held = np.where(fixm[:, :3] == mk.PRESCRIBED, 1 + aut.body[:, None], 0)
     st.contact.held[:] = held  # the clamp's (body 1) and the drive's (body 2) reactions are recorded
+    st.contact.held_rot[:] = np.where(fixm[:, 3:] == mk.PRESCRIBED, 1 + aut.body[:, None], 0)
     gamma = rate if p["slide_damping"] is None else p["slide_damping"]
     model.params = model.params._replace(gamma=float(gamma), t_stop=math.inf, ramp_start=t0, ramp=t_ramp)
     total = ramp_steps + window_steps
@@ -614,7 +629,7 @@ def on_bodies(run: Callable[..., dict[str, Any]]) -> Callable[[Scene, int, dict[
         aut, bonded = body_automata(scene.box, n, scene.material.density, contact)
         mat = scene.material
         el = Elastic(mat.youngs_modulus, mat.poisson_ratio, many_body=p["many_body"], coefficient=p["coefficient"])
-        law = law_of(aut, contact, p)
+        law = law_of(aut, contact, p, el.shear)
         out = run(scene, aut, bonded, el, law, p)
         out.pop("power", None)
         model, st = out.pop("model"), out.pop("state")

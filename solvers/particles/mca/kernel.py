@@ -335,7 +335,7 @@ def _forces(st, par, rot, inel, load, con, nvec, rr, theta_new):
                     mom[i, c] += mr
                     mom[j, c] -= mr
     if con is not None:
-        ct.forces(x, st.v, f, theta, st.mass, kn, lam, par.dt, con)
+        ct.forces(x, st.v, f, theta, st.mass, kn, lam, par.dt, con, rot)
     if load is not None:
         for i in range(n_aut):
             for c in range(3):
@@ -730,7 +730,7 @@ def _record(st, par, con, ke, kerot, rr):
     hist[row, H_KEROT] = kerot
     hist[row, H_LOAD] = st.energy[E_LOAD]
     if con is not None:
-        hist[row, H_U] += par.kn * ct.energy(con)
+        hist[row, H_U] += ct.energy(con, par.kn)
         hist[row, H_FRIC] = st.energy[E_FRIC]
         hist[row, H_FT], hist[row, H_FN], hist[row, H_NC] = ct.resultants(con)
     counters[C_ROWS] = row + 1

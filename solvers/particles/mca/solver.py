@@ -104,6 +104,14 @@ PARAMETERS: tuple[Param, ...] = (
           "cap)", low=0.0, high=1e12, low_open=True, optional=True),
     Param("v_reg", 0.05, "m/s", "contact friction: below this tangential speed the dry part is regularised "
           "linearly (no static friction)", low=0.0, high=1e3, low_open=True),
+    Param("friction_law", "regularised", "", "contact friction, dry law: regularised (viscous below v_reg, no "
+          "static friction) or static (a tangential spring per contact with a Coulomb limit: mu_s while stuck, "
+          "mu1 while slipping)", choices=("regularised", "static"), kind=str),
+    Param("mu_s", None, "", "contact friction, static law: static coefficient (none = mu1; at least mu1)", low=0.0,
+          high=5.0, optional=True),
+    Param("contact_stiffness", None, "Pa/m", "contact friction, static law: tangential stiffness of the contact "
+          "per unit area (default the bonded pair's shear stiffness 2G/h0)", low=0.0, high=1e18, low_open=True,
+          optional=True),
     Param("roughness_a1", 0.0, "", "micro-roughness K_mu, sinusoid 1: mean amplitude A1/A (0 = no roughness)",
           low=0.0, high=10.0),
     Param("roughness_a2", 0.0, "", "micro-roughness K_mu, sinusoid 2: mean amplitude A2/A", low=0.0, high=10.0),
