@@ -582,7 +582,7 @@ def _advance(st, par, rot, inel, load, con, frame, peak, spring, nsteps):
             st.energy[E_FRIC] += ct.after_step(con, dt)
         counters[C_STEPS] += 1
         counters[C_PAIRSTEPS] += n_pair
-        _spring_after(v, st.clock[0], dt, counters[C_STEPS], spring)
+        _spring_after(v, st.clock[0], dt, counters[C_STEPS], spring, frame)
         if peak is not None:
             _track_peak(peak, f, x, st.x0, st.group, counters[C_STEPS])
         hist = st.hist
@@ -620,9 +620,11 @@ def _spring_force(f, x, x0, t, spring):
 
 
 @njit(cache=True)
-def _spring_after(v, t, dt, step, spring):
+def _spring_after(v, t, dt, step, spring, frame):
     """The drive spring over the step just taken: its work on the body (force times the weighted mean velocity
-    times dt) and, every spring.every steps, a history row (t, force, velocity, u)."""
+    times dt), every spring.every steps a history row (t, force, velocity, u), and with a damping frame the
+    driven body's reference velocity along the axis set to its weighted mean velocity (the damping then acts on
+    the body's motion relative to its centre of mass: its resultant on the body is zero)."""
     if spring is None:
         return
     d = spring.axis
@@ -637,6 +639,10 @@ def _spring_after(v, t, dt, step, spring):
         spring.hist[row, 2] = vel
         spring.hist[row, 3] = spring.out[1]
         spring.rows[0] = row + 1
+    if frame is not None:
+        for i in range(v.shape[0]):
+            if spring.weight[i] > 0.0:
+                frame.vel[i, d] = vel
 
 
 @njit(cache=True)

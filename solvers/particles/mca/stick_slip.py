@@ -6,8 +6,14 @@ the contact law's kinetic coefficient mu1 is the scene's mu_kinetic and its stat
 mu_static; the solver's `friction_law` chooses the law (the regularised law has no static friction, so it cannot
 stick).  The run: the preload relaxed with damping as the sliding analysis does (contact_scenes.sliding), then the
 spring (kernel.Spring: its force shared over body 2's automata by mass, i.e. pulling at the centre of mass) is
-attached unstretched and its far end moves for the scene's duration, undamped unless `slide_damping` is given
-(a mass-proportional damping would act on the slip itself).  Every `records`-th of the run a row of the spring
+attached unstretched and its far end moves for the scene's duration.  Damping (`slide_damping`, default the
+relaxation rate as in the sliding analysis; 0 = none) acts on body 2's automata relative to body 2's mean
+velocity along the direction (updated every step: kernel.Spring with a Frame), and on body 1's relative to rest:
+its resultant on the slider is zero, so the slider's centre of mass moves under the spring and the contacts
+alone, and only the bodies' elastic vibrations are damped.  Undamped (measured at n = 4 with the static law) the
+slider chatters after its first slip: the contacts open and close (0 to 16 closed, the normal force 0 to 300 N
+about its 100 N) and the kinetic energy grows to 0.06 J, so the mean friction while sliding falls far below mu_k
+N and no second stick follows (friction-induced vibration, as contact_scenes.py reports for undamped sliding).  Every `records`-th of the run a row of the spring
 force (what a load cell on the spring reads), the slider's mean velocity and displacement.
 
 Measured from those rows alone (not from the friction law's bookkeeping): slip phases are the rows where the mean
@@ -74,7 +80,7 @@ def _run(scene: Scene, n: int, p: dict[str, Any]) -> tuple[dict[str, Any], Autom
     aut, bonded = body_automata(scene.box, n, scene.material.density, contact)
     mat = scene.material
     el = Elastic(mat.youngs_modulus, mat.poisson_ratio, many_body=p["many_body"], coefficient=p["coefficient"])
-    law = cs.law_of(aut, contact, law_params(scene, p))
+    law = cs.law_of(aut, contact, law_params(scene, p), el.shear)
     ext = scene.box.extent
     fixm = np.zeros((aut.size, 6), dtype=np.uint8)
     for c in scene.constraints:
@@ -118,20 +124,27 @@ def _run(scene: Scene, n: int, p: dict[str, Any]) -> tuple[dict[str, Any], Autom
     spring = mk.Spring(weight=weight, axis=dr, stiffness=float(contact.spring_stiffness), speed=float(contact.speed),
                        start=float(st.clock[0]), offset=u0, every=every, out=np.zeros(3),
                        hist=np.zeros((steps // every + 2, len(HISTORY_COLUMNS))), rows=np.zeros(1, dtype=np.int64))
-    st = st._replace(spring=spring)
-    gamma = 0.0 if p["slide_damping"] is None else float(p["slide_damping"])
+    gamma = rate if p["slide_damping"] is None else float(p["slide_damping"])
+    st = st._replace(spring=spring, frame=mk.Frame(np.zeros((aut.size, 3))) if gamma > 0 else None)
     model.params = model.params._replace(gamma=gamma, t_stop=math.inf)
     heat0 = st.contact.heat.copy()
-    st, code, rebuilds = _drive(model, st, pre_steps + steps)
+    st = st._replace(hist=np.zeros((20 + 2, mk.N_H)))
+    st, code, rebuilds, contact_rows = _drive(model, st, pre_steps + steps, every)
     rows = st.spring.hist[: int(st.spring.rows[0])].copy()
     rows[:, 0] -= spring.start
+    if len(contact_rows):  # the contacts' own resultants (the law's bookkeeping): diagnostics, not measurements
+        summary.update(contact_normal_force_min=float(contact_rows[:, mk.H_FN].min()),
+                       contact_normal_force_max=float(contact_rows[:, mk.H_FN].max()),
+                       contacts_closed_min=int(contact_rows[:, mk.H_NC].min()))
     summary.update(steps=int(st.counters[mk.C_STEPS]), pair_list_rebuilds=rebuilds,
                    spring_work_J=float(st.spring.out[2]),
                    slid_distance=float(rows[-1, 3] - u0) if len(rows) else math.nan,
                    slide_room=cs.footprint_room(aut, contact))
     summary.update(measure(rows, contact.speed))
     out |= {"field": (st.contact.heat - heat0) / aut.volume, "quantity": "friction heat received in the run (J/m^3)",
-            "state": st, "diagnostics": {"history": {"columns": list(HISTORY_COLUMNS), "rows": rows}}}
+            "state": st, "diagnostics": {"history": {"columns": list(HISTORY_COLUMNS), "rows": rows},
+                                         "contact_history": {"columns": list(mk.HISTORY_COLUMNS),
+                                                             "rows": contact_rows}}}
     if code in (mk.NAN, mk.GROWTH):
         return out | {"status": "unstable", "reason": f"{mk.STATUS_TEXT[code]} at step {int(st.counters[mk.C_STEPS])}"
                       "; rows up to there kept"}, aut
@@ -147,12 +160,13 @@ def _run(scene: Scene, n: int, p: dict[str, Any]) -> tuple[dict[str, Any], Autom
     return out | {"status": "ok", "reason": ""}, aut
 
 
-def _drive(model: Model, st: mk.State, until: int) -> tuple[mk.State, int, int]:
-    """Advance to step `until` in chunks, rebuilding the pair and contact lists whenever an automaton moved
-    beyond the skin: (state, kernel status, rebuilds)."""
-    code, rebuilds = mk.OK, 0
+def _drive(model: Model, st: mk.State, until: int, every: int) -> tuple[mk.State, int, int, np.ndarray]:
+    """Advance to step `until` in chunks of 20 rows, rebuilding the pair and contact lists whenever an automaton
+    moved beyond the skin: (state, kernel status, rebuilds, the kernel's history rows every `every` steps)."""
+    code, rebuilds, rows = mk.OK, 0, []
     while int(st.counters[mk.C_STEPS]) < until:
-        code = model.advance(st, min(20_000, until - int(st.counters[mk.C_STEPS])))
+        code = model.advance(st, min(20 * every, until - int(st.counters[mk.C_STEPS])), every)
+        rows.append(st.hist[: st.counters[mk.C_ROWS]].copy())
         if code == mk.MOVED:
             st, _ = rebuild_pairs(model, st)
             rebuilds += 1
@@ -160,7 +174,7 @@ def _drive(model: Model, st: mk.State, until: int) -> tuple[mk.State, int, int]:
             continue
         if code != mk.OK:
             break
-    return st, code, rebuilds
+    return st, code, rebuilds, np.concatenate(rows) if rows else np.zeros((0, mk.N_H))
 
 
 def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
