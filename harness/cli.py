@@ -320,7 +320,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         print(f"  error {name:<18} {shown_errors}  (absolute, against the {e['reference']} reference)")
     for name, e in (out.get("scalar_errors") or {}).items():
         err = "n/a" if e.get("error") is None else f"{e['error']:.4g}"
-        print(f"  error {name:<18} {e['value']} against {e['expected']!r}: relative {err}  ({e['reference']})")
+        print(f"  error {name:<18} {e['value']} against {e['expected']}: relative {err}  ({e['reference']})")
     return code
 
 

@@ -16,6 +16,13 @@ sticks (|F| <= mu_s N) until F is back at mu_s N:
 and the largest slip velocity is V + sqrt(V^2 + (omega Delta / k)^2).  With mu_s = mu_k there is no stick:
 t_stick = 0 and the block slides on (its velocity touches 0 once a period 2 pi / omega).
 A scene's cycle: m = density x the slider's volume (body 2), N = normal_stress x its far face's area.
+
+An elastic slider need not break away at mu_s N (its contacts do not reach the static limit together: a slip
+front runs across them); whatever force F_p it breaks away at, the rigid block's slip from F_p follows from the
+same equations with Delta' = F_p - mu_k N in place of Delta (`given_peak`): trough mu_k N - Delta', slip time
+(pi + 2 atan(k V / (omega Delta'))) / omega, stick 2 Delta' / (k V), largest velocity V + sqrt(V^2 + (omega
+Delta' / k)^2), largest force mu_k N + sqrt(Delta'^2 + (k V / omega)^2): the kinetic half of the cycle, checked
+apart from the static limit.
 """
 
 from __future__ import annotations
@@ -57,6 +64,20 @@ def cycle(mass: float, normal_force: float, stiffness: float, speed: float, mu_s
                  slip_velocity=speed + math.hypot(speed, omega * delta / stiffness),
                  first_stick=mu_static * normal_force / (stiffness * speed), omega=omega,
                  largest=mu_kinetic * normal_force + math.hypot(delta, stiffness * speed / omega))
+
+
+def given_peak(setting: Setting, peak: float) -> dict[str, float]:
+    """The rigid block's cycle from a breakaway at the spring force `peak` (N) instead of mu_s N (module
+    docstring), by the summary names a solver reports with the suffix `_given_peak`; empty unless peak lies in
+    (mu_k N, inf)."""
+    kinetic = setting.mu_kinetic * setting.normal_force
+    if not (math.isfinite(peak) and peak > kinetic):
+        return {}
+    c = cycle(setting.mass, setting.normal_force, setting.stiffness, setting.speed, peak / setting.normal_force,
+              setting.mu_kinetic)
+    return {"spring_trough_N_given_peak": c.trough, "spring_max_N_given_peak": c.largest,
+            "stick_s_given_peak": c.stick, "slip_s_given_peak": c.slip, "period_s_given_peak": c.period,
+            "slip_velocity_peak_given_peak": c.slip_velocity}
 
 
 def spring_force(t: np.ndarray, mass: float, normal_force: float, stiffness: float, speed: float, mu_static: float,

@@ -102,11 +102,28 @@ def test_the_scene_declares_the_rigid_block_the_reference_takes() -> None:
 
 def test_the_compare_step_stores_relative_errors_of_the_reported_scalars() -> None:
     scene = make_scene("stick-slip")
-    got = scalar_errors(scene, {"spring_peak_N": 41.0, "period_s": math.nan, "other": 1.0})
-    assert set(got) == set(ref.expected(scene)) and got["stick_s"]["value"] is None
+    got = scalar_errors(scene, {"spring_peak_N": 41.0, "period_s": math.nan, "slip_s": 6e-4, "other": 1.0})
+    assert set(got) == set(ref.expected(scene)) | {f"{q}_given_peak" for q in (
+        "spring_trough_N", "spring_max_N", "stick_s", "slip_s", "period_s", "slip_velocity_peak")}
+    assert got["stick_s"]["value"] is None and got["stick_s"]["error"] is None
     assert got["spring_peak_N"]["error"] == pytest.approx(0.025) and got["spring_peak_N"]["expected"] == 40.0
     assert got["period_s"]["error"] is None and got["period_s"]["reference"] == "analytic"
+    # the kinetic half from the measured breakaway (41 N): Delta' = 11 N
+    given = ref.cycle(1.4e-3, 100.0, 5e4, 0.5, 0.41, 0.3)
+    assert got["slip_s_given_peak"]["expected"] == pytest.approx(given.slip)
+    assert got["slip_s_given_peak"]["error"] == pytest.approx(abs(6e-4 / given.slip - 1))
+    below = scalar_errors(scene, {"spring_peak_N": 29.0, "slip_s": 6e-4})  # no slip from below mu_k N
+    assert below["slip_s_given_peak"]["expected"] is None and below["slip_s_given_peak"]["error"] is None
     assert scalar_errors(make_scene("block-sliding"), {"spring_peak_N": 41.0}) == {}
+
+
+def test_the_kinetic_half_from_the_static_limit_is_the_whole_cycle() -> None:
+    c = ref.cycle(**BLOCK)
+    given = ref.given_peak(ref.Setting(**BLOCK), c.peak)
+    assert given == {"spring_trough_N_given_peak": c.trough, "spring_max_N_given_peak": c.largest,
+                     "stick_s_given_peak": c.stick, "slip_s_given_peak": c.slip, "period_s_given_peak": c.period,
+                     "slip_velocity_peak_given_peak": c.slip_velocity}
+    assert ref.given_peak(ref.Setting(**BLOCK), 30.0) == {}
 
 
 def test_short_phases_merge_into_their_neighbours() -> None:

@@ -43,12 +43,28 @@ def errors(scene: Scene, samples: dict[str, Any] | None) -> dict[str, dict[str, 
 def scalar_errors(scene: Scene, summary: dict[str, Any] | None) -> dict[str, dict[str, Any]]:
     """{quantity: {"value", "expected", "error", "reference"}} for each scalar of the scene's analytic reference:
     the summary's value under the same name and the relative error |value / expected - 1| (None where the
-    solution does not report it as a finite number)."""
+    solution does not report it as a finite number).  For the stick-slip cycle also the kinetic half given the
+    measured breakaway force (`stick_slip.given_peak`: NAME_given_peak, the value the summary's NAME; every
+    entry None when the breakaway force is not reported or not above mu_k N)."""
+    summary = summary or {}
+    expected = stick_slip.expected(scene)
+    setting = stick_slip.setting(scene)
+    if setting is not None:
+        peak = _number(summary.get("spring_peak_N"))
+        given = stick_slip.given_peak(setting, peak if peak is not None else math.nan)
+        expected |= {f"{name}_given_peak": given.get(f"{name}_given_peak", math.nan)
+                     for name in ("spring_trough_N", "spring_max_N", "stick_s", "slip_s", "period_s",
+                                  "slip_velocity_peak")}
     out: dict[str, dict[str, Any]] = {}
-    for name, exact in stick_slip.expected(scene).items():
-        value = (summary or {}).get(name)
-        number = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
-        err = abs(value / exact - 1.0) if number and exact != 0 else math.nan
-        out[name] = {"value": float(value) if number else None, "expected": float(exact),
+    for name, exact in expected.items():
+        value = _number(summary.get(name.removesuffix("_given_peak")))
+        err = abs(value / exact - 1.0) if value is not None and exact != 0 else math.nan
+        out[name] = {"value": value, "expected": float(exact) if math.isfinite(exact) else None,
                      "error": err if math.isfinite(err) else None, "reference": "analytic"}
     return out
+
+
+def _number(value: Any) -> float | None:
+    """A summary value as a finite float, else None."""
+    ok = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+    return float(value) if ok else None
