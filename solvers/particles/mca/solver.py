@@ -26,7 +26,8 @@ Analyses on the bar lattice:
 - modes (bar-modes): eigenfrequencies of the linearised automata (translations and rotations, the clamped
   face's automata held), K phi = omega^2 M phi by shift-invert Lanczos about 0; kinds by mirror parity
   (`pcverify.solvers.modes`, shared with skfem-elastic).
-Contact analyses (two bodies of the bar lattice): compression, sliding, frictional heating (`contact_scenes`).
+Contact analyses (two bodies of the bar lattice): compression, sliding, frictional heating (`contact_scenes`);
+stick-slip, the slider pulled by a spring (`stick_slip`).
 """
 
 from __future__ import annotations
