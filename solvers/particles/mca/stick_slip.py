@@ -1,20 +1,20 @@
 """The MCA solver's stick-slip run: a slider pressed on its clamped base and pulled by a spring (Contact's
 spring_stiffness) whose far end moves at the contact's speed.
 
-The friction pair is the scene's (Contact.mu_static, mu_kinetic: the surfaces' property the reference takes), so
-the contact law's kinetic coefficient mu1 is the scene's mu_kinetic and its static one mu_s the scene's
-mu_static; the solver's `friction_law` chooses the law (the regularised law has no static friction, so it cannot
-stick).  The run: the preload relaxed with damping as the sliding analysis does (contact_scenes.sliding), then the
-spring (kernel.Spring: its force shared over body 2's automata by mass, i.e. pulling at the centre of mass) is
-attached unstretched and its far end moves for the scene's duration.  Damping (`slide_damping`, default the
-relaxation rate as in the sliding analysis; 0 = none) acts on body 2's automata relative to body 2's mean
-velocity along the direction (updated every step: kernel.Spring with a Frame), and on body 1's relative to rest:
-its resultant on the slider is zero, so the slider's centre of mass moves under the spring and the contacts
-alone, and only the bodies' elastic vibrations are damped.  Undamped (measured at n = 4 with the static law) the
-slider chatters after its first slip: the contacts open and close (0 to 16 closed, the normal force 0 to 300 N
-about its 100 N) and the kinetic energy grows to 0.06 J, so the mean friction while sliding falls far below mu_k
-N and no second stick follows (friction-induced vibration, as contact_scenes.py reports for undamped sliding).  Every `records`-th of the run a row of the spring
-force (what a load cell on the spring reads), the slider's mean velocity and displacement.
+The friction pair is the scene's (Contact.mu_static, mu_kinetic: the surfaces' property the reference takes), so the
+contact law's kinetic coefficient mu1 is the scene's mu_kinetic and its static one mu_s the scene's mu_static; the
+solver's `friction_law` chooses the law (the regularised law has no static friction, so it cannot stick). The run:
+the preload relaxed with damping as the sliding analysis does (contact_scenes.sliding), then the spring
+(kernel.Spring: its force shared over body 2's automata by mass, i.e. pulling at the centre of mass) is attached
+unstretched and its far end moves for the scene's duration. Damping (`slide_damping`, default the relaxation rate as
+in the sliding analysis; 0 = none) acts on body 2's automata relative to body 2's mean velocity along the direction
+(updated every step: kernel.Spring with a Frame), and on body 1's relative to rest: its resultant on the slider is
+zero, so the slider's centre of mass moves under the spring and the contacts alone, and only the bodies' elastic
+vibrations are damped. Undamped (measured at n = 4 with the static law) the slider chatters after its first slip:
+the contacts open and close (0 to 16 closed, the normal force 0 to 300 N about its 100 N) and the kinetic energy
+grows to 0.06 J, so the mean friction while sliding falls far below mu_k N and no second stick follows
+(friction-induced vibration, as contact_scenes.py reports for undamped sliding). Every `records`-th of the run a row
+of the spring force (what a load cell on the spring reads), the slider's mean velocity and displacement.
 
 Measured from those rows alone (not from the friction law's bookkeeping): slip phases are the rows where the mean
 velocity exceeds a tenth of the drive speed (SLIP_SPEED), phases shorter than three rows merged into their
