@@ -23,6 +23,9 @@ same equations with Delta' = F_p - mu_k N in place of Delta (`given_peak`): trou
 (pi + 2 atan(k V / (omega Delta'))) / omega, stick 2 Delta' / (k V), largest velocity V + sqrt(V^2 + (omega
 Delta' / k)^2), largest force mu_k N + sqrt(Delta'^2 + (k V / omega)^2): the kinetic half of the cycle, checked
 apart from the static limit.
+
+An incline (a block under its own weight m g tilted by theta from the plane's normal): it sticks while tan theta
+<= mu_s, else it slides with the acceleration g (sin theta - mu_k cos theta) (`incline_acceleration`).
 """
 
 from __future__ import annotations
@@ -137,3 +140,15 @@ def expected(scene: Scene) -> dict[str, float]:
     return {"spring_peak_N": c.peak, "spring_trough_N": c.trough, "force_drop_N": c.drop, "spring_max_N": c.largest,
             "stick_s": c.stick,
             "slip_s": c.slip, "period_s": c.period, "slip_velocity_peak": c.slip_velocity}
+
+
+def incline_acceleration(scene: Scene) -> float | None:
+    """The acceleration (m/s^2) of a rigid block on an incline scene (None for any other scene): 0 while tan(theta)
+    <= mu_s (it sticks), else g (sin(theta) - mu_k cos(theta)), theta = incline_angle, g = gravity."""
+    contact = scene.contact
+    if contact is None or contact.incline_angle is None:
+        return None
+    theta = math.radians(contact.incline_angle)
+    if math.tan(theta) <= contact.mu_static:
+        return 0.0
+    return contact.gravity * (math.sin(theta) - contact.mu_kinetic * math.cos(theta))

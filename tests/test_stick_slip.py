@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 
 import numpy as np
 import pytest
@@ -126,6 +127,18 @@ def test_the_kinetic_half_from_the_static_limit_is_the_whole_cycle() -> None:
     assert ref.given_peak(ref.Setting(**BLOCK), 30.0) == {}
 
 
+def test_an_incline_sticks_below_tan_theta_mu_s_and_slides_at_g_sin_minus_mu_k_cos_above() -> None:
+    at = {a: ref.incline_acceleration(make_scene("incline", angle=a)) for a in (20.0, 21.8, 21.81, 30.0)}
+    assert at[20.0] == at[21.8] == 0.0  # tan 21.8 deg = 0.39997 <= mu_s = 0.4
+    assert at[21.81] == pytest.approx(1e5 * (math.sin(math.radians(21.81)) - 0.3 * math.cos(math.radians(21.81))))
+    assert at[30.0] == pytest.approx(1e5 * (0.5 - 0.3 * math.sqrt(3) / 2))
+    assert ref.incline_acceleration(make_scene("stick-slip")) is None
+    got = scalar_errors(make_scene("incline"), {"slide_acceleration": 1.01 * at[30.0]})
+    assert got["slide_acceleration"]["error"] == pytest.approx(0.01)
+    stuck = scalar_errors(make_scene("incline", angle=20.0), {"slide_acceleration": 3.0})
+    assert stuck["slide_acceleration"]["expected"] == 0.0 and stuck["slide_acceleration"]["error"] is None
+
+
 def test_short_phases_merge_into_their_neighbours() -> None:
     moving = np.array([0, 0, 0, 1, 1, 1, 1, 0, 1, 1, 1, 1, 0, 0, 0, 0, 1, 0, 0, 0, 1, 1, 1], dtype=bool)
     assert mss.phases(moving) == [(3, 12), (20, 23)]
@@ -138,9 +151,12 @@ def test_short_phases_merge_into_their_neighbours() -> None:
     ("speed=-0.5", "speed=-0.5 is out of range"),
     ("duration=2", "duration=2.0 is out of range"),
     ("mu_static=nan", "mu_static=nan is out of range"),
+    ("angle=95", "angle=95.0 is out of range"),
+    ("gravity=0", "gravity=0.0 is out of range"),
 ])
 def test_a_bad_scene_value_is_one_error_line(setting, named, capsys) -> None:
-    code = main(["run", "stick-slip", "--solver", "mca", "--set", setting])
+    scene = "incline" if setting.startswith(("angle", "gravity")) else "stick-slip"
+    code = main(["run", scene, "--solver", "mca", "--set", setting])
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1 and err[0].startswith("pcverify: error: ") and named in err[0], err
     tally("stick-slip scene", "rejected")
@@ -150,9 +166,13 @@ def test_a_bad_scene_value_is_one_error_line(setting, named, capsys) -> None:
     ({"mu_static": 0.4, "mu_kinetic": 0.3}, "not allowed without spring_stiffness"),
     ({"spring_stiffness": 5e4, "mu_static": 0.4, "mu_kinetic": 0.3, "speed": 0.0}, "not allowed without speed"),
     ({"spring_stiffness": 5e4, "speed": 1.0, "normal_stress": 1e6, "duration": 1e-3}, "mu_kinetic=None"),
+    ({"incline_angle": 30.0, "mu_static": 0.4, "mu_kinetic": 0.3}, "both (an incline) or neither"),
+    ({"incline_angle": 30.0, "gravity": 1e5, "mu_static": 0.4, "mu_kinetic": 0.3, "normal_stress": 1e6},
+     "not allowed with a spring, a speed or a normal_stress"),
+    ({"incline_angle": 90.0, "gravity": 1e5, "mu_static": 0.4, "mu_kinetic": 0.3}, "incline_angle=90.0 is out of range"),
 ])
 def test_a_contact_refuses_a_spring_or_friction_pair_out_of_place(fields, named) -> None:
-    with pytest.raises(SceneError, match=named.replace("(", r"\(")):
+    with pytest.raises(SceneError, match=re.escape(named)):
         Contact(axis="y", position=0.005, direction="z", **fields)
     tally("stick-slip contact", "rejected")
 
@@ -170,4 +190,4 @@ def test_the_regularised_law_does_not_stick(capsys) -> None:
 
 
 def test_zz_stick_slip_tally() -> None:
-    check_tally({"stick-slip scene": 6, "stick-slip contact": 3})
+    check_tally({"stick-slip scene": 8, "stick-slip contact": 6})

@@ -45,7 +45,8 @@ def scalar_errors(scene: Scene, summary: dict[str, Any] | None) -> dict[str, dic
     the summary's value under the same name and the relative error |value / expected - 1| (None where the
     solution does not report it as a finite number).  For the stick-slip cycle also the kinetic half given the
     measured breakaway force (`stick_slip.given_peak`: NAME_given_peak, the value the summary's NAME; every
-    entry None when the breakaway force is not reported or not above mu_k N)."""
+    entry None when the breakaway force is not reported or not above mu_k N), and an incline's acceleration
+    (slide_acceleration; its error None where the block sticks: 0 has no relative error)."""
     summary = summary or {}
     expected = stick_slip.expected(scene)
     setting = stick_slip.setting(scene)
@@ -55,6 +56,9 @@ def scalar_errors(scene: Scene, summary: dict[str, Any] | None) -> dict[str, dic
         expected |= {f"{name}_given_peak": given.get(f"{name}_given_peak", math.nan)
                      for name in ("spring_trough_N", "spring_max_N", "stick_s", "slip_s", "period_s",
                                   "slip_velocity_peak")}
+    incline = stick_slip.incline_acceleration(scene)
+    if incline is not None:
+        expected["slide_acceleration"] = incline
     out: dict[str, dict[str, Any]] = {}
     for name, exact in expected.items():
         value = _number(summary.get(name.removesuffix("_given_peak")))

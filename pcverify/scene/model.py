@@ -34,6 +34,7 @@ PHYSICS = {
     "contact": "two bodies touching across a plane, pressed and possibly sliding (a Contact part)",
     "frictional-heating": "the power dissipated by friction heats the bodies (Contact.heating, with conduction)",
     "stick-slip": "body 2 pulled along the contact by a spring, static and kinetic friction (Contact.spring_stiffness)",
+    "incline": "body 2 under its own tilted weight on body 1, static and kinetic friction (Contact.incline_angle)",
 }
 MODES = ("steady", "transient")
 
@@ -121,7 +122,8 @@ class Scene:
                    "modes": el is not None and el.modes > 0,
                    "fracture": el is not None and el.response is not None and el.strain_rate > 0,
                    "frictional-heating": self.contact is not None and self.contact.heating,
-                   "stick-slip": self.contact is not None and self.contact.spring_stiffness is not None}
+                   "stick-slip": self.contact is not None and self.contact.spring_stiffness is not None,
+                   "incline": self.contact is not None and self.contact.incline_angle is not None}
         for word, present in derived.items():
             if present != (word in self.physics):
                 raise SceneError(f"physics {sorted(self.physics)} and the scene's parts disagree on {word!r}: "

@@ -27,7 +27,7 @@ Analyses on the bar lattice:
   face's automata held), K phi = omega^2 M phi by shift-invert Lanczos about 0; kinds by mirror parity
   (`pcverify.solvers.modes`, shared with skfem-elastic).
 Contact analyses (two bodies of the bar lattice): compression, sliding, frictional heating (`contact_scenes`);
-stick-slip, the slider pulled by a spring (`stick_slip`).
+stick-slip, the slider pulled by a spring (`stick_slip`); the slider on an incline (`incline`).
 """
 
 from __future__ import annotations
@@ -58,6 +58,7 @@ from pcverify.solvers.protocol import Solution, WorkEstimate, effective_params, 
 
 from . import contact_scenes as cs
 from . import heat as mca_heat
+from . import incline as inc
 from . import kernel as mk
 from . import response as rf
 from . import stick_slip as ss
@@ -611,6 +612,7 @@ ANALYSES: tuple[Analysis, ...] = (
     Analysis("frictional heating", CONTACT | {"conduction", "frictional-heating"}, cs.on_bodies(cs.heating),
              _heating_steps, allows=frozenset({"interface-flux"}), conduction="transient", sliding=True, bodies=2),
     Analysis("stick-slip", CONTACT | {"stick-slip"}, ss.run, _stick_slip_steps, sliding=True, bodies=2),
+    Analysis("incline", CONTACT | {"incline"}, inc.run, _stick_slip_steps, sliding=False, bodies=2),
 )
 
 

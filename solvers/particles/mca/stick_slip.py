@@ -129,7 +129,7 @@ def _run(scene: Scene, n: int, p: dict[str, Any]) -> tuple[dict[str, Any], Autom
     model.params = model.params._replace(gamma=gamma, t_stop=math.inf)
     heat0 = st.contact.heat.copy()
     st = st._replace(hist=np.zeros((20 + 2, mk.N_H)))
-    st, code, rebuilds, contact_rows = _drive(model, st, pre_steps + steps, every)
+    st, code, rebuilds, contact_rows = drive(model, st, pre_steps + steps, every)
     rows = st.spring.hist[: int(st.spring.rows[0])].copy()
     rows[:, 0] -= spring.start
     if len(contact_rows):  # the contacts' own resultants (the law's bookkeeping): diagnostics, not measurements
@@ -160,7 +160,7 @@ def _run(scene: Scene, n: int, p: dict[str, Any]) -> tuple[dict[str, Any], Autom
     return out | {"status": "ok", "reason": ""}, aut
 
 
-def _drive(model: Model, st: mk.State, until: int, every: int) -> tuple[mk.State, int, int, np.ndarray]:
+def drive(model: Model, st: mk.State, until: int, every: int) -> tuple[mk.State, int, int, np.ndarray]:
     """Advance to step `until` in chunks of 20 rows, rebuilding the pair and contact lists whenever an automaton
     moved beyond the skin: (state, kernel status, rebuilds, the kernel's history rows every `every` steps)."""
     code, rebuilds, rows = mk.OK, 0, []
