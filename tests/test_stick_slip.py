@@ -169,7 +169,8 @@ def test_a_bad_scene_value_is_one_error_line(setting, named, capsys) -> None:
     ({"incline_angle": 30.0, "mu_static": 0.4, "mu_kinetic": 0.3}, "both (an incline) or neither"),
     ({"incline_angle": 30.0, "gravity": 1e5, "mu_static": 0.4, "mu_kinetic": 0.3, "normal_stress": 1e6},
      "not allowed with a spring, a speed or a normal_stress"),
-    ({"incline_angle": 90.0, "gravity": 1e5, "mu_static": 0.4, "mu_kinetic": 0.3}, "incline_angle=90.0 is out of range"),
+    ({"incline_angle": 90.0, "gravity": 1e5, "mu_static": 0.4, "mu_kinetic": 0.3},
+     "incline_angle=90.0 is out of range"),
 ])
 def test_a_contact_refuses_a_spring_or_friction_pair_out_of_place(fields, named) -> None:
     with pytest.raises(SceneError, match=re.escape(named)):
