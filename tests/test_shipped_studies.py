@@ -42,7 +42,7 @@ PLANNED = {
     "heat-particles": {"to run": 200},
     "macromolecule": {"to run": 93},
     "stability": {"to run": 293},
-    "stick-slip": {"to run": 4},
+    "stick-slip": {"to run": 9},
 }
 # study: (group, solver, cells) the study names but does not plan, because the solver does not support the scene
 # (stability: steady MCA heat has no time stepping to probe; elasticity: scikit-fem has no fracture)
