@@ -322,6 +322,9 @@ def cmd_run(args: argparse.Namespace) -> int:
     for name, e in out["errors"].items():
         shown_errors = "  ".join(f"{k} {'n/a' if e.get(k) is None else repr(e[k])}" for k in ("l2", "linf"))
         print(f"  error {name:<18} {shown_errors}  (absolute, against the {e['reference']} reference)")
+    for name, e in (out.get("scalar_errors") or {}).items():
+        err = "n/a" if e.get("error") is None else f"{e['error']:.4g}"
+        print(f"  error {name:<18} {e['value']} against {e['expected']}: relative {err}  ({e['reference']})")
     return code
 
 

@@ -126,6 +126,7 @@ SHIPPED_GROUPS = {  # study: {group: largest n kept} -- a cell of every solver a
     "heat-particles": {"paper-all": 3, "paper-replicas": 3, "work-precision-steady": 4},
     "elasticity": {"mca-compression": 3},
     "contact-friction": {"compression": 4},
+    "stick-slip": {"cycle": 4},
     "stability": {"limit-mca-heat": 3},
     # every group of the paper's study (runs, damping x drive sweep, Fourier's law, face drives) at its smallest n:
     # before BLAS was pinned its set-up's LAPACK calls ran on 1 or 2 threads with --jobs, differing by 1.5e-8

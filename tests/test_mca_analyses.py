@@ -34,6 +34,8 @@ SHIPPED = [  # (scene, scene parameters, its analysis)
     ("block-contact-compression", {}, "contact compression"),
     ("block-sliding", {}, "sliding contact"),
     ("frictional-heating", {}, "frictional heating"),
+    ("stick-slip", {}, "stick-slip"),
+    ("incline", {}, "incline"),
 ]
 
 
@@ -50,7 +52,7 @@ def test_no_scene_kind_matches_two_analyses_and_each_entry_is_reached():
                 reached.update(hits)
                 kinds += 1
     assert kinds == 2 ** len(words) * 9 and reached == {a.name for a in ANALYSES}
-    assert len({a.name for a in ANALYSES}) == len(ANALYSES) == 8
+    assert len({a.name for a in ANALYSES}) == len(ANALYSES) == 10
 
 
 def test_every_shipped_scene_has_its_analysis_and_the_probe_steps_what_it_declares():

@@ -7,15 +7,15 @@ block's centre and sets every automaton's spin increment dphi to the same rotati
 pair-force function once (`mk.forces`, as one kernel step would).  A rigid motion must leave the stresses as
 they were, turned with the body: sig unchanged, tau and the forces turned by the total rotation.
 
-Bound: each evaluation adds round-off of a few ulp of the stress scale 2G to sig (the increment of r) and
-tau (the difference d_new - R d_old), so after N increments the error is at most of order N eps_mach 2G
-(1.05 Pa at N = 90 000); asserted: 2 N eps_mach 2G.  Measured after the update: 0.34 Pa on tau and 0.83 Pa
-on sig at N = 90 000 (sig's is the incremental normal law, unchanged by this update; it is mostly the
-block's own round-off stretch, the rotation matrix applied 90 000 times: kn dr / r0 up to 0.38 Pa).  Measured before (the projection
+Bound: each evaluation adds round-off of a few ulp of the stress scale 2G to sig (the increment of r) and tau
+(the difference d_new - R d_old), so after N increments the error is at most of order N eps_mach 2G (1.05 Pa at
+N = 90 000); asserted: 2 N eps_mach 2G. Measured after the update: 0.34 Pa on tau and 0.83 Pa on sig at N = 90
+000 (sig's is the incremental normal law, unchanged by this update; it is mostly the block's own round-off
+stretch, the rotation matrix applied 90 000 times: kn dr / r0 up to 0.38 Pa). Measured before (the projection
 update): 3.16e8 / 3.16e7 / 3.16e6 / 3.16e5 Pa at 1° / 0.1° / 0.01° / 0.001° steps about (0.3, 0.5, 0.8) (first
 order in the step), 4.2e6 / 4.2e4 / 420 / 4.24 Pa about z and x (third order: only the 0.001° steps come near
 the bound, at twice it), 5.4e7-8.3e7 Pa in the pre-strained block at every step size, and 2.6e7 Pa in the
-unlinked (sliding) block.  The 1° steps take the exact (trigonometric) branch of the rotation, the others its
+unlinked (sliding) block. The 1° steps take the exact (trigonometric) branch of the rotation, the others its
 series.
 """
 

@@ -160,7 +160,8 @@ def test_a_slider_that_bounces_off_its_base_fails_with_the_rows_without_contact(
     and the pair's laws)."""
     out = _slide(capsys, "block-sliding", "slide_damping=0")
     assert out["status"] == "failed"
-    found = re.search(r"the bodies did not stay in contact: no closed contact in (\d+) of 1900 history rows", out["reason"])
+    found = re.search(r"the bodies did not stay in contact: no closed contact in (\d+) of 1900 history rows",
+                      out["reason"])
     assert found and int(found.group(1)) >= 1  # how many rows open is the vibration's detail (12, 19, 87 so far)
     assert out["summary"]["mu_dr_std"] > 0.05  # the vibration's numbers are kept for the table
     tally("contact", "rejected")

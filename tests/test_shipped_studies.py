@@ -42,6 +42,7 @@ PLANNED = {
     "heat-particles": {"to run": 200},
     "macromolecule": {"to run": 93},
     "stability": {"to run": 293},
+    "stick-slip": {"to run": 9},
 }
 # study: (group, solver, cells) the study names but does not plan, because the solver does not support the scene
 # (stability: steady MCA heat has no time stepping to probe; elasticity: scikit-fem has no fracture)
@@ -57,6 +58,7 @@ SUBSETS = {  # study: {group: largest n run} -- under 5 s of solves each with a 
     "heat-particles": {"faces-steady-all": 2},
     "macromolecule": {"paper-runs": 2},
     "stability": {"limit-mca-heat": 2},
+    "stick-slip": {"cycle": 4},
 }
 
 
@@ -150,9 +152,23 @@ def _check_stability(results, verdicts) -> None:
     assert exact["verdict"] == measured["verdict"] == "pass"
 
 
+def _check_stick_slip(results, verdicts) -> None:
+    s = results[("cycle", "mca", 4)]["summary"]
+    assert s["stick_slip_cycles"] >= 2 and 30.0 < s["spring_peak_N"] < 40.0  # measured 3 cycles, 36.96 N
+    assert s["contacts_closed_min"] == 16  # the slider's 16 contacts stay closed: no chatter
+    v = _verdicts(verdicts)
+    for claim in ("stick-slip-breakaway", "stick-slip-breakaway-above-kinetic", "stick-slip-breakaway-nearer-static",
+                  "stick-slip-trough-given-peak",
+                  "stick-slip-period-given-peak", "stick-slip-velocity-given-peak",
+                  "stick-slip-largest-force-given-peak"):
+        assert v[(claim, "n=4")] == "pass", claim
+    for claim in ("stick-slip-peak", "stick-slip-drop", "stick-slip-period", "stick-slip-velocity"):
+        assert v[(claim, "n=4")] == "fail", claim  # the elastic slider breaks away below mu_s N: findings
+
+
 CHECKS = {"continuum-heat": _check_continuum_heat, "heat-particles": _check_heat_particles,
           "macromolecule": _check_macromolecule, "elasticity": _check_elasticity,
-          "contact-friction": _check_contact_friction, "stability": _check_stability}
+          "contact-friction": _check_contact_friction, "stability": _check_stability, "stick-slip": _check_stick_slip}
 
 
 @pytest.mark.parametrize("name", sorted(PLANNED))

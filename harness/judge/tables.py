@@ -65,6 +65,9 @@ def cells_table(results: list[dict[str, Any]]) -> pd.DataFrame:
                 row[f"work.{k}"] = v
         if r.get("status") == "ok":
             row.update({f"err.{k}": v for k, v in stored_errors(r).items()})
+        for q, e in (r.get("scalar_errors") or {}).items():  # a scalar reference: expected value, relative error
+            row[f"ref.{q}"] = math.nan if e.get("expected") is None else float(e["expected"])
+            row[f"err.{q}"] = math.nan if e.get("error") is None else float(e["error"])
         rows.append(row)
     return pd.DataFrame(rows)
 

@@ -31,6 +31,8 @@ from PIL import Image  # noqa: E402
 
 from pcverify.harness.judge.tables import spacing, stored_errors  # noqa: E402
 from pcverify.harness.run.files import atomic_write  # noqa: E402
+from pcverify.harness.spec.catalogue import make_scene  # noqa: E402
+from pcverify.references import stick_slip  # noqa: E402
 
 EDGES = ("front_top_edge", "bottom_back_edge")
 CONTINUUM_STYLES = tuple(dict(lw=2.0, color=c, ls=ls, alpha=0.75)
@@ -616,7 +618,36 @@ def parameter_figure(results: list[dict[str, Any]], path: Path, title: str, x: s
     return _save(fig, path, title)
 
 
-GROUP_FIGURES = {"edge-profiles": edge_profiles, "render-3d": render_3d}
+
+def stick_slip_force(results: list[dict[str, Any]], path: Path, title: str) -> bool:
+    """Spring force against time of each stick-slip cell (its diagnostics' rows), over the analytic cycle of a
+    rigid block (references/stick_slip.py) of each scene drawn; one panel per lattice n."""
+    drawn = [r for r in results if ((r.get("diagnostics") or {}).get("history") or {}).get("columns", [None])[:2]
+             == ["t", "spring_force"]]
+    if not drawn:
+        return False
+    ns = sorted({r["n"] for r in drawn})
+    varying = _varying(drawn)
+    fig, axes = plt.subplots(len(ns), 1, figsize=(10, 2.8 * len(ns)), squeeze=False)
+    for ax, n in zip(axes[:, 0], ns, strict=True):
+        for r in (r for r in drawn if r["n"] == n):
+            rows = np.asarray(r["diagnostics"]["history"]["rows"], float).reshape(-1, 4)
+            label = _label(r, varying) + ("" if r["status"] == "ok" else f" ({r['status']})")
+            plot_once(ax, rows[:, 0] * 1e3, rows[:, 1], "", label, lw=1)
+            found = stick_slip.setting(make_scene(r["scene"], **r.get("scene_params", {})))
+            if found is not None and len(rows):
+                t = np.linspace(0.0, float(rows[-1, 0]), 2000)
+                plot_once(ax, t * 1e3, stick_slip.spring_force(t, *found), "", "rigid block (analytic)",
+                          **CONTINUUM_STYLES[1])
+        ax.set_title(f"n = {n}", fontsize=8)
+        ax.set_xlabel("t since the spring started [ms]")
+        ax.set_ylabel("spring force [N]")
+        ax.grid(True, alpha=0.3)
+        legend_outside(ax)
+    return _save(fig, path, title)
+
+
+GROUP_FIGURES = {"edge-profiles": edge_profiles, "render-3d": render_3d, "stick-slip": stick_slip_force}
 
 
 def benchmark_history(runs: pd.DataFrame, path: Path) -> bool:

@@ -213,6 +213,7 @@ def compute_cell(cell: Cell, raise_scene_errors: bool = False) -> dict[str, Any]
     cold = cell.solver not in _SOLVED_HERE
     _SOLVED_HERE.add(cell.solver)
     return out | base | {"resolution": res, "errors": compare.errors(scene, out.get("samples")),
+                         "scalar_errors": compare.scalar_errors(scene, out.get("summary")),
                          "cost": solve_cost(cpu, out.get("wall_s"), out.get("work") or {}) | {"cold": cold}}
 
 

@@ -135,6 +135,26 @@ def _sliding(p: dict[str, Any]) -> Scene:
                  params=tuple(sorted(p.items())))
 
 
+def _stick_slip(p: dict[str, Any]) -> Scene:
+    box = box_of(p)
+    contact = Contact(axis="y", position=box.height / 2, normal_stress=p["normal_stress"], speed=p["speed"],
+                      direction="z", duration=p["duration"], span=(box.length / 3, 2 * box.length / 3),
+                      spring_stiffness=p["spring_stiffness"], mu_static=p["mu_static"], mu_kinetic=p["mu_kinetic"])
+    return Scene("stick-slip", CATALOGUE["stick-slip"].description, box, DURALUMIN,
+                 frozenset({"elasticity", "contact", "stick-slip"}), (FaceClamp("y0"),), elasticity=Elasticity(),
+                 contact=contact, params=tuple(sorted(p.items())))
+
+
+def _incline(p: dict[str, Any]) -> Scene:
+    box = box_of(p)
+    contact = Contact(axis="y", position=box.height / 2, direction="z", duration=p["duration"],
+                      span=(box.length / 3, 2 * box.length / 3), mu_static=p["mu_static"], mu_kinetic=p["mu_kinetic"],
+                      incline_angle=p["angle"], gravity=p["gravity"])
+    return Scene("incline", CATALOGUE["incline"].description, box, DURALUMIN,
+                 frozenset({"elasticity", "contact", "incline"}), (FaceClamp("y0"),), elasticity=Elasticity(),
+                 contact=contact, params=tuple(sorted(p.items())))
+
+
 # duralumin with its thermal constants (handbook values of 2024, the alloy of the PHYSICS.md bar's E and nu)
 DURALUMIN_THERMAL = Material("duralumin-2024", density=2800.0, conductivity=121.0, heat_capacity=875.0,
                              youngs_modulus=70e9, poisson_ratio=0.33)
@@ -251,6 +271,50 @@ CATALOGUE: dict[str, SceneSpec] = {
                       low_open=True),
             ),
             _sliding,
+        ),
+        SceneSpec(
+            "stick-slip",
+            "The block-sliding slider pressed by normal_stress on its clamped base and pulled along z by a spring of "
+            "stiffness spring_stiffness whose far end moves at speed (pulling at the slider's centre of mass), with "
+            "static and kinetic friction mu_static >= mu_kinetic: the analytic stick-slip cycle of a rigid block "
+            "(references/stick_slip.py: peak mu_static N, force drop 2 (mu_static - mu_kinetic) N, period, largest "
+            "slip velocity); defaults: the spring's 0.95 kHz far below the slider's lowest elastic frequency (~150 "
+            "kHz), 3 cycles after the first in duration; n even",
+            (
+                *DIMENSIONS,
+                Param("normal_stress", 1e6, "Pa", "pressure on the slider's top face", low=0.0, high=1e9,
+                      low_open=True),
+                Param("speed", 0.5, "m/s", "speed of the spring's far end", low=0.0, high=100.0, low_open=True),
+                Param("spring_stiffness", 5e4, "N/m", "stiffness of the drive spring", low=0.0, high=1e12,
+                      low_open=True),
+                Param("mu_static", 0.4, "", "static friction coefficient of the two surfaces (>= mu_kinetic)",
+                      low=0.0, high=5.0),
+                Param("mu_kinetic", 0.3, "", "kinetic friction coefficient of the two surfaces", low=0.0, high=5.0),
+                Param("duration", 7e-3, "s", "time the spring's far end moves (the whole run after the preload)",
+                      low=0.0, high=1.0, low_open=True),
+            ),
+            _stick_slip,
+        ),
+        SceneSpec(
+            "incline",
+            "The block-sliding slider on its clamped base under its own weight only, the body force gravity tilted by "
+            "angle from the contact's normal towards +z, friction pair mu_static >= mu_kinetic: a rigid block sticks "
+            "while tan(angle) <= mu_static, else slides with the acceleration gravity (sin(angle) - mu_kinetic "
+            "cos(angle)) (references/stick_slip.py); gravity is large by default (1e5 m/s^2: the slider's weight "
+            "137 N) so that the contact is pressed as in stick-slip; n even",
+            (
+                *DIMENSIONS,
+                Param("angle", 30.0, "degrees", "tilt of the body force from the contact's normal", low=0.0,
+                      high=89.0),
+                Param("gravity", 1e5, "m/s^2", "magnitude of the body force per mass", low=0.0, high=1e9,
+                      low_open=True),
+                Param("mu_static", 0.4, "", "static friction coefficient of the two surfaces (>= mu_kinetic)",
+                      low=0.0, high=5.0),
+                Param("mu_kinetic", 0.3, "", "kinetic friction coefficient of the two surfaces", low=0.0, high=5.0),
+                Param("duration", 5e-4, "s", "time the tilted weight acts (after the normal preload)", low=0.0,
+                      high=1.0, low_open=True),
+            ),
+            _incline,
         ),
         SceneSpec(
             "frictional-heating",

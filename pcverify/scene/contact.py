@@ -8,7 +8,12 @@ base).  Body 2's far face (the box face at the upper end of `axis`) is pressed o
 which needs a Conduction part); `base_conductivity` and `base_heat_capacity` give body 1 thermal constants of
 its own (dissimilar blocks: the friction heat then divides between the bodies unevenly; the mechanics is the
 scene material's).  Body 1 is held by the scene's constraints (a clamp or supports); body 2's far face by the
-drive, or by supports when the contact is only compressed.
+drive, or by supports when the contact is only compressed.  With `spring_stiffness`, body 2 is not driven at a
+prescribed speed but pulled along `direction` by a spring of that stiffness whose far end moves at `speed` (the
+stick-slip drive; its far face carries only the normal stress), and `mu_static`, `mu_kinetic` are the friction
+pair of the two surfaces that the analytic stick-slip cycle takes (references/stick_slip.py).  With
+`incline_angle`, body 2 carries only its weight under the body force `gravity` (m/s^2) tilted by that angle from
+the contact's normal towards `direction` (an incline: the pair mu_static, mu_kinetic decides whether it sticks).
 """
 
 from __future__ import annotations
@@ -37,7 +42,10 @@ class Contact:
     limits body 2 (default: the whole box); `heating`: friction heats the bodies; `platen`: once pressed, body
     2's far face is held at its height along `axis` while it slides (a rigid platen takes the friction's
     moment), instead of staying under the applied stress; `base_conductivity` (W/(m K)) and `base_heat_capacity`
-    (J/(kg K)): body 1's thermal constants where they differ from the scene material's (None: the same)."""
+    (J/(kg K)): body 1's thermal constants where they differ from the scene material's (None: the same);
+    `spring_stiffness` (N/m): a spring drive instead of the prescribed one (its far end at `speed`);
+    `mu_static` >= `mu_kinetic`: the surfaces' static and kinetic friction coefficients (with the spring or the
+    incline); `incline_angle` (degrees) and `gravity` (m/s^2): body 2's weight tilted towards `direction`."""
 
     axis: str = "z"
     position: float = 0.015
@@ -50,6 +58,11 @@ class Contact:
     platen: bool = False
     base_conductivity: float | None = None
     base_heat_capacity: float | None = None
+    spring_stiffness: float | None = None
+    mu_static: float | None = None
+    mu_kinetic: float | None = None
+    incline_angle: float | None = None
+    gravity: float | None = None
 
     def __post_init__(self) -> None:
         for name in ("axis", "direction"):
@@ -79,6 +92,37 @@ class Contact:
                 if not self.heating:
                     raise SceneError(f"{name}={shown(getattr(self, name))} is not allowed without heating; allowed: "
                                      "body 1's thermal constants of a frictional-heating contact")
+        self._check_spring()
+
+    def _check_spring(self) -> None:
+        """A spring drive needs a sliding contact (its far end's speed) and the friction pair, mu_static >=
+        mu_kinetic; the pair is refused without a spring (nothing reads it)."""
+        pair = (self.mu_static, self.mu_kinetic)
+        if (self.incline_angle is None) != (self.gravity is None):
+            raise SceneError(f"incline_angle={shown(self.incline_angle)}, gravity={shown(self.gravity)} are not "
+                             "valid; allowed: both (an incline) or neither")
+        if self.incline_angle is not None:
+            _number("incline_angle", self.incline_angle, 0.0, 89.0, "degrees")
+            _number("gravity", self.gravity, 0.0, 1e9, "m/s^2", low_open=True)
+            if self.spring_stiffness is not None or self.sliding or self.normal_stress != 0.0:
+                raise SceneError(f"incline_angle={shown(self.incline_angle)} is not allowed with a spring, a speed "
+                                 "or a normal_stress; allowed: body 2 under its own weight only")
+        elif self.spring_stiffness is None:
+            if any(v is not None for v in pair):
+                raise SceneError(f"mu_static={shown(self.mu_static)}, mu_kinetic={shown(self.mu_kinetic)} are not "
+                                 "allowed without spring_stiffness; allowed: the friction pair of a spring drive or "
+                                 "an incline")
+            return
+        else:
+            _number("spring_stiffness", self.spring_stiffness, 0.0, 1e12, "N/m", low_open=True)
+            if not self.sliding:
+                raise SceneError(f"spring_stiffness={shown(self.spring_stiffness)} is not allowed without speed; "
+                                 "allowed: a spring drive whose far end moves at speed > 0")
+        _number("mu_kinetic", self.mu_kinetic, 0.0, 5.0, "")
+        _number("mu_static", self.mu_static, 0.0, 5.0, "")
+        if self.mu_static < self.mu_kinetic:
+            raise SceneError(f"mu_static={shown(self.mu_static)} is out of range; allowed: number in "
+                             f"[mu_kinetic={self.mu_kinetic:g}, 5]")
 
     @property
     def axis_index(self) -> int:

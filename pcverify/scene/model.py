@@ -33,6 +33,8 @@ PHYSICS = {
     "fracture": "loading to failure with a response function (Elasticity.response, strain_rate > 0)",
     "contact": "two bodies touching across a plane, pressed and possibly sliding (a Contact part)",
     "frictional-heating": "the power dissipated by friction heats the bodies (Contact.heating, with conduction)",
+    "stick-slip": "body 2 pulled along the contact by a spring, static and kinetic friction (Contact.spring_stiffness)",
+    "incline": "body 2 under its own tilted weight on body 1, static and kinetic friction (Contact.incline_angle)",
 }
 MODES = ("steady", "transient")
 
@@ -119,7 +121,9 @@ class Scene:
                    "interface-flux": cond is not None and cond.interface is not None and cond.interface.flux != 0.0,
                    "modes": el is not None and el.modes > 0,
                    "fracture": el is not None and el.response is not None and el.strain_rate > 0,
-                   "frictional-heating": self.contact is not None and self.contact.heating}
+                   "frictional-heating": self.contact is not None and self.contact.heating,
+                   "stick-slip": self.contact is not None and self.contact.spring_stiffness is not None,
+                   "incline": self.contact is not None and self.contact.incline_angle is not None}
         for word, present in derived.items():
             if present != (word in self.physics):
                 raise SceneError(f"physics {sorted(self.physics)} and the scene's parts disagree on {word!r}: "

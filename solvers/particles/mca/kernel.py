@@ -112,6 +112,25 @@ class Frame(NamedTuple):
     vel: np.ndarray
 
 
+class Spring(NamedTuple):
+    """A drive spring (stiffness N/m) whose far end moves along axis `axis` at `speed` from time `start`; it pulls
+    on the automata with weights `weight` (N,) (m_i / M on the driven body, 0 elsewhere: the force is shared as a
+    body force, so the body is pulled at its centre of mass).  Its extension is V (t - start)+ - (u - offset), u
+    the weighted mean displacement; `out` holds the current force (N), u (m) and the spring's work on the body
+    (J); every `every` steps a row (t, force, the weighted mean velocity, u) goes to `hist`, `rows` counting."""
+
+    weight: np.ndarray  # (N,)
+    axis: int
+    stiffness: float
+    speed: float
+    start: float
+    offset: float
+    every: int
+    out: np.ndarray  # (3,)
+    hist: np.ndarray  # (rows, 4)
+    rows: np.ndarray  # (1,) int64
+
+
 class State(NamedTuple):
     """Every array of a mechanical run.  Fixed during a run: rest positions, masses, volumes, fixes (fixm: FREE
     or PRESCRIBED per translation and rotation; fixv: the prescribed velocities), face groups of the record,
@@ -149,6 +168,7 @@ class State(NamedTuple):
     contact: ct.ContactState | None
     frame: Frame | None = None
     peak: np.ndarray | None = None  # (3,) largest driven-face reaction so far, its face displacement, its step
+    spring: Spring | None = None
 
 
 class Params(NamedTuple):
@@ -200,6 +220,7 @@ def forces(st, par):
     """Forces (and moments) of the current positions for the step's increments st.dx (and dphi): one
     evaluation of the pair-force function, outside time stepping."""
     _evaluate(st, par, st.rot, st.inel, st.load, st.contact)
+    _spring_force(st.f, st.x, st.x0, st.clock[0], st.spring)
 
 
 @njit(cache=True)
@@ -520,11 +541,11 @@ def advance(st, par, nsteps):
     f_load . v; friction dissipation of the contacts: their power times dt.  A history row every
     par.record_every steps.  Returns when done or when the state is non-finite, blows up,
     or moved beyond the skin."""
-    _advance(st, par, st.rot, st.inel, st.load, st.contact, st.frame, st.peak, nsteps)
+    _advance(st, par, st.rot, st.inel, st.load, st.contact, st.frame, st.peak, st.spring, nsteps)
 
 
 @njit(cache=True)
-def _advance(st, par, rot, inel, load, con, frame, peak, nsteps):
+def _advance(st, par, rot, inel, load, con, frame, peak, spring, nsteps):
     x, v, f, dx, fixm, fixv, mass = st.x, st.v, st.f, st.dx, st.fixm, st.fixv, st.mass
     counters = st.counters
     n_aut = x.shape[0]
@@ -570,6 +591,7 @@ def _advance(st, par, rot, inel, load, con, frame, peak, nsteps):
                     rot.phi[i, c] += rot.dphi[i, c]
         st.clock[0] = t + dt
         _forces(st, par, rot, inel, load, con, nvec, rr, theta_new)
+        _spring_force(f, x, st.x0, st.clock[0], spring)
         ke = 0.0
         kerot = 0.0
         moved = False
@@ -607,6 +629,7 @@ def _advance(st, par, rot, inel, load, con, frame, peak, nsteps):
             st.energy[E_FRIC] += ct.after_step(con, dt)
         counters[C_STEPS] += 1
         counters[C_PAIRSTEPS] += n_pair
+        _spring_after(v, st.clock[0], dt, counters[C_STEPS], spring, frame)
         if peak is not None:
             _track_peak(peak, f, x, st.x0, st.group, counters[C_STEPS])
         hist = st.hist
@@ -624,6 +647,49 @@ def _advance(st, par, rot, inel, load, con, frame, peak, nsteps):
         if moved:
             counters[C_STATUS] = MOVED
             return
+
+
+@njit(cache=True)
+def _spring_force(f, x, x0, t, spring):
+    """Add the drive spring's force k (V (t - start)+ - (u - offset)) to the automata by their weights (none
+    without a spring); its force and u go to spring.out."""
+    if spring is None:
+        return
+    d = spring.axis
+    u = 0.0
+    for i in range(x.shape[0]):
+        u += spring.weight[i] * (x[i, d] - x0[i, d])
+    force = spring.stiffness * (spring.speed * max(0.0, t - spring.start) - (u - spring.offset))
+    for i in range(x.shape[0]):
+        f[i, d] += spring.weight[i] * force
+    spring.out[0] = force
+    spring.out[1] = u
+
+
+@njit(cache=True)
+def _spring_after(v, t, dt, step, spring, frame):
+    """The drive spring over the step just taken: its work on the body (force times the weighted mean velocity
+    times dt), every spring.every steps a history row (t, force, velocity, u), and with a damping frame the
+    driven body's reference velocity along the axis set to its weighted mean velocity (the damping then acts on
+    the body's motion relative to its centre of mass: its resultant on the body is zero)."""
+    if spring is None:
+        return
+    d = spring.axis
+    vel = 0.0
+    for i in range(v.shape[0]):
+        vel += spring.weight[i] * v[i, d]
+    spring.out[2] += spring.out[0] * vel * dt
+    row = spring.rows[0]
+    if step % spring.every == 0 and row < spring.hist.shape[0]:
+        spring.hist[row, 0] = t
+        spring.hist[row, 1] = spring.out[0]
+        spring.hist[row, 2] = vel
+        spring.hist[row, 3] = spring.out[1]
+        spring.rows[0] = row + 1
+    if frame is not None:
+        for i in range(v.shape[0]):
+            if spring.weight[i] > 0.0:
+                frame.vel[i, d] = vel
 
 
 @njit(cache=True)

@@ -26,7 +26,8 @@ Analyses on the bar lattice:
 - modes (bar-modes): eigenfrequencies of the linearised automata (translations and rotations, the clamped
   face's automata held), K phi = omega^2 M phi by shift-invert Lanczos about 0; kinds by mirror parity
   (`pcverify.solvers.modes`, shared with skfem-elastic).
-Contact analyses (two bodies of the bar lattice): compression, sliding, frictional heating (`contact_scenes`).
+Contact analyses (two bodies of the bar lattice): compression, sliding, frictional heating (`contact_scenes`);
+stick-slip, the slider pulled by a spring (`stick_slip`); the slider on an incline (`incline`).
 """
 
 from __future__ import annotations
@@ -58,8 +59,10 @@ from pcverify.solvers.protocol import Solution, WorkEstimate, effective_params, 
 
 from . import contact_scenes as cs
 from . import heat as mca_heat
+from . import incline as inc
 from . import kernel as mk
 from . import response as rf
+from . import stick_slip as ss
 from .automata import Automata, bar_automata
 from .kernels import timed
 from .model import COEFFICIENTS, Elastic, Model, rebuild_pairs, relax, relax_status
@@ -578,6 +581,11 @@ def _slide_steps(scene: Scene, h: float, p: dict[str, Any]) -> int:
     return _relax_steps(scene, h, p) + sum(cs.slide_steps(scene.contact, t_ramp, dt))
 
 
+def _stick_slip_steps(scene: Scene, h: float, p: dict[str, Any]) -> int:
+    """Stick-slip: the preload's relaxation, then the spring's whole duration."""
+    return ss.steps(scene, h, p, _relax_steps(scene, h, p), _wave(scene, h, p)[1])
+
+
 def _heating_steps(scene: Scene, h: float, p: dict[str, Any]) -> int:
     """Frictional heating: the sliding run, then the heat's explicit steps to t_end."""
     return _slide_steps(scene, h, p) + _heat_steps(scene, h, p)
@@ -612,6 +620,8 @@ ANALYSES: tuple[Analysis, ...] = (
     Analysis("sliding contact", CONTACT, cs.on_bodies(cs.sliding), _slide_steps, sliding=True, bodies=2),
     Analysis("frictional heating", CONTACT | {"conduction", "frictional-heating"}, cs.on_bodies(cs.heating),
              _heating_steps, allows=frozenset({"interface-flux"}), conduction="transient", sliding=True, bodies=2),
+    Analysis("stick-slip", CONTACT | {"stick-slip"}, ss.run, _stick_slip_steps, sliding=True, bodies=2),
+    Analysis("incline", CONTACT | {"incline"}, inc.run, _stick_slip_steps, sliding=False, bodies=2),
 )
 
 
