@@ -28,8 +28,8 @@ CLUSTER_RTOL = 1e-5  # eigenvalues closer than this (relative) are one degenerat
 AXIAL_SHARE = 0.5  # a (+, +) mode with less of its mass norm in u_z is symmetric-lateral
 # a mode with more of its mass norm (its kinetic energy) in the rotations than in the translations is rotational:
 # the translations carry what a continuum has, so past one half the mode is mostly what the continuum lacks.  On
-# the MCA bar (n >= 4, krot 1e-4 to 1e-2) no mode lies between 0.13 and 0.92, so the line's place does not
-# matter there; at n = 3 (two automata across) modes hybridise (shares 0.41 and 0.55) and the line decides.
+# the MCA bar at n = 4 and 6 (the 40 lowest modes, krot 1e-4 to 1e-2) no mode lies between 0.13 and 0.92, so the
+# line's place does not matter there; at n = 3 (two automata across) modes hybridise (shares 0.41 and 0.55).
 ROTATIONAL_SHARE = 0.5
 
 EnergyRule = Callable[[str, dict[str, float]], str]  # (parity kind, the mode's shares) -> its kind
