@@ -44,7 +44,7 @@ from typing import Any
 import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
-from scipy.sparse.linalg import eigsh
+from scipy.sparse.linalg import LinearOperator, eigsh, splu
 
 from pcverify.scene import (
     FaceClamp,
@@ -424,13 +424,16 @@ def _modes(scene: Scene, aut: Automata, p: dict[str, Any]) -> dict[str, Any]:
     dense = free.size <= 1500
     if dense:
         all_vals, all_vecs = sla.eigh(kff.toarray(), np.diag(m[free]))
+    else:  # shift-invert about 0: one factorisation of K for every widening of the search
+        inverse = LinearOperator(kff.shape, matvec=splu(kff).solve, dtype=float)
     v0 = np.random.default_rng(4).standard_normal(free.size)
     kmax = free.size - 2 if not dense else free.size
 
     def lowest(want: int) -> tuple[np.ndarray, np.ndarray]:
         if dense:
             return all_vals[:want], all_vecs[:, :want]
-        vals, vecs = eigsh(kff, k=want, M=sp.diags(m[free]).tocsc(), sigma=0.0, which="LM", v0=v0)
+        vals, vecs = eigsh(kff, k=want, M=sp.diags(m[free]).tocsc(), sigma=0.0, which="LM", v0=v0,
+                           OPinv=inverse)
         order = np.argsort(vals)
         return vals[order], vecs[:, order]
 
