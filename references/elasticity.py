@@ -13,6 +13,17 @@ Analytic (PHYSICS.md §5):
   on all six faces: separable modes u_x ~ sin(a x) cos(b y) cos(c z) (and cyclic), k = pi (l/W, m/H, n/L),
   one pressure mode omega = c_L |k| and (d - 1) shear modes omega = c_T |k| per index triple with d nonzero
   indices.  A smooth problem: it shows the elements' full convergence order.
+- `mca_rotational_hz`: the lowest rotational mode of the MCA bar (nodes on the faces, spacing a, clamped at
+  z = 0), from the model's potential by hand, not from its code: a rotational pair spring k_r = krot G S r0 on
+  phi_j - phi_i, a shear spring that sees only phi_i + phi_j (a rotation about the pair's own axis is not
+  seen), J = m (e_x^2 + e_y^2 + e_z^2) / 18.  Rotations about the bar's axis alternating across the section,
+  phi_z = (-1)^(ix + iy) psi(z), cost no shear at all: the section's pairs see phi_i + phi_j = 0, the axial
+  pairs turn about their own axis.  So only krot resists them: 2 krot G S r0 psi^2 per section pair, and
+  krot G S r0 (dpsi)^2 / 2 per axial pair.  Deep inside a long bar with a wide section this is
+  omega^2 = 48 krot G / (rho a^2), below the three-dimensional checkerboard's 72 krot G / (rho a^2) (whose
+  axial pairs would also pay krot); the half-width automata on the section's faces carry less inertia per
+  spring, omega^2 = 48 krot G / (rho a^2 (1 - (1/N_x + 1/N_y) / 4)) for N_x, N_y automata spacings across;
+  along the bar the layers form a chain (plane z = 0 held, the last plane half thick), solved exactly.
 
 The converged continuum reference of bar-modes (scikit-fem Q2 refined, Richardson with its GCI) is a study
 group (`modes-q2-convergence` of the elasticity study), not a formula: it lives in the study's tables.
@@ -24,6 +35,7 @@ import itertools
 import math
 
 import numpy as np
+from scipy.linalg import eigh_tridiagonal
 
 # roots of 1 + cos(x) cosh(x) = 0 (clamped-free beam)
 CANTILEVER_BETA_L = (1.8751040687119611, 4.694091132974175, 7.854757438237613, 10.995540734875467,
@@ -99,3 +111,26 @@ def roller_box_hz(youngs_modulus: float, poisson_ratio: float, density: float, e
         freqs.extend([c_t * k / (2 * math.pi)] * (d - 1))
     freqs.sort()
     return np.array(freqs[:count])
+
+
+def mca_rotational_hz(shear_modulus: float, density: float, spacing: float, krot: float,
+                      cells: tuple[int, int, int]) -> float:
+    """Lowest rotational eigenfrequency (Hz) of the MCA bar: `cells` = (N_x, N_y, N_z) spacings `spacing` (m)
+    across, across and along, face z = 0 clamped; the section-alternating rotation about the bar's axis, psi_k
+    per node plane k = 1..N_z, as a chain: per unit section area the plane's pairs give stiffness 8 krot G t_k
+    (t_k its thickness: a, a / 2 for the last), the axial pairs springs krot G a between planes, the plane's
+    inertia rho t_k (a^2 (2 - 3 / (4 N_x) - 3 / (4 N_y)) + t_k^2) / 18."""
+    nx, ny, nz = (int(c) for c in cells)
+    if min(nx, ny, nz) < 1:
+        raise ValueError(f"cells={cells!r} is out of range; allowed: three integers >= 1")
+    a = float(spacing)
+    t = np.full(nz, a)
+    t[-1] = a / 2
+    inertia = density * t * (a**2 * (2 - 0.75 / nx - 0.75 / ny) + t**2) / 18.0
+    spring = krot * shear_modulus * a
+    diag = 8 * krot * shear_modulus * t + spring * np.r_[np.full(nz - 1, 2.0), 1.0]
+    scale = 1.0 / np.sqrt(inertia)
+    vals = eigh_tridiagonal(diag * scale**2, -spring * scale[:-1] * scale[1:], eigvals_only=True,
+                            select="i", select_range=(0, 0))
+    return float(np.sqrt(vals[0]) / (2 * math.pi))
+
