@@ -6,7 +6,11 @@ The elastic MCA kernel (kernel.py) derives from the potential
     delta = u_j - u_i - q (phi_i + phi_j) x n,   theta_i = sum_j S (n.(u_j - u_i)) / (2 Omega_i),
 (P = I - n n, q = r0 / 2) to first order in the displacements u and rotations phi.  Its Hessian K and the
 diagonal mass matrix M (m for translations, J for rotations) give the eigenfrequencies (bar-modes) and
-the stable time step: velocity Verlet needs dt < 2 / omega_max, and the Gershgorin bound on
+the stable time step.  Wall bonds (the "cells" packing's held faces, `Automata.walls`) add, for automaton i
+with outward face normal n at distance l = a/2 and face area S, a half-length pair to the held wall:
+    kn S (n.u_i)^2 / (2 l) + G S |P delta_w|^2 / l + krot G S a |phi_i|^2 / 2,   delta_w = -u_i - l phi_i x n,
+and -S (n.u_i) / Omega_i to theta_i (the whole bond lies in automaton i; the krot spring is a pair's to
+a held mirror automaton).  Velocity Verlet needs dt < 2 / omega_max, and the Gershgorin bound on
 M^-1/2 K M^-1/2 bounds omega_max from above.
 """
 
@@ -25,16 +29,26 @@ def _cross_matrix(n: np.ndarray) -> np.ndarray:
                      np.stack([-n[:, 1], n[:, 0], z], 1)], 1)
 
 
+Walls = tuple[np.ndarray, np.ndarray, np.ndarray]  # (automaton index, outward unit normal (k, 3), face area)
+
+
 def stiffness(aut: Automata, g_mod: float, lam: float, kn: float, krot: float = 0.0,
-              rotations: bool = True) -> sp.csr_matrix:
-    """Sparse K (6N x 6N with rotations, else 3N x 3N: rotations held at zero)."""
+              rotations: bool = True, walls: Walls | None = None) -> sp.csr_matrix:
+    """Sparse K (6N x 6N with rotations, else 3N x 3N: rotations held at zero), with the `walls`' bonds."""
     pos = aut.positions
     pi, pj = aut.pairs[:, 0], aut.pairs[:, 1]
     d = pos[pj] - pos[pi]
     n = d / np.linalg.norm(d, axis=1)[:, None]
-    npair = len(pi)
     S, r0 = aut.area, aut.r0
     q = 0.5 * r0
+    wi = np.zeros(0, dtype=np.int64) if walls is None else walls[0]
+    if wi.size:  # a wall bond: a pair (i, held wall) of length a/2, the contact point on the face
+        arm = 0.5 * aut.spacing[np.argmax(np.abs(walls[1]), axis=1)]
+        pi, pj = np.concatenate([pi, wi]), np.concatenate([pj, wi])
+        n, S = np.concatenate([n, walls[1]]), np.concatenate([S, walls[2]])
+        r0, q = np.concatenate([r0, arm]), np.concatenate([q, arm])
+    wall = np.r_[np.zeros(len(aut.pairs), dtype=bool), np.ones(wi.size, dtype=bool)]
+    npair = len(pi)
     nd = 6 if rotations else 3
     eye = np.broadcast_to(np.eye(3), (npair, 3, 3))
     proj = eye - n[:, :, None] * n[:, None, :]
@@ -47,7 +61,9 @@ def stiffness(aut: Automata, g_mod: float, lam: float, kn: float, krot: float = 
     kp = (kn * S / r0)[:, None, None] * np.einsum("pai,paj->pij", bn, bn)
     kp += (2.0 * g_mod * S / r0)[:, None, None] * np.einsum("pai,paj->pij", bt, bt)
     if krot > 0:
-        kp += (krot * g_mod * S * r0)[:, None, None] * np.einsum("pai,paj->pij", br, br)
+        kp += (krot * g_mod * S * np.where(wall, 2.0 * r0, r0))[:, None, None] * np.einsum("pai,paj->pij", br, br)
+    kp[wall, 6:, :] = 0.0  # the wall's side is held: only the (i, i) block of a wall bond acts
+    kp[wall, :, 6:] = 0.0
     keep = np.r_[0:3, 6:9] if not rotations else np.arange(12)
     kp = kp[:, keep][:, :, keep]
     loc = np.arange(nd)
@@ -60,8 +76,9 @@ def stiffness(aut: Automata, g_mod: float, lam: float, kn: float, krot: float = 
         vol = aut.volume
         r_idx = np.concatenate([np.repeat(pi, 6), np.repeat(pj, 6)])
         c_u = np.concatenate([pi[:, None] * nd + np.arange(3), pj[:, None] * nd + np.arange(3)], axis=1)
-        vals_i = np.concatenate([-n, n], axis=1) * (S / (2 * vol[pi]))[:, None]
-        vals_j = np.concatenate([-n, n], axis=1) * (S / (2 * vol[pj]))[:, None]
+        side = np.where(wall, 1.0, 0.5)  # a wall bond's elongation is all automaton i's
+        vals_i = np.concatenate([-n, n * ~wall[:, None]], axis=1) * (side * S / vol[pi])[:, None]
+        vals_j = np.concatenate([-n, n], axis=1) * (S / (2 * vol[pj]) * ~wall)[:, None]
         b = sp.coo_matrix((np.concatenate([vals_i.ravel(), vals_j.ravel()]),
                            (r_idx, np.concatenate([c_u.ravel(), c_u.ravel()]))), shape=(aut.size, size)).tocsr()
         k = k + (b.T @ sp.diags(lam * vol) @ b).tocsr()
