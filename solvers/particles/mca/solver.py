@@ -40,6 +40,7 @@ from typing import Any
 import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
+import scipy.sparse.linalg as spla
 from scipy.sparse.linalg import eigsh
 
 from pcverify.scene import (
@@ -225,11 +226,10 @@ def _heat_result(scene: Scene, aut: Automata, temp: np.ndarray, summary: dict[st
 
 # -- elasticity ----------------------------------------------------------------------------------
 
-def _fixes(scene: Scene, aut: Automata, rate_of: dict[str, float], walls: bool = False
+def _fixes(scene: Scene, aut: Automata, rate_of: dict[str, float]
            ) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[str]]:
     """(fixm, fixv, group, notes): constrained dofs, their velocities, face groups (1 = zL, 2 = z0).  "cells"
-    packing: a support holds the face layer (centres a/2 inside the face) and so does a clamp, unless `walls`
-    (the linearised model bonds a clamped face's layer to the wall instead: `clamp_walls`)."""
+    packing: the faces' constraints act through wall bonds (`face_walls`), so no face automaton is held."""
     n = aut.size
     ext = scene.box.extent
     fixm = np.zeros((n, 6), dtype=np.uint8)
@@ -241,8 +241,8 @@ def _fixes(scene: Scene, aut: Automata, rate_of: dict[str, float], walls: bool =
         if not isinstance(c, (FaceSupport, FaceClamp)):
             raise SceneError(f"mca elasticity: constraint {type(c).__name__} is not supported")
         idx = aut.on_face(c.face, ext)
-        if isinstance(c, FaceClamp) and walls and aut.packing == "cells":
-            clamped = True
+        if aut.packing == "cells":
+            clamped = clamped or isinstance(c, FaceClamp)
         elif isinstance(c, FaceClamp):
             fixm[idx] = 1
             fixv[idx] = 0.0
@@ -266,9 +266,6 @@ def _fixes(scene: Scene, aut: Automata, rate_of: dict[str, float], walls: bool =
     elif not clamped and supported != {0, 1, 2}:
         raise SceneError("mca elasticity: supports that leave rigid motion free are implemented for z faces "
                          "only; allowed: FaceSupport on z0/zL, or a FaceClamp")
-    if aut.packing == "cells" and any(not (walls and isinstance(c, FaceClamp)) for c in scene.constraints):
-        notes.append("packing=cells: the supports hold the face layer (centres a/2 inside the face): the loaded "
-                     "length between the held layers is L - a, and strains are measured between those layers")
     return fixm, fixv, group, notes
 
 
@@ -277,12 +274,14 @@ def _inset(aut: Automata) -> float:
     return 0.0 if aut.packing == "nodes" else 0.5 * float(aut.spacing[0])
 
 
-def clamp_walls(scene: Scene, aut: Automata) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
-    """Wall bonds of the clamped faces ("cells": the face layer bonded to the wall by half-length pairs), or
-    None ("nodes": the face automata themselves are held)."""
+def face_walls(scene: Scene, aut: Automata) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
+    """Wall bonds of the constrained faces ("cells": the face layer bonded to a wall point on the face by
+    half-length pairs, a support's normal only), in the order of the scene's constraints; None ("nodes": the
+    face automata themselves are held)."""
     if aut.packing == "nodes":
         return None
-    return aut.walls([c.face for c in scene.constraints if isinstance(c, FaceClamp)], scene.box.extent)
+    held = [c for c in scene.constraints if isinstance(c, (FaceSupport, FaceClamp))]
+    return aut.walls([c.face for c in held], [isinstance(c, FaceSupport) for c in held], scene.box.extent)
 
 
 def _elastic(scene: Scene, p: dict[str, Any]) -> Elastic:
@@ -307,6 +306,8 @@ def _strains(scene: Scene, aut: Automata, u: np.ndarray) -> tuple[float, float]:
 
 
 def _static(scene: Scene, aut: Automata, p: dict[str, Any]) -> dict[str, Any]:
+    if aut.packing == "cells":
+        return _static_linear(scene, aut, p)
     el = _elastic(scene, p)
     probe = Model(aut, el)
     rate = probe.relaxation_rate()
@@ -335,6 +336,56 @@ def _static(scene: Scene, aut: Automata, p: dict[str, Any]) -> dict[str, Any]:
     kstat, reason = relax_status(status, res, p["relax_tol"], steps, p["max_steps"])
     return {"field": u, "unknowns": 6 * aut.size, "quantity": "u (m)", "summary": summary, "status": kstat,
             "reason": reason, "work": _work(model, st), "diagnostics": {"notes": notes}}
+
+
+def _static_linear(scene: Scene, aut: Automata, p: dict[str, Any]) -> dict[str, Any]:
+    """Static elasticity of the "cells" packing: the linearised automata (stiffness.py, the kernel's potential
+    to first order) with the faces' wall bonds, solved directly.  The wall points move with their support's
+    displacement (a clamp's stay); the rigid-body set of `_fixes` holds the rest."""
+    el = _elastic(scene, p)
+    rot = p["rotations"]
+    nd = 6 if rot else 3
+    walls = face_walls(scene, aut)
+    t0 = time.perf_counter()
+    k = stiffness(aut, el.shear, el.lam, el.kn, p["krot"], rotations=rot, walls=walls).tocsr()
+    fixm, _, _, notes = _fixes(scene, aut, {})
+    held = np.r_[fixm[:, :nd].ravel() == 1, np.ones(nd * walls[0].size, dtype=bool)]
+    u = np.zeros(k.shape[0])
+    react = 0.0
+    rows_of = {c.face: nd * (aut.size + first + np.arange(count)) + "xyz".index(c.face[0])
+               for (first, count), c in _wall_starts(scene, aut)}  # each wall's normal displacements
+    for c in scene.constraints:
+        if isinstance(c, FaceSupport):
+            u[rows_of[c.face]] = c.displacement
+    free = np.flatnonzero(~held)
+    u[free] = spla.spsolve(k[free][:, free].tocsc(), -(k[free][:, held] @ u[held]))
+    force = k @ u  # the external force on every degree of freedom (zero on the free ones)
+    field = u[: nd * aut.size].reshape(aut.size, nd)[:, :3]
+    if "zL" in rows_of:
+        react = float(force[rows_of["zL"]].sum())
+    summary: dict[str, Any] = {"residual": float(np.abs(force[free]).max(initial=0.0)), "steps": 0,
+                               "reaction_force": react}
+    disp = {c.face for c in scene.constraints if isinstance(c, FaceSupport)}
+    if "zL" in disp and "z0" in disp:
+        axial, lateral = _strains(scene, aut, field)
+        area = scene.box.width * scene.box.height
+        summary.update(axial_strain=axial, lateral_strain=lateral, E_eff=react / area / axial,
+                       nu_eff=-lateral / axial)
+    notes.append("packing=cells: the linearised automata solved directly, the faces' constraints as wall bonds")
+    return {"field": field, "unknowns": int(free.size), "quantity": "u (m)", "summary": summary, "status": "ok",
+            "reason": "", "work": {"unknowns": int(free.size), "kernel_s": time.perf_counter() - t0},
+            "diagnostics": {"notes": notes}}
+
+
+def _wall_starts(scene: Scene, aut: Automata) -> list[tuple[tuple[int, int], Any]]:
+    """((first wall bond, count), constraint) of each constrained face, in the order of `face_walls`."""
+    out, start = [], 0
+    for c in scene.constraints:
+        if isinstance(c, (FaceSupport, FaceClamp)):
+            count = aut.on_face(c.face, scene.box.extent).size
+            out.append(((start, count), c))
+            start += count
+    return out
 
 
 def _work(model: Model, st: mk.State) -> dict[str, Any]:
@@ -444,10 +495,11 @@ def _modes(scene: Scene, aut: Automata, p: dict[str, Any]) -> dict[str, Any]:
     el = _elastic(scene, p)
     rot = p["rotations"]
     t0 = time.perf_counter()
-    k = stiffness(aut, el.shear, el.lam, el.kn, p["krot"], rotations=rot, walls=clamp_walls(scene, aut))
-    m = mass_diagonal(aut, rotations=rot)
     nd = 6 if rot else 3
-    fixm, _, _, _ = _fixes(scene, aut, {}, walls=True)
+    k = stiffness(aut, el.shear, el.lam, el.kn, p["krot"], rotations=rot, walls=face_walls(scene, aut))
+    k = k[: nd * aut.size, : nd * aut.size]  # the wall points, if any, are held
+    m = mass_diagonal(aut, rotations=rot)
+    fixm, _, _, _ = _fixes(scene, aut, {})
     held = fixm[:, :nd].ravel() == 1
     free = np.flatnonzero(~held)
     kff = k[free][:, free].tocsc()
@@ -563,6 +615,8 @@ def _on_bar(run: Callable[[Scene, Automata, dict[str, Any]], dict[str, Any]]) ->
     def on_bar(scene: Scene, n: int, p: dict[str, Any]) -> tuple[dict[str, Any], Automata]:
         build = cell_automata if p["packing"] == "cells" else bar_automata
         aut = build(scene.box, n, scene.material.density)
+        held = [c.face for c in scene.constraints if isinstance(c, (FaceClamp, FaceSupport))]
+        aut = aut.with_free_faces(held, scene.box.extent)
         return run(scene, aut, p), aut
 
     return on_bar
