@@ -218,9 +218,9 @@ def cell_automata(box: Box, n: int, density: float) -> Automata:
     pos = np.stack([g.ravel() for g in grid], axis=1)
     count = pos.shape[0]
     extent_i = np.full((count, 3), a)
-    vol = extent_i.prod(axis=1)
-    mass = density * vol
-    inertia = mass * (extent_i**2).sum(axis=1) / 18.0
+    vol = np.full(count, a**3)
+    mass = np.full(count, density * a**3)
+    inertia = mass * a * a / 6.0  # m (3 a^2) / 18
     idx = np.arange(count).reshape(shape)
     pairs, axis = [], []
     for ax in range(3):
