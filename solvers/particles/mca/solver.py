@@ -27,6 +27,11 @@ Analyses on the bar lattice:
   face's automata held), K phi = omega^2 M phi by shift-invert Lanczos about 0; kinds by mirror parity
   (`pcverify.solvers.modes`, shared with skfem-elastic).
 Contact analyses (two bodies of the bar lattice): compression, sliding, frictional heating (`contact_scenes`).
+
+Packing (`packing`, automata.py): "nodes" (the lattice above, every analysis) or "cells" (equal cubes filling the
+bar, centres a/2 inside the faces; static elasticity and modes only, both on the linearised model of stiffness.py:
+the faces' constraints as wall bonds, the free faces condensed; the static state by a direct sparse solve).  The
+other analyses return a skipped Solution naming the packing.  Samples of "cells" are interpolated (`_at`).
 """
 
 from __future__ import annotations
@@ -377,7 +382,7 @@ def _static_linear(scene: Scene, aut: Automata, p: dict[str, Any]) -> dict[str, 
             "diagnostics": {"notes": notes}}
 
 
-def _wall_starts(scene: Scene, aut: Automata) -> list[tuple[tuple[int, int], Any]]:
+def _wall_starts(scene: Scene, aut: Automata) -> list[tuple[tuple[int, int], FaceSupport | FaceClamp]]:
     """((first wall bond, count), constraint) of each constrained face, in the order of `face_walls`."""
     out, start = [], 0
     for c in scene.constraints:
@@ -605,7 +610,8 @@ class Analysis:
         h = min(e / max(k - gaps, 1) for e, k in zip(scene.box.extent, shape, strict=True))
         unknowns = self.unknowns * count
         dense = 16 * unknowns**2 if unknowns <= self.dense else 0
-        steps = 1 if self.steps is None else max(1, self.steps(scene, h, p))
+        linear = self.steps is None or p["packing"] == "cells"  # cells: the linearised model, solved directly
+        steps = 1 if linear else max(1, self.steps(scene, h, p))
         return WorkEstimate(unknowns=unknowns, steps=steps, bytes=BYTES_PER_AUTOMATON * count + dense)
 
 
