@@ -25,6 +25,13 @@ Analytic (PHYSICS.md §5):
   spring, omega^2 = 48 krot G / (rho a^2 (1 - (1/N_x + 1/N_y) / 4)) for N_x, N_y automata spacings across;
   along the bar the layers form a chain (plane z = 0 held, the last plane half thick), solved exactly.
 
+Geometric (the MCA packing, `packing_second_moment_ratio`, `packing_bending_ratio`): the axial pairs of a
+packing carry the bending moment as a quadrature of y^2 over the section's depth H with one spacing a.
+"nodes" (centres on the faces, half cells there) is the trapezoid rule, whose error is +a^2 H / 6:
+I_lattice / I = 1 + 2 (a/H)^2; "cells" (equal cubes, centres a/2 inside) is the midpoint rule, error
+-a^2 H / 12: I_lattice / I = 1 - (a/H)^2.  A beam's bending frequency scales as sqrt(E I), so the
+frequency ratio against the continuum is sqrt(I_lattice / I) if nothing else in the model changes.
+
 The converged continuum reference of bar-modes (scikit-fem Q2 refined, Richardson with its GCI) is a study
 group (`modes-q2-convergence` of the elasticity study), not a formula: it lives in the study's tables.
 """
@@ -75,6 +82,23 @@ def euler_bernoulli_cantilever_hz(youngs_modulus: float, density: float, width: 
     inertia = height * width**3 / 12.0 if axis == "x" else width * height**3 / 12.0
     scale = math.sqrt(youngs_modulus * inertia / (density * area)) / (2.0 * math.pi * length**2)
     return np.array([b**2 * scale for b in CANTILEVER_BETA_L[:modes]])
+
+
+def packing_second_moment_ratio(packing: str, spacings: float) -> float:
+    """I_lattice / I of a section `spacings` = H / a lattice spacings deep: 1 + 2 (a/H)^2 for "nodes"
+    (trapezoid rule), 1 - (a/H)^2 for "cells" (midpoint rule)."""
+    if packing not in ("nodes", "cells"):
+        raise ValueError(f"packing={packing!r} is out of range; allowed: nodes or cells")
+    if not spacings >= 1:
+        raise ValueError(f"spacings={spacings!r} is out of range; allowed: number >= 1")
+    r = 1.0 / spacings
+    return 1.0 + 2.0 * r * r if packing == "nodes" else 1.0 - r * r
+
+
+def packing_bending_ratio(packing: str, n: int) -> float:
+    """Predicted bending frequency ratio lattice / continuum of a square section at resolution n:
+    sqrt(I_lattice / I) with H / a = n - 1 ("nodes", n nodes across) or n ("cells", n automata across)."""
+    return math.sqrt(packing_second_moment_ratio(packing, n - 1 if packing == "nodes" else n))
 
 
 def torsion_constant(width: float, height: float, terms: int = 50) -> float:

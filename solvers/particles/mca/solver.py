@@ -32,6 +32,11 @@ Analyses on the bar lattice:
   the lowest rotational one found there.
 Contact analyses (two bodies of the bar lattice): compression, sliding, frictional heating (`contact_scenes`);
 stick-slip, the slider pulled by a spring (`stick_slip`); the slider on an incline (`incline`).
+
+Packing (`packing`, automata.py): "nodes" (the lattice above, every analysis) or "cells" (equal cubes filling the
+bar, centres a/2 inside the faces; static elasticity and modes only, both on the linearised model of stiffness.py:
+the faces' constraints as wall bonds, the free faces condensed; the static state by a direct sparse solve).  The
+other analyses return a skipped Solution naming the packing.  Samples of "cells" are interpolated (`_at`).
 """
 
 from __future__ import annotations
@@ -46,6 +51,7 @@ from typing import Any
 import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
+import scipy.sparse.linalg as spla
 from scipy.sparse.linalg import LinearOperator, eigsh, splu
 
 from pcverify.scene import (
@@ -59,7 +65,7 @@ from pcverify.scene import (
 )
 from pcverify.solvers.energy import balance_error
 from pcverify.solvers.modes import ModeKinds, classify, lowest_of_each_kind, rotational, symmetric_lateral
-from pcverify.solvers.protocol import Solution, WorkEstimate, effective_params, heat_summary, read_notes
+from pcverify.solvers.protocol import Solution, WorkEstimate, effective_params, heat_summary, read_notes, skipped
 
 from . import contact_scenes as cs
 from . import heat as mca_heat
@@ -67,7 +73,7 @@ from . import incline as inc
 from . import kernel as mk
 from . import response as rf
 from . import stick_slip as ss
-from .automata import Automata, bar_automata
+from .automata import PACKINGS, Automata, bar_automata, cell_automata
 from .kernels import timed
 from .model import COEFFICIENTS, Elastic, Model, rebuild_pairs, relax, relax_status
 from .probe import McaProbe
@@ -137,6 +143,10 @@ PARAMETERS: tuple[Param, ...] = (
     Param("preload_tol", 1e-7, "", "sliding: residual force tolerance of the preload in units of normal_stress a^2 "
           "(measured: 1e-9 costs the frictional-heating preload 108 000 steps instead of 2 500 and changes no "
           "result beyond 1e-9)", low=0.0, high=1e-2, low_open=True),
+    Param("packing", "nodes", "", "automata of the bar: nodes = one on each lattice node, centres on the faces "
+          "(half, quarter, eighth cells there; n nodes across the width, a = W/(n - 1)); cells = equal cubes "
+          "filling the body, centres a/2 inside the faces (n automata across the width, a = W/n; static "
+          "elasticity and modes only)", choices=PACKINGS, kind=str),
     Param("slide_damping", None, "1/s", "sliding: viscous damping rate of the automata's motion relative to their "
           "body's drive (default: the relaxation rate; 0 = undamped)", low=0.0, high=1e9, optional=True),
 )
@@ -182,13 +192,16 @@ class Mca:
         t_wall = time.perf_counter()
         n = resolution.n
         pts = scene.sample_sets(n) if samples is None else samples
+        if p["packing"] not in analysis.packings:
+            return skipped(scene, self, resolution, f"mca's {analysis.name} runs packing "
+                           f"{' or '.join(analysis.packings)} only; packing={p['packing']} is not implemented for it")
         out, aut = analysis.run(scene, n, p)
         if analysis.bodies > 1:  # a slider shorter than its base: the samples at its automata only
             pts = {k: v[aut.holds(v)] for k, v in pts.items()}
         field = out.pop("field")
         if "kernel_s" in out["work"]:  # seconds inside the time-stepping / solve kernel (ns per pair-step)
             out["summary"]["kernel_s"] = out["work"]["kernel_s"]
-        values = {} if field is None else {k: {"points": np.asarray(v, float), "values": field[aut.node_at(v)]}
+        values = {} if field is None else {k: {"points": np.asarray(v, float), "values": _at(aut, field, v)}
                                            for k, v in pts.items()}
         return Solution(scene=scene.name, solver=self.name, params=p,
                         resolution={"n": n, "refine": 1, "h": float(aut.spacing.min()), "nodes": aut.size},
@@ -196,6 +209,14 @@ class Mca:
                         wall_s=time.perf_counter() - t_wall, status=out.pop("status", "ok"),
                         reason=out.pop("reason", ""), quantity=out.pop("quantity"), work=out.pop("work"),
                         summary=out.pop("summary"), diagnostics=out.pop("diagnostics", {}))
+
+
+def _at(aut: Automata, field: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """The field at the sample `points`: at the automata centred there ("nodes"), interpolated between the
+    centres and extrapolated linearly to the faces ("cells", second order; `Automata.sampler`)."""
+    if aut.packing == "nodes":
+        return field[aut.node_at(points)]
+    return np.asarray(aut.sampler(points) @ field)
 
 
 # -- heat ----------------------------------------------------------------------------------------
@@ -236,7 +257,8 @@ def _heat_result(scene: Scene, aut: Automata, temp: np.ndarray, summary: dict[st
 
 def _fixes(scene: Scene, aut: Automata, rate_of: dict[str, float]
            ) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[str]]:
-    """(fixm, fixv, group, notes): constrained dofs, their velocities, face groups (1 = zL, 2 = z0)."""
+    """(fixm, fixv, group, notes): constrained dofs, their velocities, face groups (1 = zL, 2 = z0).  "cells"
+    packing: the faces' constraints act through wall bonds (`face_walls`), so no face automaton is held."""
     n = aut.size
     ext = scene.box.extent
     fixm = np.zeros((n, 6), dtype=np.uint8)
@@ -248,7 +270,9 @@ def _fixes(scene: Scene, aut: Automata, rate_of: dict[str, float]
         if not isinstance(c, (FaceSupport, FaceClamp)):
             raise SceneError(f"mca elasticity: constraint {type(c).__name__} is not supported")
         idx = aut.on_face(c.face, ext)
-        if isinstance(c, FaceClamp):
+        if aut.packing == "cells":
+            clamped = clamped or isinstance(c, FaceClamp)
+        elif isinstance(c, FaceClamp):
             fixm[idx] = 1
             fixv[idx] = 0.0
             clamped = True
@@ -262,14 +286,31 @@ def _fixes(scene: Scene, aut: Automata, rate_of: dict[str, float]
     if not clamped and supported == {2}:
         z0 = aut.on_face("z0", ext)
         xy = aut.positions[z0, :2]
-        a = z0[np.flatnonzero(np.all(np.abs(xy) <= 1e-9 * ext[0], axis=1))]
-        b = z0[np.flatnonzero((np.abs(xy[:, 0] - ext[0]) <= 1e-9 * ext[0]) & (np.abs(xy[:, 1]) <= 1e-9 * ext[1]))]
+        lo, hi = _inset(aut), ext[0] - _inset(aut)  # the face layer's corner centres
+        a = z0[np.flatnonzero(np.all(np.abs(xy - lo) <= 1e-9 * ext[0], axis=1))]
+        b = z0[np.flatnonzero((np.abs(xy[:, 0] - hi) <= 1e-9 * ext[0]) & (np.abs(xy[:, 1] - lo) <= 1e-9 * ext[1]))]
         fixm[a, 0] = fixm[a, 1] = fixm[b, 1] = 1
-        notes.append("rigid-body set: u_x = u_y = 0 at (0, 0, 0), u_y = 0 at (W, 0, 0)")
+        notes.append("rigid-body set: u_x = u_y = 0 at (0, 0, 0), u_y = 0 at (W, 0, 0)" if aut.packing == "nodes"
+                     else "rigid-body set: u_x = u_y = 0 at (a/2, a/2, a/2), u_y = 0 at (W - a/2, a/2, a/2)")
     elif not clamped and supported != {0, 1, 2}:
         raise SceneError("mca elasticity: supports that leave rigid motion free are implemented for z faces "
                          "only; allowed: FaceSupport on z0/zL, or a FaceClamp")
     return fixm, fixv, group, notes
+
+
+def _inset(aut: Automata) -> float:
+    """Distance from a face to the centres of its layer: 0 ("nodes"), a/2 ("cells")."""
+    return 0.0 if aut.packing == "nodes" else 0.5 * float(aut.spacing[0])
+
+
+def face_walls(scene: Scene, aut: Automata) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
+    """Wall bonds of the constrained faces ("cells": the face layer bonded to a wall point on the face by
+    half-length pairs, a support's normal only), in the order of the scene's constraints; None ("nodes": the
+    face automata themselves are held)."""
+    if aut.packing == "nodes":
+        return None
+    held = [c for c in scene.constraints if isinstance(c, (FaceSupport, FaceClamp))]
+    return aut.walls([c.face for c in held], [isinstance(c, FaceSupport) for c in held], scene.box.extent)
 
 
 def _elastic(scene: Scene, p: dict[str, Any]) -> Elastic:
@@ -287,12 +328,15 @@ def _strains(scene: Scene, aut: Automata, u: np.ndarray) -> tuple[float, float]:
         wgt = aut.volume[idx]
         return float((u[idx, ax] * wgt).sum() / wgt.sum())
 
-    axial = (mean("zL", 2) - mean("z0", 2)) / ext[2]
-    lateral = 0.5 * ((mean("xW", 0) - mean("x0", 0)) / ext[0] + (mean("yH", 1) - mean("y0", 1)) / ext[1])
+    span = ext if aut.packing == "nodes" else ext - aut.spacing  # between the face layers' centres
+    axial = (mean("zL", 2) - mean("z0", 2)) / span[2]
+    lateral = 0.5 * ((mean("xW", 0) - mean("x0", 0)) / span[0] + (mean("yH", 1) - mean("y0", 1)) / span[1])
     return axial, lateral
 
 
 def _static(scene: Scene, aut: Automata, p: dict[str, Any]) -> dict[str, Any]:
+    if aut.packing == "cells":
+        return _static_linear(scene, aut, p)
     el = _elastic(scene, p)
     probe = Model(aut, el)
     rate = probe.relaxation_rate()
@@ -321,6 +365,56 @@ def _static(scene: Scene, aut: Automata, p: dict[str, Any]) -> dict[str, Any]:
     kstat, reason = relax_status(status, res, p["relax_tol"], steps, p["max_steps"])
     return {"field": u, "unknowns": 6 * aut.size, "quantity": "u (m)", "summary": summary, "status": kstat,
             "reason": reason, "work": _work(model, st), "diagnostics": {"notes": notes}}
+
+
+def _static_linear(scene: Scene, aut: Automata, p: dict[str, Any]) -> dict[str, Any]:
+    """Static elasticity of the "cells" packing: the linearised automata (stiffness.py, the kernel's potential
+    to first order) with the faces' wall bonds, solved directly.  The wall points move with their support's
+    displacement (a clamp's stay); the rigid-body set of `_fixes` holds the rest."""
+    el = _elastic(scene, p)
+    rot = p["rotations"]
+    nd = 6 if rot else 3
+    walls = face_walls(scene, aut)
+    t0 = time.perf_counter()
+    k = stiffness(aut, el.shear, el.lam, el.kn, p["krot"], rotations=rot, walls=walls).tocsr()
+    fixm, _, _, notes = _fixes(scene, aut, {})
+    held = np.r_[fixm[:, :nd].ravel() == 1, np.ones(nd * walls[0].size, dtype=bool)]
+    u = np.zeros(k.shape[0])
+    react = 0.0
+    rows_of = {c.face: nd * (aut.size + first + np.arange(count)) + "xyz".index(c.face[0])
+               for (first, count), c in _wall_starts(scene, aut)}  # each wall's normal displacements
+    for c in scene.constraints:
+        if isinstance(c, FaceSupport):
+            u[rows_of[c.face]] = c.displacement
+    free = np.flatnonzero(~held)
+    u[free] = spla.spsolve(k[free][:, free].tocsc(), -(k[free][:, held] @ u[held]))
+    force = k @ u  # the external force on every degree of freedom (zero on the free ones)
+    field = u[: nd * aut.size].reshape(aut.size, nd)[:, :3]
+    if "zL" in rows_of:
+        react = float(force[rows_of["zL"]].sum())
+    summary: dict[str, Any] = {"residual": float(np.abs(force[free]).max(initial=0.0)), "steps": 0,
+                               "reaction_force": react}
+    disp = {c.face for c in scene.constraints if isinstance(c, FaceSupport)}
+    if "zL" in disp and "z0" in disp:
+        axial, lateral = _strains(scene, aut, field)
+        area = scene.box.width * scene.box.height
+        summary.update(axial_strain=axial, lateral_strain=lateral, E_eff=react / area / axial,
+                       nu_eff=-lateral / axial)
+    notes.append("packing=cells: the linearised automata solved directly, the faces' constraints as wall bonds")
+    return {"field": field, "unknowns": int(free.size), "quantity": "u (m)", "summary": summary, "status": "ok",
+            "reason": "", "work": {"unknowns": int(free.size), "kernel_s": time.perf_counter() - t0},
+            "diagnostics": {"notes": notes}}
+
+
+def _wall_starts(scene: Scene, aut: Automata) -> list[tuple[tuple[int, int], FaceSupport | FaceClamp]]:
+    """((first wall bond, count), constraint) of each constrained face, in the order of `face_walls`."""
+    out, start = [], 0
+    for c in scene.constraints:
+        if isinstance(c, (FaceSupport, FaceClamp)):
+            count = aut.on_face(c.face, scene.box.extent).size
+            out.append(((start, count), c))
+            start += count
+    return out
 
 
 def _work(model: Model, st: mk.State) -> dict[str, Any]:
@@ -430,9 +524,10 @@ def _modes(scene: Scene, aut: Automata, p: dict[str, Any]) -> dict[str, Any]:
     el = _elastic(scene, p)
     rot = p["rotations"]
     t0 = time.perf_counter()
-    k = stiffness(aut, el.shear, el.lam, el.kn, p["krot"], rotations=rot)
-    m = mass_diagonal(aut, rotations=rot)
     nd = 6 if rot else 3
+    k = stiffness(aut, el.shear, el.lam, el.kn, p["krot"], rotations=rot, walls=face_walls(scene, aut))
+    k = k[: nd * aut.size, : nd * aut.size]  # the wall points, if any, are held
+    m = mass_diagonal(aut, rotations=rot)
     fixm, _, _, _ = _fixes(scene, aut, {})
     held = fixm[:, :nd].ravel() == 1
     free = np.flatnonzero(~held)
@@ -461,7 +556,8 @@ def _modes(scene: Scene, aut: Automata, p: dict[str, Any]) -> dict[str, Any]:
         full = np.zeros((k.shape[0], vals.size))
         full[free] = vecs
         # bending-x before bending-y in a degenerate cluster (x mirror only)
-        return classify(full, vals, m, aut.positions, scene.box.extent, aut.spacing, rotations=rot,
+        unit = aut.spacing / 2  # mirror keys on half spacings: "cells" centres sit at half-integers of a
+        return classify(full, vals, m, aut.positions, scene.box.extent, unit, rotations=rot,
                         order=(1.0, 0.0), energy=(rotational, symmetric_lateral))
 
     # widen the search until `count` modes of a continuum kind are found: the rotational ones do not count
@@ -536,6 +632,7 @@ class Analysis:
     dense: int = 0
     stepping: str = "mechanics"
     no_stepping: str = ""
+    packings: tuple[str, ...] = ("nodes",)
 
     def matches(self, kind: SceneKind) -> bool:
         return (self.needs <= kind.physics <= self.needs | self.allows and self.conduction in (None, kind.conduction)
@@ -553,23 +650,36 @@ class Analysis:
 
     def estimate(self, scene: Scene, resolution: Resolution, p: dict[str, Any]) -> WorkEstimate:
         """Unknowns, time steps and memory of the run, from the scene and the parameters alone."""
-        shape = scene.box.lattice_shape(resolution.n)
+        shape = packed_shape(scene, resolution.n, p["packing"])
         count = math.prod(shape) * self.bodies
-        h = min(e / max(k - 1, 1) for e, k in zip(scene.box.extent, shape, strict=True))
+        gaps = 1 if p["packing"] == "nodes" else 0  # spacings across an axis: nodes - 1, or cells
+        h = min(e / max(k - gaps, 1) for e, k in zip(scene.box.extent, shape, strict=True))
         unknowns = self.unknowns * count
         dense = 16 * unknowns**2 if unknowns <= self.dense else 0
-        steps = 1 if self.steps is None else max(1, self.steps(scene, h, p))
+        linear = self.steps is None or p["packing"] == "cells"  # cells: the linearised model, solved directly
+        steps = 1 if linear else max(1, self.steps(scene, h, p))
         return WorkEstimate(unknowns=unknowns, steps=steps, bytes=BYTES_PER_AUTOMATON * count + dense)
 
 
 def _on_bar(run: Callable[[Scene, Automata, dict[str, Any]], dict[str, Any]]) -> Run:
-    """A run on the automata of the bar lattice at resolution n."""
+    """A run on the automata of the bar at resolution n, packed as the `packing` parameter says."""
 
     def on_bar(scene: Scene, n: int, p: dict[str, Any]) -> tuple[dict[str, Any], Automata]:
-        aut = bar_automata(scene.box, n, scene.material.density)
+        build = cell_automata if p["packing"] == "cells" else bar_automata
+        aut = build(scene.box, n, scene.material.density)
+        held = [c.face for c in scene.constraints if isinstance(c, (FaceClamp, FaceSupport))]
+        aut = aut.with_free_faces(held, scene.box.extent)
         return run(scene, aut, p), aut
 
     return on_bar
+
+
+def packed_shape(scene: Scene, n: int, packing: str) -> tuple[int, int, int]:
+    """Automata per axis of the bar at resolution n: the lattice's nodes, or n cells across the width."""
+    if packing == "nodes":
+        return scene.box.lattice_shape(n)
+    ext = scene.box.extent
+    return (int(n), max(1, round(n * ext[1] / ext[0])), max(1, round(n * ext[2] / ext[0])))
 
 
 def _heat_steps(scene: Scene, h: float, p: dict[str, Any]) -> int:
@@ -638,9 +748,10 @@ ANALYSES: tuple[Analysis, ...] = (
              no_stepping="steady mca heat is a direct solve: no time stepping, no stability probe needed"),
     Analysis("transient heat", HEAT, _on_bar(_transient_heat), _heat_steps, allows=HEAT_LOADS, conduction="transient",
              unknowns=1, stepping="heat"),
-    Analysis("static elasticity", ELASTIC, _on_bar(_static), _relax_steps, check=_held_bar),
+    Analysis("static elasticity", ELASTIC, _on_bar(_static), _relax_steps, check=_held_bar,
+             packings=PACKINGS),
     Analysis("modes", ELASTIC | {"modes"}, _on_bar(_modes), None, check=_held_bar, dense=1500, stepping="",
-             no_stepping="bar-modes is an eigenproblem: no time stepping"),
+             no_stepping="bar-modes is an eigenproblem: no time stepping", packings=PACKINGS),
     Analysis("fracture", ELASTIC | {"fracture"}, _on_bar(_fracture), _fracture_steps, check=_held_bar),
     Analysis("contact compression", CONTACT, cs.on_bodies(cs.pressed), _relax_steps, sliding=False, bodies=2),
     Analysis("sliding contact", CONTACT, cs.on_bodies(cs.sliding), _slide_steps, sliding=True, bodies=2),
