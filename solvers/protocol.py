@@ -32,7 +32,8 @@ class Solution:
     unknowns (and work.unknowns): the scalar values the solver solves for or advances in time that no
     constraint holds -- its free degrees of freedom (a held node, cell, particle or dof is not one): free
     nodes (scikit-fem), free cells (FiPy), free dofs (elasticity), 3 per particle the macromolecule lattice
-    integrates freely (FREE, Langevin baths included); the one count every cost table and figure uses.
+    integrates freely (FREE, Langevin baths included), the MCA's free translations and rotations (mechanics)
+    or free temperatures (heat); the one count every cost table and figure uses.
     work: counters (unknowns, time_steps, pair_steps, iterations, kernel_s, ...).
     summary: scalar results (bulk_median, volume_mean, ... solvers may add keys, never rename).
     """

@@ -677,8 +677,8 @@ def on_bodies(run: Callable[..., dict[str, Any]]) -> Callable[[Scene, int, dict[
         model, st = out.pop("model"), out.pop("state")
         out["summary"]["friction_step_ratio"] = friction_step_ratio(model, law, contact)
         out["work"] = {"pair_steps": int(st.counters[mk.C_PAIRSTEPS]), "time_steps": int(st.counters[mk.C_STEPS]),
-                       "kernel_s": model.kernel_s, "unknowns": 6 * aut.size}
-        out["unknowns"] = 6 * aut.size
+                       "kernel_s": model.kernel_s, "unknowns": model.free_dofs}
+        out["unknowns"] = model.free_dofs
         return out, aut
 
     return on_two_bodies

@@ -38,8 +38,8 @@ def run(scene: Scene, n: int, p: dict[str, Any]) -> tuple[dict[str, Any], Automa
     out, aut = _run(scene, n, p)
     model, st = out.pop("model"), out.pop("state")
     out["work"] = {"pair_steps": int(st.counters[mk.C_PAIRSTEPS]), "time_steps": int(st.counters[mk.C_STEPS]),
-                   "kernel_s": model.kernel_s, "unknowns": 6 * aut.size}
-    out["unknowns"] = 6 * aut.size
+                   "kernel_s": model.kernel_s, "unknowns": model.free_dofs}
+    out["unknowns"] = model.free_dofs
     return out, aut
 
 

@@ -140,6 +140,12 @@ class Model:
             record_every=0)
 
     @property
+    def free_dofs(self) -> int:
+        """The degrees of freedom the run integrates freely (translations, and rotations where the automata
+        rotate; not the held or prescribed ones): the solution's `unknowns`."""
+        return int(np.count_nonzero(self.fixm == mk.FREE))
+
+    @property
     def inelastic(self) -> bool:
         """Whether the automata carry the inelastic state (a response function or fracture)."""
         return self.params.kind != 0 or self.params.fracture

@@ -227,7 +227,7 @@ def _steady_heat(scene: Scene, aut: Automata, p: dict[str, Any]) -> dict[str, An
     power = mca_heat.sources(scene, aut)
     t0 = time.perf_counter()
     temp = mca_heat.steady(aut, scene.material.conductivity, values, held, power)
-    return _heat_result(scene, aut, temp, {}, {"unknowns": aut.size, "time_steps": 0,
+    return _heat_result(scene, aut, temp, {}, {"unknowns": int(np.count_nonzero(held == 0)), "time_steps": 0,
                                                 "kernel_s": time.perf_counter() - t0})
 
 
@@ -237,7 +237,7 @@ def _transient_heat(scene: Scene, aut: Automata, p: dict[str, Any]) -> dict[str,
     held, values = mca_heat.held_temperatures(scene, aut)
     st, par, steps = mca_heat.transient(aut, mat.conductivity, mat.density * mat.heat_capacity, values, held,
                                         scene.conduction.t_end, p["heat_cfl"], mca_heat.sources(scene, aut))
-    work = {"unknowns": aut.size, "kernel_s": timed("heat", st, par, steps), "time_steps": steps,
+    work = {"unknowns": int(np.count_nonzero(held == 0)), "kernel_s": timed("heat", st, par, steps), "time_steps": steps,
             "pair_steps": steps * len(aut.pairs)}
     return _heat_result(scene, aut, st.temp, {"dt": par.dt, "steps": steps}, work)
 
@@ -249,7 +249,7 @@ def _heat_result(scene: Scene, aut: Automata, temp: np.ndarray, summary: dict[st
     status, reason = ("ok", "") if np.all(np.isfinite(rel)) else ("unstable", "non-finite temperature")
     reason = "; ".join(r for r in (reason, point_patch_note(scene.constraints, float(aut.spacing.min()))) if r)
     summary.update(heat_summary(rel, float((rel * aut.volume).sum() / aut.volume.sum())))
-    return {"field": rel, "unknowns": aut.size, "quantity": "T/t_max", "work": work, "summary": summary,
+    return {"field": rel, "unknowns": work["unknowns"], "quantity": "T/t_max", "work": work, "summary": summary,
             "status": status, "reason": reason}
 
 
@@ -363,7 +363,7 @@ def _static(scene: Scene, aut: Automata, p: dict[str, Any]) -> dict[str, Any]:
         summary.update(axial_strain=axial, lateral_strain=lateral, E_eff=react / area / axial,
                        nu_eff=-lateral / axial)
     kstat, reason = relax_status(status, res, p["relax_tol"], steps, p["max_steps"])
-    return {"field": u, "unknowns": 6 * aut.size, "quantity": "u (m)", "summary": summary, "status": kstat,
+    return {"field": u, "unknowns": model.free_dofs, "quantity": "u (m)", "summary": summary, "status": kstat,
             "reason": reason, "work": _work(model, st), "diagnostics": {"notes": notes}}
 
 
@@ -419,7 +419,7 @@ def _wall_starts(scene: Scene, aut: Automata) -> list[tuple[tuple[int, int], Fac
 
 def _work(model: Model, st: mk.State) -> dict[str, Any]:
     return {"pair_steps": int(st.counters[mk.C_PAIRSTEPS]), "time_steps": int(st.counters[mk.C_STEPS]),
-            "kernel_s": model.kernel_s, "unknowns": 6 * model.aut.size}
+            "kernel_s": model.kernel_s, "unknowns": model.free_dofs}
 
 
 # -- fracture ------------------------------------------------------------------------------------
@@ -514,7 +514,7 @@ def _fracture(scene: Scene, aut: Automata, p: dict[str, Any]) -> dict[str, Any]:
                                     "and 60 % of the peak stress; raise records or lower strain_rate")
     aut = model.aut
     diag = {"notes": notes, "history": {"columns": list(mk.HISTORY_COLUMNS[:mk.H_LOAD]), "rows": h}}
-    return {"field": st.x - aut.positions, "unknowns": 6 * aut.size, "quantity": "u (m)", "summary": summary,
+    return {"field": st.x - aut.positions, "unknowns": model.free_dofs, "quantity": "u (m)", "summary": summary,
             "status": status, "reason": reason, "work": _work(model, st), "diagnostics": diag}
 
 
