@@ -237,8 +237,8 @@ def _transient_heat(scene: Scene, aut: Automata, p: dict[str, Any]) -> dict[str,
     held, values = mca_heat.held_temperatures(scene, aut)
     st, par, steps = mca_heat.transient(aut, mat.conductivity, mat.density * mat.heat_capacity, values, held,
                                         scene.conduction.t_end, p["heat_cfl"], mca_heat.sources(scene, aut))
-    work = {"unknowns": int(np.count_nonzero(held == 0)), "kernel_s": timed("heat", st, par, steps), "time_steps": steps,
-            "pair_steps": steps * len(aut.pairs)}
+    work = {"unknowns": int(np.count_nonzero(held == 0)), "kernel_s": timed("heat", st, par, steps),
+            "time_steps": steps, "pair_steps": steps * len(aut.pairs)}
     return _heat_result(scene, aut, st.temp, {"dt": par.dt, "steps": steps}, work)
 
 
