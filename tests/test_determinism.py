@@ -61,10 +61,11 @@ n = [2]
 
 
 def _without_clocks(obj: Any) -> Any:
-    """Drop wall-clock fields (names with 'wall' or 'timing', or ending in '_s': seconds)."""
+    """Drop clock fields (names with 'wall' or 'timing', or ending in '_s': seconds) and `cold` (whether the
+    worker had solved with that solver before: which worker ran which cell first)."""
     if isinstance(obj, dict):
         return {k: _without_clocks(v) for k, v in obj.items()
-                if not ("wall" in k or "timing" in k or k.endswith("_s"))}
+                if not ("wall" in k or "timing" in k or k.endswith("_s") or k == "cold")}
     if isinstance(obj, list):
         return [_without_clocks(v) for v in obj]
     return obj
@@ -120,7 +121,10 @@ def test_same_seed_same_arrays_through_the_api() -> None:
 
 # seconds measured by a clock: the only columns of a table that may differ between two runs of one study
 CLOCK_COLUMNS = ("wall_s", "kernel_s", "kernel_wall_s", "kernel_cpu_s", "assembly_s", "solve_s", "postprocess_s",
-                 "calibrated_wall_s")
+                 "calibrated_wall_s", "cpu_s", "setup_s")
+# and what a timed pass records about itself: which worker was cold, how many solves (those under 2 s of CPU
+# are repeated), the pass's id, machine and start
+PASS_COLUMNS = ("cold", "repeats", "run", "machine", "started")
 SHIPPED_GROUPS = {  # study: {group: largest n kept} -- a cell of every solver and every analysis, under 2 minutes
     "continuum-heat": {"faces-steady": 4, "patch-convergence": 3},
     "heat-particles": {"paper-all": 3, "paper-replicas": 3, "work-precision-steady": 4},
@@ -142,7 +146,8 @@ def _tables(folder: Path) -> dict[str, str]:
             out[path.name] = ""
             continue
         table = pd.read_csv(path, dtype=str, keep_default_na=False)
-        out[path.name] = table[[c for c in table.columns if c.split(".")[-1] not in CLOCK_COLUMNS]].to_csv(index=False)
+        kept = [c for c in table.columns if c.split(".")[-1] not in CLOCK_COLUMNS + PASS_COLUMNS]
+        out[path.name] = table[kept].to_csv(index=False)
     return out
 
 
