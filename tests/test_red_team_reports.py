@@ -477,7 +477,9 @@ def _timing_free(folder: Path) -> dict[str, pd.DataFrame]:
     out = {}
     for path in sorted(folder.glob("*.csv")):
         df = pd.read_csv(path)
-        out[path.name] = df.drop(columns=[c for c in df.columns if c.endswith("_s") or c in ("wall_s", "timing")])
+        # clocks, and what a run records of itself: whether its worker was cold, its timed pass
+        own = ("wall_s", "timing", "cold", "repeats", "run", "machine", "started")
+        out[path.name] = df.drop(columns=[c for c in df.columns if c.endswith("_s") or c in own])
     return out
 
 
