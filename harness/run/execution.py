@@ -56,7 +56,7 @@ SCHEDULER_ADDRESS = re.compile(r"^(tcp|tls|ws|wss|ucx)://[A-Za-z0-9._\-\[\]:]+:[
 
 _TIME_LIMIT: contextvars.ContextVar[float] = contextvars.ContextVar("pcverify_time_limit", default=DEFAULT_TIME_LIMIT)
 _SOLVED_HERE: set[str] = set()  # solvers this process has solved with: a first solve pays imports and compilation
-REPEAT_BELOW_S = 2.0  # a timed cell is solved again only while one solve takes less CPU time than this
+REPEAT_BELOW_S = 0.5  # a timed cell is solved again only while one solve takes less CPU time than this
 _SCENE_ERROR = "pcverify-scene-error"  # a worker's reply that is a SceneError for the command line to report
 
 

@@ -287,7 +287,7 @@ GROUP = Table("[[group]]", (
     Field("analysis", "text", registry="analyses", default="table"),
     Field("serial", "bool", "timed serially after a warm-up"), Field("vtu", "bool", "write VTU point clouds"),
     Field("repeats", "int", "a timed group's solves per cell (the least CPU time is kept; repeated only while a solve "
-          "takes under 2 s)", low=1, high=20),
+          "takes under 0.5 s)", low=1, high=20),
     Field("figures", "text", registry="figures", shape="value or list", min_items=0),
     Field("figure_x", "text", "the parameter figure's x axis: a swept solver or scene parameter, n, refine or h"),
     Field("figure_y", "text", "the parameter figure's metrics (default err.nodes.l2, err.nodes.linf): summary "
