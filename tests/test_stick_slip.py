@@ -14,6 +14,7 @@ import re
 
 import numpy as np
 import pytest
+from red_team import check_tally, tally
 from scipy.integrate import solve_ivp
 
 from pcverify.harness.cli import main
@@ -23,7 +24,6 @@ from pcverify.references import stick_slip as ref
 from pcverify.scene import Contact, SceneError
 from pcverify.solvers.particles.mca import stick_slip as mss
 from pcverify.solvers.particles.mca.solver import PARAMETERS
-from tests.red_team import check_tally, tally
 
 BLOCK = dict(mass=1.4e-3, normal_force=100.0, stiffness=5e4, speed=0.5, mu_static=0.4, mu_kinetic=0.3)
 
