@@ -178,7 +178,19 @@ def build_automata(extent: np.ndarray, shape: tuple[int, int, int], density: flo
     vol = extent_i.prod(axis=1)
     mass = density * vol
     inertia = mass * (extent_i**2).sum(axis=1) / 18.0
-    idx = np.arange(pos.shape[0]).reshape(shape)
+    pr, ax_arr = face_pairs(tuple(shape))
+    r0 = h[ax_arr]
+    other = np.array([(1, 2), (0, 2), (0, 1)])[ax_arr]
+    ei = extent_i[pr[:, 0]]
+    area = np.take_along_axis(ei, other, axis=1).prod(axis=1)
+    return Automata(shape=tuple(int(s) for s in shape), spacing=h, positions=pos, extent=extent_i, volume=vol,
+                    mass=mass, inertia=inertia, pairs=pr, r0=r0, area=area, axis=ax_arr)
+
+
+def face_pairs(shape: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """The pairs (i, j) of face neighbours of automata indexed x slowest, z fastest on a grid of `shape`, and
+    the axis each pair lies along (the x pairs first, then y, then z)."""
+    idx = np.arange(int(np.prod(shape))).reshape(shape)
     pairs, axis = [], []
     for ax in range(3):
         lo = [slice(None)] * 3
@@ -187,14 +199,7 @@ def build_automata(extent: np.ndarray, shape: tuple[int, int, int], density: flo
         hi[ax] = slice(1, None)
         pairs.append(np.stack([idx[tuple(lo)].ravel(), idx[tuple(hi)].ravel()], axis=1))
         axis.append(np.full(pairs[-1].shape[0], ax))
-    pr = np.concatenate(pairs).astype(np.int64)
-    ax_arr = np.concatenate(axis).astype(np.int64)
-    r0 = h[ax_arr]
-    other = np.array([(1, 2), (0, 2), (0, 1)])[ax_arr]
-    ei = extent_i[pr[:, 0]]
-    area = np.take_along_axis(ei, other, axis=1).prod(axis=1)
-    return Automata(shape=tuple(int(s) for s in shape), spacing=h, positions=pos, extent=extent_i, volume=vol,
-                    mass=mass, inertia=inertia, pairs=pr, r0=r0, area=area, axis=ax_arr)
+    return np.concatenate(pairs).astype(np.int64), np.concatenate(axis).astype(np.int64)
 
 
 def cell_automata(box: Box, n: int, density: float) -> Automata:
@@ -221,17 +226,7 @@ def cell_automata(box: Box, n: int, density: float) -> Automata:
     vol = np.full(count, a**3)
     mass = np.full(count, density * a**3)
     inertia = mass * a * a / 6.0  # m (3 a^2) / 18
-    idx = np.arange(count).reshape(shape)
-    pairs, axis = [], []
-    for ax in range(3):
-        lo = [slice(None)] * 3
-        hi = [slice(None)] * 3
-        lo[ax] = slice(0, -1)
-        hi[ax] = slice(1, None)
-        pairs.append(np.stack([idx[tuple(lo)].ravel(), idx[tuple(hi)].ravel()], axis=1))
-        axis.append(np.full(pairs[-1].shape[0], ax))
-    pr = np.concatenate(pairs).astype(np.int64)
-    ax_arr = np.concatenate(axis).astype(np.int64)
+    pr, ax_arr = face_pairs(tuple(shape))
     return Automata(shape=(shape[0], shape[1], shape[2]), spacing=np.full(3, a), positions=pos, extent=extent_i,
                     volume=vol, mass=mass, inertia=inertia, pairs=pr, r0=np.full(len(pr), a),
                     area=np.full(len(pr), a * a), axis=ax_arr, packing="cells")

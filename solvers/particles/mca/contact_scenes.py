@@ -274,14 +274,14 @@ def sliding(scene: Scene, aut: Automata, bonded: Automata, el: Elastic, law: ct.
     every = max(1, total // p["records"])
     st = st._replace(hist=np.zeros((total // every + 2, mk.N_H)))
     rows: list[np.ndarray] = []
-    st, code, rebuilds = _slide(model, st, pre_steps + ramp_steps, every, rows)
+    st, code, rebuilds = advance_listed(model, st, pre_steps + ramp_steps, every, rows)
     t1 = float(st.clock[0])
     heat0 = st.contact.heat.copy()
     dissipated0 = st.contact.dissipated.copy()
     marks = [_mark(st)]
     for until in (pre_steps + ramp_steps + window_steps // 2, pre_steps + total):  # the window's two halves
         if code == mk.OK:
-            st, code, more = _slide(model, st, until, every, rows)
+            st, code, more = advance_listed(model, st, until, every, rows)
             rebuilds += more
             marks.append(_mark(st))
     done = int(st.counters[mk.C_STEPS]) - pre_steps
@@ -442,7 +442,7 @@ def _drive_power(window: np.ndarray, t_mid: float) -> dict[str, Any]:
             "drive_power_drift": abs(first - second) / abs(whole) if whole else math.nan}
 
 
-def _slide(model: Model, st: mk.State, until: int, every: int, rows: list[np.ndarray]
+def advance_listed(model: Model, st: mk.State, until: int, every: int, rows: list[np.ndarray]
            ) -> tuple[mk.State, int, int]:
     """Advance to step `until` in chunks, keeping the history rows and rebuilding the lists whenever an
     automaton moved beyond the skin: (state, kernel status, rebuilds)."""

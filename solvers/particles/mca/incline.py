@@ -26,8 +26,8 @@ from pcverify.scene import FaceClamp, Scene, SceneError
 from . import contact_scenes as cs
 from . import kernel as mk
 from .automata import Automata, body_automata
-from .model import Elastic, Model, relax, relax_status
-from .stick_slip import HISTORY_COLUMNS, drive, law_params
+from .model import Elastic, Model
+from .stick_slip import HISTORY_COLUMNS, drive, law_params, preload
 
 RAMP_PIECES = 20  # the tangential part of the weight rises in this many steps of a smooth ramp
 
@@ -72,17 +72,10 @@ def _run(scene: Scene, n: int, p: dict[str, Any]) -> tuple[dict[str, Any], Autom
                                "law_mu_kinetic": contact.mu_kinetic, "law_mu_static": contact.mu_static,
                                "tan_angle": math.tan(theta), "run_steps_needed": steps}
     out: dict[str, Any] = {"field": None, "quantity": "", "summary": summary, "model": model, "state": st}
-    scale = float(weight.max()) * math.cos(theta)
-    status, res, _ = relax(model, st, scale, tol=p["preload_tol"], max_steps=p["max_steps"])
-    pre_steps = int(st.counters[mk.C_STEPS])
-    summary.update(preload_steps=pre_steps, preload_residual=res)
-    if status != mk.OK or not res <= p["preload_tol"]:
-        kstat, reason = relax_status(status, res, p["preload_tol"], pre_steps, p["max_steps"])
-        return out | {"status": kstat, "reason": f"preload: {reason}"}, aut
-    if pre_steps + steps > p["max_steps"]:
-        return out | {"status": "failed", "reason": f"max_steps={p['max_steps']} would be reached before the run "
-                      f"ends: it needs {steps} steps after {pre_steps} of preload; allowed: max_steps >= "
-                      f"{pre_steps + steps} or a shorter duration"}, aut
+    failed = preload(model, st, float(weight.max()) * math.cos(theta), steps, p, summary)
+    if failed:
+        return out | failed, aut
+    pre_steps = summary["preload_steps"]
     t_ramp = p["slide_ramp"] if p["slide_ramp"] is not None else cs.default_slide_ramp(rate)
     ramp_steps = min(steps, math.ceil(t_ramp / model.dt))
     every = max(1, steps // p["records"])

@@ -43,7 +43,7 @@ from pcverify.scene import FaceClamp, Scene, SceneError
 from . import contact_scenes as cs
 from . import kernel as mk
 from .automata import Automata, body_automata
-from .model import Elastic, Model, rebuild_pairs, relax, relax_status
+from .model import Elastic, Model, relax, relax_status
 
 SLIP_SPEED = 0.1  # a row slips when the slider's mean velocity exceeds this fraction of the drive's speed
 REST_SPEED = 0.02  # a slip starts and ends at the nearest rows whose mean velocity is below this fraction of it
@@ -107,17 +107,10 @@ def _run(scene: Scene, n: int, p: dict[str, Any]) -> tuple[dict[str, Any], Autom
                                "law_mu_kinetic": contact.mu_kinetic, "law_mu_static": contact.mu_static,
                                "run_steps_needed": steps}
     out: dict[str, Any] = {"field": None, "quantity": "", "summary": summary, "model": model, "state": st}
-    scale = contact.normal_stress * float(aut.spacing.min()) ** 2
-    status, res, _ = relax(model, st, scale, tol=p["preload_tol"], max_steps=p["max_steps"])
-    pre_steps = int(st.counters[mk.C_STEPS])
-    summary.update(preload_steps=pre_steps, preload_residual=res)
-    if status != mk.OK or not res <= p["preload_tol"]:
-        kstat, reason = relax_status(status, res, p["preload_tol"], pre_steps, p["max_steps"])
-        return out | {"status": kstat, "reason": f"preload: {reason}"}, aut
-    if pre_steps + steps > p["max_steps"]:
-        return out | {"status": "failed", "reason": f"max_steps={p['max_steps']} would be reached before the run "
-                      f"ends: it needs {steps} steps of dt {model.dt:.3g} s after {pre_steps} of preload; allowed: "
-                      f"max_steps >= {pre_steps + steps} or a shorter duration"}, aut
+    failed = preload(model, st, contact.normal_stress * float(aut.spacing.min()) ** 2, steps, p, summary)
+    if failed:
+        return out | failed, aut
+    pre_steps = summary["preload_steps"]
     every = max(1, steps // p["records"])
     weight = np.where(slider, aut.mass, 0.0) / mass
     u0 = float((weight * (st.x[:, dr] - aut.positions[:, dr])).sum())
@@ -161,20 +154,30 @@ def _run(scene: Scene, n: int, p: dict[str, Any]) -> tuple[dict[str, Any], Autom
 
 
 def drive(model: Model, st: mk.State, until: int, every: int) -> tuple[mk.State, int, int, np.ndarray]:
-    """Advance to step `until` in chunks of 20 rows, rebuilding the pair and contact lists whenever an automaton
-    moved beyond the skin: (state, kernel status, rebuilds, the kernel's history rows every `every` steps)."""
-    code, rebuilds, rows = mk.OK, 0, []
-    while int(st.counters[mk.C_STEPS]) < until:
-        code = model.advance(st, min(20 * every, until - int(st.counters[mk.C_STEPS])), every)
-        rows.append(st.hist[: st.counters[mk.C_ROWS]].copy())
-        if code == mk.MOVED:
-            st, _ = rebuild_pairs(model, st)
-            rebuilds += 1
-            code = mk.OK
-            continue
-        if code != mk.OK:
-            break
+    """Advance to step `until` as the sliding scenes do (`contact_scenes.advance_listed`: chunks of 20 rows, the
+    lists rebuilt whenever an automaton moved beyond the skin): (state, kernel status, rebuilds, the kernel's
+    history rows every `every` steps)."""
+    rows: list[np.ndarray] = []
+    st, code, rebuilds = cs.advance_listed(model, st, until, every, rows)
     return st, code, rebuilds, np.concatenate(rows) if rows else np.zeros((0, mk.N_H))
+
+
+def preload(model: Model, st: mk.State, scale: float, steps: int, p: dict[str, Any], summary: dict[str, Any]
+            ) -> dict[str, str]:
+    """Relax the pressed bodies (residual force in units of `scale`) and check that `steps` more fit in
+    max_steps; the preload's steps and residual go into `summary`.  {} when the run may go on, else its status
+    and reason."""
+    status, res, _ = relax(model, st, scale, tol=p["preload_tol"], max_steps=p["max_steps"])
+    pre_steps = int(st.counters[mk.C_STEPS])
+    summary.update(preload_steps=pre_steps, preload_residual=res)
+    if status != mk.OK or not res <= p["preload_tol"]:
+        kstat, reason = relax_status(status, res, p["preload_tol"], pre_steps, p["max_steps"])
+        return {"status": kstat, "reason": f"preload: {reason}"}
+    if pre_steps + steps > p["max_steps"]:
+        return {"status": "failed", "reason": f"max_steps={p['max_steps']} would be reached before the run ends: it "
+                f"needs {steps} steps of dt {model.dt:.3g} s after {pre_steps} of preload; allowed: max_steps >= "
+                f"{pre_steps + steps} or a shorter duration"}
+    return {}
 
 
 def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
