@@ -6,7 +6,10 @@ phi_z where a node rotates), its mass (the diagonal per dof, or the mass matrix)
 mode.  The clamp at z = 0 keeps both mirror symmetries of the bar, so every non-degenerate mode has a definite
 parity under each: (-, +) bending-x (u_x dominant), (+, -) bending-y, (-, -) torsion, (+, +) axial; "mixed" when
 a parity is unclear (|parity| <= 0.5).  Degenerate clusters (the two bending families of the square section)
-are first rotated to definite parities.  Then the kinds named by energy, the rules a solver asks for, in turn:
+are first rotated to definite parities by a fixed rule (the solver's mirror weights: which of the pair comes
+first), and a solver classifies its modes only with the cluster at its cut complete (`cut_is_complete`): an
+eigensolver returns any basis of a degenerate pair, so these two rules make the kinds the same on every CPU and
+BLAS.  Then the kinds named by energy, the rules a solver asks for, in turn:
 a mode whose mass norm lies mostly in the nodes' rotations is "rotational" (`rotational`: the MCA's alternating
 rotations, which only its rotational pair spring resists, a kind the continuum does not have), and a (+, +) mode
 whose mass is mostly lateral is "symmetric-lateral", not axial (`symmetric_lateral`).
@@ -110,18 +113,13 @@ def classify(phi: np.ndarray, omega2: np.ndarray, mass: Any, positions: np.ndarr
     mirrors = [mirror(positions, extent, axis, unit, rotations) for axis in (0, 1)]
     phi = phi.copy()
     k = phi.shape[1]
-    start = 0
-    while start < k:
-        stop = start + 1
-        while stop < k and omega2[stop] - omega2[start] <= CLUSTER_RTOL * abs(omega2[start]):
-            stop += 1
+    for start, stop in clusters(omega2[:k]):
         if stop - start > 1:
             block = phi[:, start:stop]
             mb = _times(mass, block)
             comb = sum(w * refl(block).T @ mb for w, refl in zip(order, mirrors, strict=True))
             _, vecs = eigh(0.5 * (comb + comb.T), block.T @ mb)
             phi[:, start:stop] = block @ vecs
-        start = stop
     mphi = _times(mass, phi)
     norms = np.einsum("ij,ij->j", phi, mphi)
     parities = np.stack([np.einsum("ij,ij->j", refl(phi), mphi) / norms for refl in mirrors], axis=1)
@@ -136,6 +134,27 @@ def classify(phi: np.ndarray, omega2: np.ndarray, mass: Any, positions: np.ndarr
             kind = rule(kind, {name: float(v[j]) for name, v in shares.items()})
         kinds.append(kind)
     return ModeKinds(phi=phi, parities=parities, kinds=kinds, shares=shares)
+
+
+def clusters(omega2: np.ndarray) -> list[tuple[int, int]]:
+    """(start, stop) of each run of ascending eigenvalues that are one degenerate cluster: each within
+    CLUSTER_RTOL of the run's first."""
+    out, start, k = [], 0, len(omega2)
+    while start < k:
+        stop = start + 1
+        while stop < k and omega2[stop] - omega2[start] <= CLUSTER_RTOL * abs(omega2[start]):
+            stop += 1
+        out.append((start, stop))
+        start = stop
+    return out
+
+
+def cut_is_complete(omega2: np.ndarray, count: int) -> bool:
+    """Whether the cluster holding mode `count` - 1 ends inside the ascending eigenvalues `omega2`, one value
+    at least beyond it: then `classify` rotates that cluster whole, and the first `count` modes have the same
+    kinds on every machine (an eigensolver returns any basis of a degenerate cluster, so a cluster cut at its
+    top is half a pair whose parity is whatever the machine's round-off made it)."""
+    return any(start < count <= stop < len(omega2) for start, stop in clusters(omega2))
 
 
 # -- kinds named by energy (EnergyRule): a kind by where a mode's mass norm sits

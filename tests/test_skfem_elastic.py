@@ -25,6 +25,7 @@ from pcverify.harness.judge.metrics import richardson
 from pcverify.harness.spec.catalogue import make_scene
 from pcverify.references import elasticity as ref
 from pcverify.scene import FaceSupport, Resolution, SceneError
+from pcverify.solvers.continuum.skfem_elastic import mode_shape
 from pcverify.solvers.registry import get_solver
 
 KIND_KEYS = ("f_bending_x_hz", "f_bending_y_hz", "f_torsion_hz", "f_axial_hz")
@@ -201,3 +202,11 @@ def test_deterministic_and_cli_json(capsys):
     assert out["summary"]["frequencies_hz"] == pytest.approx(
         list(SOLVER.solve(scene, Resolution(2, 1), element="q1").summary["frequencies_hz"]), rel=1e-12)
     assert len(out["samples"]["nodes"]["values"][0]) == 3
+
+
+def test_the_mode_shape_has_a_sign_of_its_own() -> None:
+    """An eigensolver returns a mode or its negative (which one, by the machine's round-off): the reported shape
+    is the same for both, max |u| = 1 with its first largest entry positive, ties by symmetry included."""
+    phi = np.array([0.2, -0.7, 0.7 * (1 + 1e-12), -0.1])
+    assert np.array_equal(mode_shape(phi), mode_shape(-phi))
+    assert mode_shape(phi)[1] == pytest.approx(1.0, rel=1e-11) and np.abs(mode_shape(phi)).max() == 1.0

@@ -59,7 +59,7 @@ from pcverify.scene import FaceClamp, FaceSupport, Param, Resolution, Scene, Sce
 from pcverify.solvers.continuum.grid import HEX_CORNERS, StructuredGrid
 from pcverify.solvers.continuum.linear_solver import SpdSolver, smoothed_aggregation
 from pcverify.solvers.continuum.work import ELASTIC_BYTES_PER_DOF, grid_nodes
-from pcverify.solvers.modes import classify, lowest_of_each_kind, symmetric_lateral
+from pcverify.solvers.modes import classify, cut_is_complete, lowest_of_each_kind, symmetric_lateral
 from pcverify.solvers.protocol import Solution, WorkEstimate, effective_params
 
 PARAMETERS: tuple[Param, ...] = (
@@ -125,6 +125,15 @@ def scatter_uniform(ke: np.ndarray, element_dofs: np.ndarray, ndof: int) -> sp.c
     mat = sp.coo_matrix((data.ravel(), (rows.ravel(), cols.ravel())), shape=(ndof, ndof)).tocsr()
     mat.sum_duplicates()
     return mat
+
+
+def mode_shape(phi: np.ndarray) -> np.ndarray:
+    """A mode scaled to max |u| = 1 with a sign fixed by the mode itself (an eigensolver returns either sign,
+    by the machine's round-off): the first entry of the largest magnitude, magnitudes rounded to 1e-8 of the
+    largest so that entries equal by symmetry are one tie, is positive."""
+    size = np.abs(phi)
+    first = int(np.argmax(np.round(size / size.max(), 8)))
+    return phi / (size.max() * np.sign(phi[first]))
 
 
 def rigid_body_modes(locs: np.ndarray, centre: np.ndarray) -> np.ndarray:
@@ -359,18 +368,22 @@ class SkfemElastic:
         kff = stiff[free][:, free].tocsr()
         mff = mass[free][:, free].tocsr()
         k = int(scene.elasticity.modes)
-        k_solve = k + 2  # two spare pairs so that a degenerate cluster at the top of the list is complete
-        if k_solve >= free.size - 1:
+        if k + 2 >= free.size - 1:
             raise SceneError(f"modes={k} is out of range; allowed: integer in [1, {free.size - 4}] at this "
                              "resolution")
         solver = _linear_solver(kff, method, p["cg_rtol"],
                                near_null[free] if free.size % 3 == 0 else None)
         op = LinearOperator(kff.shape, matvec=solver.solve, dtype=float)
         v0 = np.random.default_rng(20261121).standard_normal(free.size)
-        vals, vecs = eigsh(kff, k=k_solve, M=mff, sigma=0.0, which="LM", OPinv=op, v0=v0,
-                           ncv=min(free.size - 1, max(2 * k_solve + 1, 20)))
-        order = np.argsort(vals)
-        vals, vecs = vals[order], vecs[:, order]
+        k_solve = k + 2  # spare modes: widened until the degenerate cluster at the cut is complete
+        while True:
+            vals, vecs = eigsh(kff, k=k_solve, M=mff, sigma=0.0, which="LM", OPinv=op, v0=v0,
+                               ncv=min(free.size - 1, max(2 * k_solve + 1, 20)))
+            order = np.argsort(vals)
+            vals, vecs = vals[order], vecs[:, order]
+            if cut_is_complete(vals, k) or 2 * k_solve >= free.size - 1:
+                break
+            k_solve *= 2
         if np.any(vals <= 0):
             raise ArithmeticError(f"non-positive eigenvalue {vals.min():.3g}: the clamped bar is not stable")
         phi = np.zeros((stiff.shape[0], k_solve))
@@ -386,6 +399,4 @@ class SkfemElastic:
         summary.update(lowest_of_each_kind(cls.kinds, freqs))
         extra = {"summary": summary, "mode_parities": cls.parities, "axial_mass_fraction": cls.shares["axial"],
                  "eigen_residuals": resid}
-        # the reported displacement is the lowest mode, scaled to max |u| = 1 (shape, in m per unit)
-        u = cls.phi[:, 0] / np.abs(cls.phi[:, 0]).max()
-        return u, extra, solver
+        return mode_shape(cls.phi[:, 0]), extra, solver

@@ -64,7 +64,14 @@ from pcverify.scene import (
     point_patch_note,
 )
 from pcverify.solvers.energy import balance_error
-from pcverify.solvers.modes import ModeKinds, classify, lowest_of_each_kind, rotational, symmetric_lateral
+from pcverify.solvers.modes import (
+    ModeKinds,
+    classify,
+    cut_is_complete,
+    lowest_of_each_kind,
+    rotational,
+    symmetric_lateral,
+)
 from pcverify.solvers.protocol import Solution, WorkEstimate, effective_params, heat_summary, read_notes, skipped
 
 from . import contact_scenes as cs
@@ -545,12 +552,21 @@ def _modes(scene: Scene, aut: Automata, p: dict[str, Any]) -> dict[str, Any]:
     kmax = free.size - 2 if not dense else free.size
 
     def lowest(want: int) -> tuple[np.ndarray, np.ndarray]:
-        if dense:
-            return all_vals[:want], all_vecs[:, :want]
-        vals, vecs = eigsh(kff, k=want, M=sp.diags(m[free]).tocsc(), sigma=0.0, which="LM", v0=v0,
-                           OPinv=inverse)
-        order = np.argsort(vals)
-        return vals[order], vecs[:, order]
+        """The lowest `want` modes and more, up to one beyond the degenerate cluster at the cut (all there are
+        when fewer)."""
+        extra = 2
+        while True:
+            size = min(want + extra, kmax)
+            if dense:
+                vals, vecs = all_vals[:size], all_vecs[:, :size]
+            else:
+                vals, vecs = eigsh(kff, k=size, M=sp.diags(m[free]).tocsc(), sigma=0.0, which="LM", v0=v0,
+                                   OPinv=inverse)
+                order = np.argsort(vals)
+                vals, vecs = vals[order], vecs[:, order]
+            if size == kmax or cut_is_complete(vals, want):
+                return vals, vecs
+            extra *= 2
 
     def kinds_of(vals: np.ndarray, vecs: np.ndarray) -> ModeKinds:
         full = np.zeros((k.shape[0], vals.size))
@@ -560,16 +576,17 @@ def _modes(scene: Scene, aut: Automata, p: dict[str, Any]) -> dict[str, Any]:
         return classify(full, vals, m, aut.positions, scene.box.extent, unit, rotations=rot,
                         order=(1.0, 0.0), energy=(rotational, symmetric_lateral))
 
-    # widen the search until `count` modes of a continuum kind are found: the rotational ones do not count
+    # widen the search until `count` modes of a continuum kind are found (the rotational ones do not count) and
+    # the degenerate cluster at the cut is complete
     want = count
     while True:
         vals, vecs = lowest(want)
         cls = kinds_of(vals, vecs)
         others = np.flatnonzero(np.array(cls.kinds) != "rotational")
-        if others.size >= count or want >= kmax:
+        keep = int(others[count - 1]) + 1 if others.size >= count else vals.size
+        if vals.size >= kmax or (others.size >= count and cut_is_complete(vals, keep)):
             break
-        want = min(kmax, 2 * want + count)  # few solves: each Lanczos run restarts
-    keep = int(others[count - 1]) + 1 if others.size >= count else want
+        want = keep if others.size >= count else min(kmax, 2 * want + count)  # few solves: each Lanczos restarts
     cls = cls.first(keep)
     freqs = np.sqrt(np.clip(vals[:keep], 0.0, None)) / (2 * np.pi)
     summary: dict[str, Any] = {"frequencies_hz": freqs, "mode_kinds": cls.kinds,
