@@ -143,7 +143,7 @@ def test_sigkill_then_resume(slow_study, tmp_path) -> None:
 
 @pytest.mark.parametrize("jobs", [1, 2])
 def test_sigint_stops_with_a_message_and_resumes(jobs, slow_study, tmp_path) -> None:
-    """Ctrl-C (SIGINT to the process group, joblib workers included): exit code 130, one line saying
+    """Ctrl-C (SIGINT to the process group, worker processes included): exit code 130, one line saying
     finished cells are kept, no traceback, no worker left; every entry on disk is valid and the rerun
     picks up exactly those."""
     path, reference = slow_study

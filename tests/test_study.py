@@ -98,11 +98,11 @@ def _summaries(results):
 
 
 def test_parallel_and_dask_equal_serial(study_file, tmp_path):
-    """Cells computed by joblib workers or a Dask cluster equal the serial ones bit for bit, in cell order."""
+    """Cells computed by worker processes or a Dask cluster equal the serial ones bit for bit, in cell order."""
     distributed = pytest.importorskip("distributed")
     study = load_study(str(study_file))
     serial, _ = execute(study, Cache(tmp_path / "serial"), progress=False)
-    parallel, counts = execute(study, Cache(tmp_path / "joblib"), jobs=2, progress=False)
+    parallel, counts = execute(study, Cache(tmp_path / "workers"), jobs=2, progress=False)
     assert counts["done"] == 5 and _summaries(parallel) == _summaries(serial)
     with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None) as lc:
         dask, counts = execute(study, Cache(tmp_path / "dask"), progress=False, scheduler=lc.scheduler_address)
