@@ -712,9 +712,18 @@ class BenchmarkRegressions:
 
 def cmd_bench(args: argparse.Namespace) -> int:
     """Run tests/bench with pytest-benchmark, save under --storage, compare with the previous saved run.  A
-    regression is one line naming each benchmark and by how much it regressed, exit 1."""
-    import pytest  # optional dependency (the test extra): only `pcverify bench` needs it
-    from pytest_benchmark.session import PerformanceRegression  # the same optional dependency
+    regression is one line naming each benchmark and by how much it regressed, exit 1.  The benchmarks come
+    with a checkout of the project, not with the installed package: without them, one error line (exit 2)."""
+    if not Path(args.tests).exists():
+        raise CliError(f"bench runs the benchmarks of a checkout of the project (its tests/bench), which an installed "
+                       f"pcverify does not have; --tests {args.tests}: no such folder in {Path.cwd()}; allowed: run it "
+                       "in a checkout of the project, or --tests PATH (a folder of pytest-benchmark tests)")
+    try:
+        import pytest  # optional dependency (the test extra): only `pcverify bench` needs it
+        from pytest_benchmark.session import PerformanceRegression  # the same optional dependency
+    except ImportError as exc:
+        raise CliError(f"bench needs pytest and pytest-benchmark ({exc.name} is not installed); allowed: pip install "
+                       "'pcverify[test]'") from None
 
     storage = Path(args.storage).resolve()
     baseline = bench_baseline(storage)
