@@ -1,7 +1,7 @@
 """pcverify: verify particle methods against continuum solvers and analytic solutions.
 
 This package is the public API a solver or scene plugin is written against (API_VERSION; what is
-stable is listed in the README):
+stable is listed in docs/plugins.md, "What is stable"):
 
 - the scene model: `Scene` and its parts (`Box`, `Material`, `Conduction` with a volumetric `source` and
   an `InterfaceFlux`, `Elasticity`, the constraints `FaceTemperature`, `PointTemperature`,

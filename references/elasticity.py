@@ -1,6 +1,6 @@
 """Elasticity references for the bar: analytic fields and frequencies, and the converged FE frequencies.
 
-Analytic (PHYSICS.md §5):
+Analytic (docs/physics.md, "Continuum references"):
 - `uniaxial_displacement`: the homogeneous uniaxial-stress field of bar-compression, sigma_zz = E eps,
   lateral strain -nu eps, u = (-nu eps (x - x0), -nu eps (y - y0), eps z) about a lateral origin (x0, y0).
 - `thin_rod_axial_hz`: axial modes of a clamped-free thin rod, f_m = (2m - 1) c / (4 L), c = sqrt(E / rho)

@@ -95,7 +95,7 @@ def _jsonable(obj: Any) -> Any:
 
 
 class Solver(Protocol):
-    """The solver protocol (DESIGN.md, Contracts).
+    """The solver protocol (docs/plugins.md: what a solver declares and returns; docs/architecture.md).
 
     name: the registry name.  kind: "particle" or "continuum".  parameters: every parameter `solve`
     takes, with its default, unit and range (`pcverify solvers` lists them).  A solver may also offer

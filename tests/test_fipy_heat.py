@@ -133,7 +133,8 @@ def test_patch_staircase_without_a_centre_inside_holds_the_corner_cell():
 def test_paper_bulk_trend_to_one_third():
     scene = make_scene("bar-heat-paper")
     lattice = [SOLVER.solve(scene, Resolution(n)).summary["bulk_median"] for n in (2, 3, 4)]
-    # measured 0.211, 0.302, 0.304: rising, and "several per cent" below 1/3 (PHYSICS §2)
+    # measured 0.211, 0.302, 0.304: rising, and "several per cent" below 1/3 (docs/physics.md, "The heating
+    # scenes")
     assert lattice[0] < lattice[1] < lattice[2] < 1 / 3
     assert 0.01 < 1 / 3 - lattice[2] < 0.05
     rs = (1, 2, 4, 8)

@@ -130,7 +130,8 @@ def test_f_top_sets_highest_frequency(n: int) -> None:
 
 def test_damping_ratio_subspace_and_rough_estimate() -> None:
     """The top-mode damping ratio from the modal subspace equals the full damped eigenproblem's, and
-    the rough delta/(2 m omega) underestimates it several-fold (PHYSICS.md pitfall)."""
+    the rough delta/(2 m omega) underestimates it several-fold (docs/physics.md, "The macromolecule
+    model")."""
     p, s = _setup(3, damping_ratio=0.05)
     lat, fx = s.lattice, s.fixes
     dofs = free_dofs(~fx.held)

@@ -173,7 +173,8 @@ def test_heat_faces_transient_converges_at_second_order(mca):
 
 
 def test_heat_paper_bulk_tends_to_one_third_like_the_continuum(mca):
-    """Point constraints: the bulk level approaches 1/3 from below (PHYSICS.md §2), as skfem on the lattice."""
+    """Point constraints: the bulk level approaches 1/3 from below (docs/physics.md, "The heating scenes"),
+    as skfem on the lattice."""
     scene = make_scene("bar-heat-paper")
     med = [mca.solve(scene, Resolution(n)).summary["bulk_median"] for n in (4, 8)]
     assert med[0] < med[1] < 1 / 3

@@ -144,7 +144,7 @@ def test_a_free_spinning_strained_block_keeps_its_angular_momentum():
 
 def test_without_rotations_a_rigid_turn_is_read_as_shear_as_documented():
     """rotations = false holds the automata unturned: a rigid turn of the body is shear to the pair law, about
-    2 G per radian (the limitation stated in kernel.py, solver.py and references/physics.md; the same before
+    2 G per radian (the limitation stated in kernel.py, solver.py and docs/physics.md; the same before
     and after the objective update, which cannot see a rotation the automata are not allowed).  Measured after
     a 1° turn in 0.1° steps about z: 0.92 GPa = 2 G theta to 0.1 %."""
     model, st, centre = _block(rotations=False)

@@ -1,4 +1,4 @@
-"""MCA contact of two bodies by the segment method (sections 6-7 of the MCA seed): the facet force shares
+"""MCA contact of two bodies by the segment method (sections 6-7 of the MCA paper): the facet force shares
 reduce to the 2-D segment formulas, a stack compressed across an unlinked interface is its bonded lattice,
 sliding gives mu_dr = mu1 (dry), mu0 V / sigma_N (viscous) and mu1 (1 + K_av) within the stated uncertainty
 (rough), with the energy balance closed; the micro-roughness process has the stated mean.  Measured outside

@@ -8,7 +8,7 @@ Facts asserted, with the reason for each tolerance:
   at order 2 (eigenvalue error O(h^2k)).
 - bar-modes is clamped: the clamped-free edges are singular (u ~ r^0.54 in the plane-strain wedge), so the
   eigenvalue error is O(h^1.1) asymptotically for Q1 and Q2 alike; the measured apparent Q2 order on the
-  grids used is well below 4 (PHYSICS.md asks to measure, not to assume).
+  grids used is well below 4 (docs/physics.md, "Measures": orders are measured, never assumed).
 - mode classification: the square section gives an exactly degenerate bending pair; parities are +-1.
 """
 

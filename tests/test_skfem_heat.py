@@ -111,8 +111,9 @@ def test_transient_faces_time_orders():
     self_errs = [float(np.abs(c[1] - fine).max()) for c in cn]
     assert slope(cn_dt, self_errs) == pytest.approx(2.0, abs=0.1)
 
-    # Plain CN does not damp the sudden start (PHYSICS §5): at dt = 0.25 s its error is 5.21e-2 (measured),
-    # 31x the Rannacher-started 1.68e-3 (at dt = 0.5: 1.17e-1 vs 7.1e-3); assert a factor 10.
+    # Plain CN does not damp the sudden start (docs/physics.md, "Continuum references"): at dt = 0.25 s its
+    # error is 5.21e-2 (measured), 31x the Rannacher-started 1.68e-3 (at dt = 0.5: 1.17e-1 vs 7.1e-3); assert a
+    # factor 10.
     plain, _ = _transient_error(refine, t_end, 0.25, rannacher_steps=0)
     assert plain > 10.0 * errs[1]
 

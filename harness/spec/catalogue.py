@@ -1,8 +1,8 @@
 """The catalogue of named scenes: the shipped ones, those of installed plugins and those a study defines.
 
 A scene is a `SceneSpec`: parameters (default, range, unit) and the builder that turns their values
-into a `Scene`.  Shipped scenes are listed here (PHYSICS.md §2 for the three bar-heating variants);
-plugin distributions add theirs through the `pcverify.scenes` entry point group (name ->
+into a `Scene`.  Shipped scenes are listed here (the three bar-heating variants: docs/physics.md, "The
+heating scenes"); plugin distributions add theirs through the `pcverify.scenes` entry point group (name ->
 "module:attribute", the attribute a SceneSpec); plugin modules and study files register theirs at run
 time.  Two sources that give the same name are an error that names both.
 """
@@ -61,7 +61,7 @@ def box_of(p: dict[str, Any]) -> Box:
 
 def corners(box: Box, placement: str) -> list[tuple[tuple[float, float, float], float]]:
     """(point, fraction of t_max) of the paper's three corners: the hot one on the front top edge, (0, H, 0),
-    and the two frozen ones on the bottom face (PHYSICS.md §2)."""
+    and the two frozen ones on the bottom face (docs/physics.md, "The heating scenes")."""
     frozen = {"back-edge": ((box.width, 0.0, 0.0), (box.width, 0.0, box.length)),
               "diagonal": ((box.width, 0.0, 0.0), (0.0, 0.0, box.length))}[placement]
     return [((0.0, box.height, 0.0), 1.0)] + [(c, 0.0) for c in frozen]
@@ -155,7 +155,8 @@ def _incline(p: dict[str, Any]) -> Scene:
                  contact=contact, params=tuple(sorted(p.items())))
 
 
-# duralumin with its thermal constants (handbook values of 2024, the alloy of the PHYSICS.md bar's E and nu)
+# duralumin with its thermal constants (handbook values of 2024, the alloy of the bar's E and nu in
+# docs/physics.md, "Conventions")
 DURALUMIN_THERMAL = Material("duralumin-2024", density=2800.0, conductivity=121.0, heat_capacity=875.0,
                              youngs_modulus=70e9, poisson_ratio=0.33)
 HEAT_SOURCES = ("friction", "flux")

@@ -1,6 +1,6 @@
 """What a scene holds: prescribed temperatures (at points, on patches, on faces) and mechanical supports.
 
-Faces are named x0, xW, y0, yH, z0, zL (the box's six faces, PHYSICS.md §1).
+Faces are named x0, xW, y0, yH, z0, zL (the box's six faces, docs/physics.md, "Conventions").
 """
 
 from __future__ import annotations

@@ -55,7 +55,8 @@ MATERIALS = {m.name: m for m in (ALUMINIUM, DURALUMIN)}
 
 @dataclass(frozen=True)
 class Response:
-    """Uniaxial response function sigma = f(eps) of the material (PHYSICS.md §4, Fig. 3 of seed 001).
+    """Uniaxial response function sigma = f(eps) of the material (Fig. 3 of the MCA paper; docs/physics.md,
+    "The movable cellular automaton (MCA) model").
 
     elastic: linear to the strength sigma_c, then fracture.  degradation: linear to sigma_d, then a
     softening branch to sigma_c at eps_c; unloading with the reduced (secant) modulus.  plastic:

@@ -12,11 +12,13 @@ cell.  Cell centres of boundary cells sit h/4 inside the face (not on the node).
 How constraints reach the equations (all of it FiPy's discretisation):
 - FaceTemperature: `T.constrain(value, where=mesh.facesXxx)` on the exterior faces; FiPy's
   DiffusionTerm then couples the boundary cell to the face value over the half distance h/4.
-  FiPy's Grid3D names: facesLeft/Right = x, facesBottom/Top = y, facesFront/Back = z (PHYSICS §1).
+  FiPy's Grid3D names: facesLeft/Right = x, facesBottom/Top = y, facesFront/Back = z
+  (docs/physics.md, "Conventions").
 - PointTemperature: the cell of the refined lattice node at the point is fixed (a point between nodes is
   refused, as scikit-fem and the particle solvers refuse it: `grid.held_node`) with a penalty source
   `-ImplicitSourceTerm(B) + B*T_fix` (B = penalty * k / h^2; default penalty 1e8).  A
-  `CellVariable.constrain(where=cell_mask)` does not reach the equations (PHYSICS §5).
+  `CellVariable.constrain(where=cell_mask)` does not reach the equations (docs/physics.md, "Continuum
+  references").
   When solving, rows of fully fixed cells are eliminated (T = T_fix exactly, their coupling moved
   to the right-hand side), so the value of B neither limits the accuracy of the fixed cells nor
   spoils the conditioning or the stopping test of CG; with FiPy's own solvers the penalty rows

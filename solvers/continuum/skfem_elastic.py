@@ -1,6 +1,6 @@
 """scikit-fem linear elasticity of the bar: static (supports, clamps) and modal analysis, Q1 or Q2 hexahedra.
 
-Discretisation (PHYSICS.md §5):
+Discretisation (docs/physics.md, "Continuum references"):
 - Mesh: `grid.StructuredGrid.lattice(box, n, refine)`, the hexahedral grid whose nodes include the particle
   lattice of resolution n, h = a / refine.  Vector Lagrange elements ElementHex1 (Q1, trilinear) or
   ElementHex2 (Q2, triquadratic, 27 nodes), parameter `element`.  Quadrature: Gauss with 2 points per axis

@@ -1,6 +1,6 @@
 """scikit-fem heat conduction solver: Q1 hexahedra on the refined particle lattice, steady and transient.
 
-Discretisation (PHYSICS.md §5):
+Discretisation (docs/physics.md, "Continuum references"):
 - Mesh: `grid.StructuredGrid.lattice(box, n, refine)`: the nodes of the particle lattice of resolution n
   are grid nodes, h = a / refine.  MeshHex1 + ElementHex1, quadrature `intorder=2` (exact for the Q1
   stiffness and mass on undistorted cells; the skfem default order is much more expensive).

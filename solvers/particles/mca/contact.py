@@ -4,16 +4,16 @@ Surfaces (from the linked pairs): an automaton faces direction +-e_a when it has
 side; four such automata joined by linked pairs around a lattice square form a facet square, split into two
 triangles (i, j1, j12) and (i, j12, j2), ordered so that their normal points out of the body.
 
-Segment method (eqs. 10-15 of the MCA seed; PHYSICS.md §4), one pass: every surface automaton k of body 2
-(a slave) interacts with one facet of body 1: the nearest listed facet that contains its foot point (the
-projection of k on the facet's plane), else the one whose foot lies least outside (largest smallest
-barycentric weight) if that is at most EDGE outside (barycentric units, about half a spacing: a slave
-whose own cell still overlaps the facet); k must be in front of the facet, at a height h < h0.  The
-weights w_v of the foot point (clipped to >= 0) share every force on k among the facet's three automata:
-F_v = -w_v F_k.  On a segment (a foot on a facet edge, the third weight 0) these are the seed's l_j / r_ij
+Segment method (eqs. 10-15 of the MCA paper; docs/physics.md, "The movable cellular automaton (MCA) model"), one
+pass: every surface automaton k of body 2 (a slave) interacts with one facet of body 1: the nearest listed facet
+that contains its foot point (the projection of k on the facet's plane), else the one whose foot lies least
+outside (largest smallest barycentric weight) if that is at most EDGE outside (barycentric units, about half a
+spacing: a slave whose own cell still overlaps the facet); k must be in front of the facet, at a height h < h0.
+The weights w_v of the foot point (clipped to >= 0) share every force on k among the facet's three automata:
+F_v = -w_v F_k.  On a segment (a foot on a facet edge, the third weight 0) these are the paper's l_j / r_ij
 and l_i / r_ij of eqs. 11-12 and 14-15.
 - Normal: h0 = d, the rest distance of face neighbours (automata of size d whose cells touch at the
-  interface; the seed's sqrt(3) R is the height of a disc resting in the hollow of two discs in 2-D close
+  interface; the paper's sqrt(3) R is the height of a disc resting in the hollow of two discs in 2-D close
   packing).  The contact is the compressive half of a linked pair written for a foot point: its strain
   (h - h0) / h0 enters the volume strains of k and of the facet's automata (by w_v), and its normal stress is
       sigma_c = min(0, kn (h - h0) / h0 + lam (theta_k + sum_v w_v theta_v) / 2),

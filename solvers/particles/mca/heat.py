@@ -1,4 +1,5 @@
-"""Heat transfer between linked automata: q_ij = lambda (T_j - T_i) S_ij / r_ij (PHYSICS.md §4).
+"""Heat transfer between linked automata: q_ij = lambda (T_j - T_i) S_ij / r_ij (docs/physics.md,
+"The movable cellular automaton (MCA) model").
 
 Each automaton carries a temperature and the heat capacity C_i = rho c Omega_i of its cell; on the bar
 lattice this is the cell-centred finite-volume scheme on the node-centred (Voronoi) cells, second order in a.

@@ -13,7 +13,7 @@ strains on both sides; model.py derives the many-body coefficient):
     d sig = kn d r / r0 + lam (d theta_i + d theta_j) / 2,
     tau_new = Q R tau_old + (2 G / r0) P_n (d_new - R d_old),
 theta_i = sum_j S_ij (r_ij - r0_ij) / (2 Omega_i) is the automaton's volume strain from the displacements
-of its contact points (eq. 9 of PHYSICS.md §4); kn = 2G and lam = 1 - 2G/(3K) times K with the many-body
+of its contact points (eq. 9 of the MCA paper); kn = 2G and lam = 1 - 2G/(3K) times K with the many-body
 term, kn = E and lam = 0 without it (pair-only).  d = x_j - x_i is the pair's separation (d_old = d_new -
 (dx_j - dx_i)), R the exact (Rodrigues) rotation by the pair's mean spin increment w = (dphi_i + dphi_j)/2
 (the identity without rotations), P_n the projection on the new tangent plane and Q the smallest rotation
@@ -391,7 +391,8 @@ def _forces(st, par, rot, inel, load, con, nvec, rr, theta_new):
 
 @njit(cache=True)
 def _inelastic(pi, pj, r0, area, linked, sig, tau, vol, counters, par, inel, nvec, rr):
-    """Average stress, plastic return, damage and fracture of the automata (response functions, PHYSICS.md §4).
+    """Average stress, plastic return, damage and fracture of the automata (response functions:
+    docs/physics.md, "The movable cellular automaton (MCA) model").
     Arrays, not the state: a structure passed to a function per step costs a reference count per array."""
     n_aut = vol.shape[0]
     n_pair = pi.shape[0]

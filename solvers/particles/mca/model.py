@@ -5,7 +5,8 @@ state (kernel.State, kernel.Params).  `Model.advance` integrates in time (dynami
 `relax` integrates with viscous damping until the residual force on the free degrees of freedom is below a
 tolerance (dynamic relaxation: the quasi-static approach for static scenes).
 
-Many-body coefficient (PHYSICS.md §4 gives 1 - 2G/K and 1 - 2G/(3K)).  The pair's normal stress is
+Many-body coefficient (1 - 2G/K and 1 - 2G/(3K): docs/physics.md, "The movable cellular automaton (MCA)
+model").  The pair's normal stress is
     sig_ij = 2 G eps_ij + D P_i,  P_i = K theta_i (mean stress of the automaton, theta its volume strain),
 eps_ij = n.eps.n the normal strain of the pair.  For a homogeneous strain eps of the lattice every automaton
 has theta = tr eps (the geometric identities of automata.py), so sig_ij = n.(2 G eps + D K tr(eps) I).n,

@@ -1,4 +1,5 @@
-"""Response functions sigma = f(eps) of the MCA automata (PHYSICS.md §4; Fig. 3 of seed 001).
+"""Response functions sigma = f(eps) of the MCA automata (Fig. 3 of the MCA paper; docs/physics.md,
+"The movable cellular automaton (MCA) model").
 
 The scene's `Response` names the kind and its strengths; this module turns it into the numbers the
 kernel uses and gives the exact uniaxial reference curve the block test compares against.

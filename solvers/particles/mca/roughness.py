@@ -1,4 +1,5 @@
-"""Micro-roughness K_mu of an MCA contact (eq. 18 of the MCA seed, PHYSICS.md §4), and its analytic mean.
+"""Micro-roughness K_mu of an MCA contact (eq. 18 of the MCA paper,
+docs/physics.md, "The movable cellular automaton (MCA) model"), and its analytic mean.
 
 K_mu of a contact is the sum of two piecewise sinusoids advanced by the contact's sliding distance:
     K = A_1 sin(pi (x_1 - l_1) / l_1) + A_2 sin(pi (x_2 - l_2) / l_2),   x_m += |V_tau| dt,
