@@ -32,30 +32,32 @@ class Analysis:
     task: Callable[[dict[str, Any]], CellTask] = field(default=lambda options: SOLVE)
 
 
-MIX_RUNS = Field("mix_runs", "bool", "draw timings of different timed passes side by side (default false: the "
-                 "figure says why it draws nothing)")
+MIX_RUNS = Field("mix_runs", "bool", "draw timings of different timed passes side by side (false: the figure says "
+                 "why it draws nothing)", default=False)
 
 ANALYSES: dict[str, Analysis] = {a.name: a for a in (
     Analysis("table", "one row per cell: status and every summary scalar"),
     Analysis("convergence", "values or errors against h per solver sequence, fitted orders, Richardson and GCI",
              options=(
-                 Field("quantities", "text", "summary quantities to follow (default volume_mean, bulk_median)",
-                       shape="list"),
+                 Field("quantities", "text", "summary quantities to follow", shape="list",
+                       default=["volume_mean", "bulk_median"]),
                  Field("reference_table", "text", "an earlier group's fits table whose values are the reference"),
-                 Field("reference_metric", "text", "the column of reference_table taken (default extrapolated)"),
+                 Field("reference_metric", "text", "the column of reference_table taken", default="extrapolated"),
                  Field("reference", "text", "self: also each sample set against the sequence's own finest level "
-                       "(self-convergence: columns self.<set>.l2/linf, fits of reference self); scene (default): "
-                       "the scene's reference only", choices=("scene", "self")),
-                 Field("norms", "text", "error norms the convergence figure draws (default l2 and linf)",
-                       shape="list", choices=("l2", "linf")))),
+                       "(self-convergence: columns self.<set>.l2/linf, fits of reference self); scene: the scene's "
+                       "reference only", choices=("scene", "self"), default="scene"),
+                 Field("norms", "text", "error norms the convergence figure draws", shape="list",
+                       choices=("l2", "linf"), default=["l2", "linf"]))),
     Analysis("timing", "CPU time of the solve against unknowns per solver (timed serially after a warm-up)",
              serial=True, options=(MIX_RUNS,)),
     Analysis("work-precision", "error against the solve's CPU time per solver (timed serially after a warm-up)",
-             serial=True, options=(Field("error", "text", "the error column (default nodes.l2)"), MIX_RUNS,
+             serial=True, options=(Field("error", "text", "the error column (err.<error> of the cells)",
+                                         default="nodes.l2"), MIX_RUNS,
                                    Field("beside", "text", "earlier work-precision groups drawn as panels beside this "
                                          "one on the same CPU-seconds axis", shape="value or list"))),
     Analysis("stability", "measured time-step limits (probe = limit) or a stability map (probe = map)",
-             options=(Field("probe", "text", "limit or map (default limit)", choices=PROBE_KINDS),),
+             options=(Field("probe", "text", "a limit per case, or a map over dt and the swept parameters",
+                            choices=PROBE_KINDS, default="limit"),),
              task=lambda options: TASKS[f"stability-{options.get('probe', 'limit')}"]),
 )}
 

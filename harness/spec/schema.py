@@ -22,7 +22,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from pcverify.scene import EXTENT_RANGE, FACES, MATERIALS, MODES, Param, SceneError, is_real, shown
+from pcverify.scene import EXTENT_RANGE, FACES, MATERIALS, MODES, Box, Conduction, Param, SceneError, is_real, shown
 
 Registries = Mapping[str, Mapping[str, Any]]
 
@@ -223,15 +223,20 @@ def _rows(value: Any, f: Field, where: str, path: str, reg: Registries) -> None:
 
 
 # -- the study file ----------------------------------------------------------------------------------------
+# Every field says what it is (`description`, rendered into docs/study-files.md by `schema_markdown`); a default
+# that is a value is declared as one, a default that depends on the row (an id, the file's name) is in words.
 
 SAFE_NAME = r"[A-Za-z0-9][A-Za-z0-9._-]{0,79}"  # a file or folder name: no dot first, no separator
-NAME = Field("name", "text", "names the study's report folder",
+NAME = Field("name", "text", "names the study and its report folder (default: the file's name without .toml)",
              hint="1 to 80 letters, digits, '.', '_' or '-', starting with a letter or digit", pattern=SAFE_NAME)
-ID = Field("id", "text", "names the files of its tables and figures", hint=NAME.hint, pattern=SAFE_NAME, unique=True)
-TITLE = Field("title", "text")
+ID = Field("id", "text", "names the files of its tables and figures, and the table names claims read",
+           hint=NAME.hint, pattern=SAFE_NAME, unique=True)
+TITLE = Field("title", "text", "the heading in the report (default: the id)")
 TEXT_TABLE = Field("", "scalar", shape="value or list", min_items=0)  # a value of select = { column = values }
-PARAMS = "{ name = value, ... }"
+PARAMS = "parameters { name = value, ... }; a number may be an expression of the resolution, as text"
 SCENE_NAME = "a scene name (see `pcverify scenes`)"
+BOX_DEFAULTS = Box()  # the paper's bar
+HEAT_DEFAULTS = Conduction()
 
 REFERENCE_KINDS = ("analytic", "extrapolated", "mesh-dependent", "same-grid", "theory", "paper", "self")
 SENSES = ("within", "at-most", "at-least")
@@ -241,106 +246,157 @@ DESIGNS = ("sobol", "lhs")
 ERRORS = ("relative", "absolute")
 
 
-def _point(name: str) -> Field:
-    return Field(name, "real", shape="list", min_items=3, max_items=3)
+def _point(name: str, description: str) -> Field:
+    return Field(name, "real", description, shape="list", min_items=3, max_items=3)
 
 
-HELD = Table("held", (Field("face", "text", choices=FACES), _point("point"), _point("patch"), Field("radius", "real"),
-                      Field("temperature", "real", "held temperature (K)", required=True)),
+HELD = Table("held", (
+    Field("face", "text", "a face held at the temperature", choices=FACES),
+    _point("point", "a point [x, y, z] (m) held at the temperature: a node of the grid the solver discretises on"),
+    _point("patch", "the centre [x, y, z] (m) of a sphere whose solid is held at the temperature"),
+    Field("radius", "real", "the patch's radius (m); needed with patch"),
+    Field("temperature", "real", "held temperature (K)", required=True)),
              one_of=("face", "point", "patch"))
-SUPPORT = Table("supports", (Field("face", "text", choices=FACES, required=True), Field("displacement", "real")))
-MATERIAL = Table("material", (Field("name", "text"), Field("density", "real", "kg/m^3", required=True),
-                              *(Field(k, "real") for k in ("conductivity", "heat_capacity", "youngs_modulus",
-                                                           "poisson_ratio"))))
+SUPPORT = Table("supports", (
+    Field("face", "text", "the face on frictionless supports (held along its normal only)", choices=FACES,
+          required=True),
+    Field("displacement", "real", "the face's displacement along its normal (m)", default=0.0)))
+MATERIAL = Table("material", (
+    Field("name", "text", "a label for the material (default: custom)"),
+    Field("density", "real", "kg/m^3", required=True),
+    Field("conductivity", "real", "W/(m K); needed for heat"),
+    Field("heat_capacity", "real", "J/(kg K); needed for heat"),
+    Field("youngs_modulus", "real", "Pa; needed for elasticity"),
+    Field("poisson_ratio", "real", "needed for elasticity")))
 SCENE = Table("[[scene]]", (
     Field("name", "text", "the name groups use", hint="text of 1 to 80 characters", pattern=r"(?s)(?=.*\S).{1,80}",
           required=True),
-    Field("description", "text", "one line of text"),
-    Field("box", "record", "dimensions in m (default the paper's bar)", table=Table("box", tuple(
-        Field(k, "real", low=EXTENT_RANGE[0], high=EXTENT_RANGE[1]) for k in ("width", "height", "length")))),
-    Field("material", "any", alternatives=(Field("material", "text", choices=tuple(MATERIALS)),
-                                           Field("material", "record", table=MATERIAL))),
-    Field("t_max", "real", "temperature scale of the reported T / t_max (K)"),
-    Field("mode", "text", choices=MODES), Field("t_end", "real", "end time of a transient (s)"),
-    Field("dt", "real", "continuum time step of a transient (s)"),
-    Field("initial_temperature", "real", "temperature at t = 0 (K)"),
-    Field("source", "real", "uniform volumetric heat source (W/m^3)"),
+    Field("description", "text", "one line of text (default: scene NAME (defined in a study file))"),
+    Field("box", "record", "dimensions in m (default the paper's bar); groups may vary them as scene parameters",
+          table=Table("box", tuple(
+              Field(k, "real", f"{what} (m)", low=EXTENT_RANGE[0], high=EXTENT_RANGE[1],
+                    default=getattr(BOX_DEFAULTS, k))
+              for k, what in (("width", "along x"), ("height", "along y"), ("length", "along z, the bar's axis"))))),
+    Field("material", "any", "a shipped material by name, or a table of constants", default="aluminium",
+          alternatives=(Field("material", "text", choices=tuple(MATERIALS)), Field("material", "record",
+                                                                                 table=MATERIAL))),
+    Field("t_max", "real", "temperature scale of the reported T / t_max (K)", default=HEAT_DEFAULTS.t_max),
+    Field("mode", "text", "steady state, or a transient reported at t_end", choices=MODES, default=HEAT_DEFAULTS.mode),
+    Field("t_end", "real", "end time of a transient (s)", default=HEAT_DEFAULTS.t_end),
+    Field("dt", "real", "continuum time step of a transient (s); in (0, t_end]", default=HEAT_DEFAULTS.dt),
+    Field("initial_temperature", "real", "temperature at t = 0 (K)", default=HEAT_DEFAULTS.initial_temperature),
+    Field("source", "real", "uniform volumetric heat source (W/m^3)", default=HEAT_DEFAULTS.source),
     Field("interface", "record", "a planar heat source on an internal plane", table=Table("interface", (
-        Field("flux", "real", "W/m^2", required=True), Field("position", "real", "m", required=True),
-        Field("axis", "text")))),
-    Field("held", "tables", "held temperatures", table=HELD, min_items=0),
+        Field("flux", "real", "the heat the plane releases (W/m^2)", required=True),
+        Field("position", "real", "where the plane crosses its axis (m)", required=True),
+        Field("axis", "text", "the plane's normal: x, y or z (default z)")))),
+    Field("held", "tables", "held temperatures: each a face, a point or a patch", table=HELD, min_items=0),
     Field("supports", "tables", "frictionless supports", table=SUPPORT, min_items=0),
-    Field("clamps", "text", choices=FACES, shape="list", min_items=0),
-    Field("modes", "int", "number of eigenfrequencies asked for"),
+    Field("clamps", "text", "faces held fixed in every direction", choices=FACES, shape="list", min_items=0),
+    Field("modes", "int", "number of eigenfrequencies asked for (0: a static scene)", default=0),
 ), key="name")
 
 GROUP = Table("[[group]]", (
-    ID, TITLE, Field("scene", "text", "the scene of every cell", hint=SCENE_NAME, required=True),
-    Field("scene_params", "table", PARAMS),
+    Field("id", "text", "names the group's tables and figures (G-cells, G-fits, ...; default: group<N>, N its "
+          "number from 1)", hint=ID.hint, pattern=SAFE_NAME, unique=True),
+    TITLE, Field("scene", "text", "the scene of every cell", hint=SCENE_NAME, required=True),
+    Field("scene_params", "table", f"scene {PARAMS}"),
     Field("solvers", "text", "the solvers run", hint="a solver name or module:Class", shape="value or list",
           required=True),
     Field("n", "int", "lattice resolutions", low=2, high=1000, shape="value or list", default=[4]),
-    Field("refine", "int", "grid refinements", low=1, high=1000, shape="value or list", default=[1]),
-    Field("solver_params", "table", "{ name = value } shared, or { solver = { ... } } per solver"),
+    Field("refine", "int", "grid refinements (h = a / refine)", low=1, high=1000, shape="value or list", default=[1]),
+    Field("solver_params", "table", "solver parameters { name = value } shared, or { solver = { ... } } per solver; "
+          "a number may be an expression of the resolution, as text"),
     Field("sweep", "table", "{ parameter = [values] } (the product is run)",
           values=Field("", "scalar", shape="value or list")),
-    Field("analysis", "text", registry="analyses", default="table"),
-    Field("serial", "bool", "timed serially after a warm-up"), Field("vtu", "bool", "write VTU point clouds"),
+    Field("analysis", "text", "what the group's cells compute and tabulate (its options below)", registry="analyses",
+          default="table"),
+    Field("serial", "bool", "timed serially after a warm-up (default: the analysis's own: timing and "
+          "work-precision are)"),
+    Field("vtu", "bool", "write VTU point clouds", default=False),
     Field("repeats", "int", "a timed group's solves per cell (the least CPU time is kept; repeated only while a solve "
-          "takes under 0.5 s)", low=1, high=20),
-    Field("figures", "text", registry="figures", shape="value or list", min_items=0),
+          "takes under 0.5 s)", low=1, high=20, default=3),
+    Field("figures", "text", "figures besides the analysis's own: edge-profiles (the paper's Fig. 9), render-3d "
+          "(the particles coloured by value), stick-slip (the spring force over the analytic cycle), parameter "
+          "(figure_y against figure_x)", registry="figures", shape="value or list", min_items=0, default=[]),
     Field("figure_x", "text", "the parameter figure's x axis: a swept solver or scene parameter, n, refine or h"),
-    Field("figure_y", "text", "the parameter figure's metrics (default err.nodes.l2, err.nodes.linf): summary "
-          "scalars or err.SET.NORM", shape="value or list"),
+    Field("figure_y", "text", "the parameter figure's metrics: summary scalars or err.SET.NORM",
+          shape="value or list", default=["err.nodes.l2", "err.nodes.linf"]),
 ), key="id", default_key="group{}", variant="analysis")
 
 CLAIM = Table("[[claim]]", (
-    *(Field(k, "text", required=True, unique=k == "id") for k in ("id", "text", "table", "metric")),
-    Field("reference", "text", choices=REFERENCE_KINDS, required=True),
-    Field("tolerance", "real", low=0.0, required=True), Field("target", "real"),
-    Field("select", "table", values=TEXT_TABLE), Field("aggregate", "text", choices=AGGREGATES),
-    Field("absolute", "bool"), Field("per", "text"), Field("against", "table", values=TEXT_TABLE),
-    Field("against_table", "text"), Field("against_metric", "text"),
-    Field("uncertainty", "any", alternatives=(Field("uncertainty", "real"), Field("uncertainty", "text",
-                                                                                   hint="a column name"))),
-    Field("sense", "text", choices=SENSES), Field("statuses", "text", choices=CELL_STATUSES, shape="list"),
-    Field("allow_skipped", "bool"),
+    Field("id", "text", "names the claim (pcverify verdict STUDY CLAIM)", required=True, unique=True),
+    Field("text", "text", "the statement, as the report shows it", required=True),
+    Field("table", "text", "the table it reads: a group's or calibration's table name, e.g. G-fits", required=True),
+    Field("metric", "text", "the column judged", required=True),
+    Field("reference", "text", "the kind of reference the number stands on", choices=REFERENCE_KINDS, required=True),
+    Field("tolerance", "real", "the bound around the target", low=0.0, required=True),
+    Field("target", "real", "the value claimed (unless against gives it)", default=0.0),
+    Field("select", "table", "the rows read: { column = value or [values] }", values=TEXT_TABLE, default={}),
+    Field("aggregate", "text", "how the rows of a case combine", choices=AGGREGATES, default="max"),
+    Field("absolute", "bool", "judge |value| (e.g. a signed difference)", default=False),
+    Field("per", "text", "a column that splits the claim into one case per value (e.g. n, solver); default: one "
+          "case"),
+    Field("against", "table", "rows whose value is the target: { column = value or [values] }, matched by the per "
+          "value unless it names that column", values=TEXT_TABLE, default={}),
+    Field("against_table", "text", "the table against reads (default: the claim's table)"),
+    Field("against_metric", "text", "the column against reads (default: the metric)"),
+    Field("uncertainty", "any", "a number, a column (the largest over the rows) or \"spread\" (the standard error "
+          "of the mean over a case's rows, with aggregate = \"mean\"); default: the table's <metric>_unc column",
+          alternatives=(Field("uncertainty", "real"), Field("uncertainty", "text", hint="a column name"))),
+    Field("sense", "text", "within: |value - target| <= tolerance; at-most: value <= target + tolerance; at-least: "
+          "value >= target - tolerance", choices=SENSES, default="within"),
+    Field("statuses", "text", "cell statuses a case may stand on", choices=CELL_STATUSES, shape="list",
+          default=["ok"]),
+    Field("allow_skipped", "bool", "a case whose cells were all skipped is not-applicable instead of fail",
+          default=False),
 ), key="id")
 
 REFERENCE = Table("reference", (
     Field("solver", "text", "the reference solver", hint="a solver name", required=True),
-    Field("n", "int", low=2, high=1000),
-    Field("refine", "int", low=1, high=1000, shape="value or list"), Field("solver_params", "table", PARAMS)))
+    Field("n", "int", "its lattice resolution (default: the cell's own n)", low=2, high=1000),
+    Field("refine", "int", "its refinement; three or more are Richardson-extrapolated", low=1, high=1000,
+          shape="value or list", default=1),
+    Field("solver_params", "table", f"solver {PARAMS}")))
 CALIBRATION_CELL = Table("[[calibration.calibrate]] or [[calibration.validate]]", (
     Field("scene", "text", "the scene of the cell", hint=SCENE_NAME, required=True),
-    Field("scene_params", "table", PARAMS),
-    Field("n", "int", low=2, high=1000, shape="value or list", default=4),
-    Field("refine", "int", low=1, high=1000, default=1),
+    Field("scene_params", "table", f"scene {PARAMS}"),
+    Field("n", "int", "lattice resolutions (one cell each)", low=2, high=1000, shape="value or list", default=4),
+    Field("refine", "int", "grid refinement", low=1, high=1000, default=1),
     Field("metric", "text", "what is compared", hint="a summary quantity or <samples>.l2 / .linf", pattern=r"(?s).+",
           required=True),
-    Field("reference", "any", required=True, alternatives=(
-        Field("reference", "text", choices=("analytic",)), Field("reference", "record", table=REFERENCE))),
-    Field("error", "text", choices=ERRORS, default="relative"),
+    Field("reference", "any", "what the metric is compared with: the scene's analytic solution, or a solver's value",
+          required=True, alternatives=(
+              Field("reference", "text", choices=("analytic",)), Field("reference", "record", table=REFERENCE))),
+    Field("error", "text", "how the error is measured", choices=ERRORS, default="relative"),
 ))
 PARAMETER = Table("[[calibration.parameter]]", (
-    Field("name", "text", hint="a solver parameter", required=True, unique=True), Field("low", "real", required=True),
-    Field("high", "real", required=True), Field("log", "bool")), key="name")
+    Field("name", "text", "the free parameter", hint="a solver parameter", required=True, unique=True),
+    Field("low", "real", "its lower bound", required=True),
+    Field("high", "real", "its upper bound", required=True),
+    Field("log", "bool", "search in log space", default=False)), key="name")
 CALIBRATION = Table("[[calibration]]", (
-    ID, TITLE, Field("solver", "text", "the solver calibrated", hint="a solver name", required=True),
-    Field("solver_params", "table", PARAMS),
-    Field("parameter", "tables", required=True, table=PARAMETER),
-    Field("calibrate", "tables", required=True, table=CALIBRATION_CELL),
-    Field("validate", "tables", required=True, table=CALIBRATION_CELL),
-    Field("budget", "int", "solver runs of the search", low=1, high=100_000, default=32),
-    Field("design", "text", choices=DESIGNS, default="sobol"),
-    Field("design_points", "int", low=1, high=4096, default=16),
-    Field("starts", "int", low=0, high=64, default=1), Field("seed", "int", low=0, high=2**31 - 1, default=0),
-    Field("replicas", "table", "runs at the optimum that measure the objective's noise",
-          values=Field("", "scalar", shape="value or list")),
-    Field("noise_factor", "real", low=0.0, high=100.0, default=2.0),
-    Field("noise_floor", "real", low=0.0, default=0.0),
-    Field("sensitivity_step", "real", low=1e-6, high=0.5, default=0.1),
-    Field("tolerance", "real", low=0.0),
+    Field("id", "text", "names the calibration's tables (C-summary, C-parameters, ...; default: calibration<N>)",
+          hint=ID.hint, pattern=SAFE_NAME, unique=True),
+    TITLE, Field("solver", "text", "the solver calibrated", hint="a solver name", required=True),
+    Field("solver_params", "table", "its fixed parameters { name = value, ... }, the same in every cell"),
+    Field("parameter", "tables", "the free parameters", required=True, table=PARAMETER),
+    Field("calibrate", "tables", "the cells the parameters are fitted on", required=True, table=CALIBRATION_CELL),
+    Field("validate", "tables", "the held-out cells they are judged on", required=True, table=CALIBRATION_CELL),
+    Field("budget", "int", "solver runs of the search (at least one per calibration cell)", low=1, high=100_000,
+          default=32),
+    Field("design", "text", "the space-filling design", choices=DESIGNS, default="sobol"),
+    Field("design_points", "int", "points of the design", low=1, high=4096, default=16),
+    Field("starts", "int", "bounded Nelder-Mead searches, from the best design points", low=0, high=64, default=1),
+    Field("seed", "int", "seed of the design", low=0, high=2**31 - 1, default=0),
+    Field("replicas", "table", "{ parameter = [values] } runs at the optimum that measure the objective's noise (not "
+          "a free parameter)", values=Field("", "scalar", shape="value or list")),
+    Field("noise_factor", "real", "parameter sets within best + max(noise_factor x noise, noise_floor) of the "
+          "objective make the calibrated ranges", low=0.0, high=100.0, default=2.0),
+    Field("noise_floor", "real", "the least width of that band", low=0.0, default=0.0),
+    Field("sensitivity_step", "real", "the one-at-a-time step, a fraction of each parameter's (log) range",
+          low=1e-6, high=0.5, default=0.1),
+    Field("tolerance", "real", "the largest validation error within tolerance (unset: none is)", low=0.0),
 ), key="id", default_key="calibration{}")
 
 MUTANT = Table("[[mutant]]", (
@@ -351,10 +407,11 @@ MUTANT = Table("[[mutant]]", (
     Field("file", "text", "the mutated module, relative to the package's folder",
           hint="a relative path of a .py file inside the package, e.g. solvers/particles/mca/contact.py",
           pattern=r"(?s).{1,300}", required=True),
-    Field("find", "text", "the text replaced", hint="text of 1 or more characters", pattern=r"(?s).+"),
+    Field("find", "text", "the text replaced (find or diff)", hint="text of 1 or more characters", pattern=r"(?s).+"),
     Field("replace", "text", "what replaces it"),
     Field("count", "int", "how many times `find` occurs (each is replaced)", low=1, high=1000, default=1),
-    Field("diff", "text", "a unified diff against the file", hint="text of 1 or more characters", pattern=r"(?s).+"),
+    Field("diff", "text", "a unified diff against the file (find or diff)", hint="text of 1 or more characters",
+          pattern=r"(?s).+"),
     Field("breaks", "text", "the physics or numerics it breaks", hint="a sentence", pattern=r"(?s)(?=.*\S).+",
           required=True),
     Field("expect", "text", "claims expected to kill it (shown in the report)", hint="a claim id",
@@ -363,10 +420,16 @@ MUTANT = Table("[[mutant]]", (
 
 TABLES = {"scene": SCENE, "group": GROUP, "claim": CLAIM, "calibration": CALIBRATION,
           "mutant": MUTANT}  # [[<name>]] tables
+WHAT_TABLES_ARE = {"scene": "scenes the study defines from the shipped building blocks",
+                   "group": "groups of cells: one scene, its solvers, resolutions and parameters, and an analysis",
+                   "claim": "statements judged on the study's tables: pass, fail or inconclusive",
+                   "calibration": "a solver's free parameters fitted on some cells and judged on others",
+                   "mutant": "deliberate defects the study's claims should catch (pcverify mutate)"}
 STUDY = Table("a study file", (
-    NAME, TITLE, Field("plugins", "text", "modules imported in every worker", hint="a dotted module name",
-                       shape="value or list", min_items=0),
-    *(Field(name, "tables", table=t, min_items=0) for name, t in TABLES.items())))
+    NAME, Field("title", "text", "the study's heading in the report (default: the file's name without .toml)"),
+    Field("plugins", "text", "modules imported in every worker (a module beside the study file needs no install)",
+          hint="a dotted module name", shape="value or list", min_items=0),
+    *(Field(name, "tables", WHAT_TABLES_ARE[name], table=table, min_items=0) for name, table in TABLES.items())))
 
 
 def as_list(value: Any) -> list[Any]:
