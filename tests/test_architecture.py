@@ -5,7 +5,6 @@ with a comment saying so)."""
 from __future__ import annotations
 
 import ast
-import re
 from pathlib import Path
 
 import pytest
@@ -66,26 +65,3 @@ def test_imports_sit_at_the_top() -> None:
     bad = [b for folder in SOURCES for path in sorted((REPO / folder).rglob("*.py")) for b in _function_imports(path)]
     assert not bad, "\n".join(bad)
 
-
-def test_the_readme_counts_the_example_files_lines_right():
-    """Every "`examples/...py` (N lines)" in the README is that file's line count."""
-    root = Path(__file__).resolve().parent.parent
-    text = (root / "README.md").read_text()
-    found = re.findall(r"`(examples/[\w./-]+\.py)` \((\d+) lines\)", text)
-    assert found
-    for path, count in found:
-        assert len((root / path).read_text().splitlines()) == int(count), path
-
-
-def test_every_table_a_report_writes_is_documented():
-    """Each table name suffix the harness writes (`f"{id}-cells"`, ...) is in the README's "Output tables"."""
-    root = Path(__file__).resolve().parent.parent
-    readme = (root / "README.md").read_text()
-    section = readme[readme.index("### Output tables"):]
-    section = section[:section.index("\n## ")]
-    suffixes = set()
-    for path in (root / "harness").rglob("*.py"):
-        suffixes |= set(re.findall(r"""\}-([a-z][a-z-]*)["']""", path.read_text()))
-    assert {"cells", "fits", "levels", "skipped", "work-precision"} <= suffixes
-    undocumented = sorted(s for s in suffixes if f"-{s}`" not in section)
-    assert not undocumented, undocumented
