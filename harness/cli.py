@@ -52,13 +52,15 @@ from pcverify.harness.run.calibration import NotCached, run_calibration
 from pcverify.harness.run.execution import cached_results, cell_time_limit, execute, identify, plan, run_cell
 from pcverify.harness.run.files import read_json
 from pcverify.harness.run.interrupt import TERMINATED, check_interrupted, received, remember_sigint, sigterm_interrupts
-from pcverify.harness.run.limits import DEFAULT_TIME_LIMIT, MAX_TIME_LIMIT, check_work
-from pcverify.harness.run.mutation import DEFAULT_MUTANT_TIME_LIMIT, Runner, prepare
+from pcverify.harness.run.limits import DEFAULT_MUTANT_TIME_LIMIT, DEFAULT_TIME_LIMIT, MAX_TIME_LIMIT, check_work
+from pcverify.harness.run.mutation import Runner, prepare
 from pcverify.harness.run.workers import describe_exception, output_to_stderr
 from pcverify.harness.spec.catalogue import entries as scene_entries
 from pcverify.harness.spec.catalogue import get_spec, make_scene
 from pcverify.harness.spec.mutants import catalogue, select_mutants, solver_packages
-from pcverify.harness.spec.study import MAX_CELLS, Cell, declared_name, load_study, study_files
+from pcverify.harness.spec.schema import MAX_CELLS
+from pcverify.harness.spec.shipped import study_files
+from pcverify.harness.spec.study import Cell, declared_name, load_study
 from pcverify.scene import Param, Resolution, SceneError, shown
 from pcverify.solvers.protocol import model_notes, skipped
 from pcverify.solvers.registry import SolverUnavailable, get_solver

@@ -48,7 +48,6 @@ from pcverify.harness.spec.mutants import Mutant
 from pcverify.harness.spec.study import Study
 
 OUTCOMES = ("killed", "survived", "invalid", "crashed")
-DEFAULT_MUTANT_TIME_LIMIT = 7200.0  # seconds a mutant's whole run may take
 STOP_GRACE_S = 10.0  # after SIGTERM, a mutant's process has this long to stop cleanly before SIGKILL
 COMPILE_ERRORS = re.compile(r"(TypingError|LoweringError|UnsupportedError|NumbaError|SyntaxError|IndentationError|"
                             r"ImportError|ModuleNotFoundError)\b")

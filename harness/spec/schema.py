@@ -224,6 +224,7 @@ def _rows(value: Any, f: Field, where: str, path: str, reg: Registries) -> None:
 
 # -- the study file ----------------------------------------------------------------------------------------
 
+MAX_CELLS = 10_000  # cells of one study file; a larger study needs --allow-large
 SAFE_NAME = r"[A-Za-z0-9][A-Za-z0-9._-]{0,79}"  # a file or folder name: no dot first, no separator
 NAME = Field("name", "text", "names the study's report folder",
              hint="1 to 80 letters, digits, '.', '_' or '-', starting with a letter or digit", pattern=SAFE_NAME)
