@@ -22,7 +22,6 @@ from pcverify.harness.run.cache import Cache
 from pcverify.harness.run.execution import cell_time_limit
 from pcverify.harness.run.interrupt import remember_sigint
 from pcverify.harness.run.mutation import Runner, prepare
-from pcverify.harness.run.progress import on_terminal
 from pcverify.harness.run.workers import output_to_stderr
 from pcverify.harness.spec.mutants import catalogue, select_mutants, solver_packages
 from pcverify.harness.spec.shipped import study_files
@@ -52,7 +51,7 @@ def run_mutants(args: argparse.Namespace) -> int:
             runner = Runner(study, baseline["verdicts"], cache, args.time_limit, args.mutant_time_limit,
                             args.allow_large)
             with output_to_stderr():
-                outcomes = runner.run(todo, args.jobs, progress=not args.json and on_terminal(sys.stderr))
+                outcomes = runner.run(todo, args.jobs, progress=not args.json)
             doc = mutation_document(study.name, baseline["verdicts"], outcomes, time.perf_counter() - t0)
             doc["baseline"] = {k: baseline.get(k) for k in ("cells", "cached", "done", "failed", "wall_s")}
             where = write_mutation_report(out, study.name, doc)
