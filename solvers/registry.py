@@ -209,25 +209,31 @@ def search_first(folder: Path | str) -> None:
         importlib.invalidate_caches()
 
 
+def check_solver_name(name: str) -> None:
+    """SceneError unless `name` is a known solver or reads as "module:Class"; nothing is imported (the command
+    line checks --solver with it before it imports anything a solve needs)."""
+    if isinstance(name, str) and ":" in name:
+        module_name, _, cls_name = name.partition(":")
+        if MODULE.match(module_name) and cls_name.isidentifier():
+            return
+    elif isinstance(name, str) and name in entries():
+        return
+    raise SceneError(f"solver={shown(name)} is unknown; allowed: one of {', '.join(sorted(entries()))}, or "
+                     "module:Class")
+
+
 def get_solver(name: str) -> Solver:
     """An instance of the solver called `name`, or of "module:Class".
 
     SceneError if the name is unknown or the class is not a solver; SolverUnavailable if its module
     (or a dependency of it) cannot be imported, or its constructor raises."""
-    table = entries()
-    unknown = SceneError(f"solver={shown(name)} is unknown; allowed: one of {', '.join(sorted(table))}, or "
-                         "module:Class")
-    if isinstance(name, str) and ":" in name:
-        module_name, _, cls_name = name.partition(":")
-        if not MODULE.match(module_name) or not cls_name.isidentifier():
-            raise unknown
+    check_solver_name(name)
+    if ":" in name:
         search_first(Path.cwd())
         cls = _load(name, f"solver {name!r}")
         check_solver_class(cls, f"solver {name!r}")
         return _instance(cls, f"solver {name!r}")
-    if not isinstance(name, str) or name not in table:
-        raise unknown
-    entry = table[name]
+    entry = entries()[name]
     cls = _load(entry.target, f"solver {name!r} ({entry.origin})")
     check_solver_class(cls, f"solver {name!r} ({entry.origin})")
     return _instance(cls, f"solver {name!r} ({entry.origin})")

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-import pcverify.harness.cli as cli
+import pcverify.harness.report.studies as studies
 from pcverify.harness.cli import main
 
 
@@ -42,15 +42,15 @@ def test_an_interrupted_run_writes_the_reports_of_the_studies_that_finished(tmp_
     """Two studies run as `default` runs the shipped ones: the second is interrupted while computing, the first
     still gets its report."""
     paths = [_study(tmp_path, "alpha", [2]), _study(tmp_path, "beta", [2])]
-    monkeypatch.setattr(cli, "study_files", lambda: {str(p): p for p in paths})
-    real = cli.execute
+    monkeypatch.setattr(studies, "study_files", lambda: {str(p): p for p in paths})
+    real = studies.execute
 
     def execute(study, *args, **kwargs):
         if study.name == "beta":
             raise KeyboardInterrupt
         return real(study, *args, **kwargs)
 
-    monkeypatch.setattr(cli, "execute", execute)
+    monkeypatch.setattr(studies, "execute", execute)
     assert main(["study", "default", "--out", str(tmp_path / "out"), "--jobs", "2"]) == 130
     err = capsys.readouterr().err
     assert "writing the reports of the 1 studies that finished" in err
@@ -62,7 +62,7 @@ def test_an_interrupted_run_writes_the_reports_of_the_studies_that_finished(tmp_
 def test_a_report_that_cannot_be_written_is_one_error_line(tmp_path, capsys, monkeypatch, jobs):
     """A file where beta's report folder goes: written in a forked writer or here, the error is one line."""
     paths = [_study(tmp_path, "alpha", [2]), _study(tmp_path, "beta", [2])]
-    monkeypatch.setattr(cli, "study_files", lambda: {str(p): p for p in paths})
+    monkeypatch.setattr(studies, "study_files", lambda: {str(p): p for p in paths})
     out = tmp_path / "out"
     out.mkdir()
     (out / "beta").write_text("a file where the report folder goes")

@@ -17,7 +17,8 @@ import pytest
 from pcverify.harness.cli import main
 from pcverify.harness.spec.catalogue import make_scene
 from pcverify.harness.spec.mutants import read_mutants_file
-from pcverify.harness.spec.study import load_study, study_files
+from pcverify.harness.spec.shipped import study_files
+from pcverify.harness.spec.study import load_study
 from pcverify.scene import Resolution
 from pcverify.solvers.particles.macromolecule import checks, codes
 from pcverify.solvers.particles.macromolecule.setup import prepare

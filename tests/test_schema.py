@@ -12,7 +12,7 @@ import pytest
 
 from pcverify.harness.spec.analyses import REGISTRIES
 from pcverify.harness.spec.schema import CALIBRATION, NAME, STUDY, TABLES, Field, Table, check, check_value
-from pcverify.harness.spec.study import study_files
+from pcverify.harness.spec.shipped import study_files
 from pcverify.harness.spec.studyfile import read_study_document
 from pcverify.scene import SceneError, is_real
 

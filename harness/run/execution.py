@@ -38,6 +38,7 @@ from pcverify.harness.judge import compare
 from pcverify.harness.run.cache import CLAIMED, HELD, Cache, cell_key
 from pcverify.harness.run.interrupt import check_interrupted, ignore_sigint_in_worker
 from pcverify.harness.run.limits import DEFAULT_TIME_LIMIT, EstimateError, check_work
+from pcverify.harness.run.progress import progress_bar
 from pcverify.harness.run.workers import Outcome, describe_exception, pool
 from pcverify.harness.spec.boundary import Inadmissible
 from pcverify.harness.spec.plugins import load_plugins
@@ -418,8 +419,7 @@ def _execute(study: Study, cache: Cache, jobs: int, progress: bool, scheduler: s
                 refused[i] = str(exc)
     cache.remove_stray_files()
     client = connect(scheduler) if scheduler is not None else None  # before the progress bar: errors are one line
-    bar = tqdm(total=len(cells), initial=counts["cached"], desc=study.name, unit="cell", disable=not progress,
-               dynamic_ncols=True)
+    bar = progress_bar(len(cells), study.name, "cell", initial=counts["cached"], enabled=progress)
 
     first: dict[str, int] = {}
     same: dict[int, list[int]] = {}  # cells of other groups with the same key: solved once, shared

@@ -10,7 +10,8 @@ other than a WorkEstimate is an `EstimateError` naming the solver (its cell fail
 Whatever the estimate said, a computed cell is killed after its time limit (`--time-limit`, default
 DEFAULT_TIME_LIMIT): one hour is six times the ten minutes that MAX_WORK allows a cell, room for a slow or
 busy machine and for the solvers that offer no estimate, while a solve that never returns costs at most an
-hour, not the study.
+hour, not the study.  A mutant's whole run (`pcverify mutate`) is stopped after DEFAULT_MUTANT_TIME_LIMIT
+(`--mutant-time-limit`).
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ MAX_WORK = 1e11  # unknowns x time steps of one cell
 MEMORY_SHARE = 0.5  # of this machine's physical memory
 DEFAULT_TIME_LIMIT = 3600.0  # seconds one computed cell may run
 MAX_TIME_LIMIT = 30 * 24 * 3600.0  # the longest --time-limit: 30 days
+DEFAULT_MUTANT_TIME_LIMIT = 7200.0  # seconds a mutant's whole run may take (`pcverify mutate`)
 
 
 class EstimateError(SceneError):

@@ -36,19 +36,17 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from tqdm import tqdm
-
 from pcverify.harness.judge.verdict import STATES
 from pcverify.harness.run import overlay
 from pcverify.harness.run.cache import Cache
 from pcverify.harness.run.execution import identify
 from pcverify.harness.run.files import read_json
+from pcverify.harness.run.progress import progress_bar
 from pcverify.harness.run.workers import exit_description
 from pcverify.harness.spec.mutants import Mutant
 from pcverify.harness.spec.study import Study
 
 OUTCOMES = ("killed", "survived", "invalid", "crashed")
-DEFAULT_MUTANT_TIME_LIMIT = 7200.0  # seconds a mutant's whole run may take
 STOP_GRACE_S = 10.0  # after SIGTERM, a mutant's process has this long to stop cleanly before SIGKILL
 COMPILE_ERRORS = re.compile(r"(TypingError|LoweringError|UnsupportedError|NumbaError|SyntaxError|IndentationError|"
                             r"ImportError|ModuleNotFoundError)\b")
@@ -167,8 +165,7 @@ class Runner:
 
     def run(self, prepared: list[Prepared], jobs: int, progress: bool) -> list[dict[str, Any]]:
         """Every mutant's outcome, in the order given."""
-        bar = tqdm(total=len(prepared), desc=f"{self.study.name}: mutants", unit="mutant", disable=not progress,
-                   dynamic_ncols=True)
+        bar = progress_bar(len(prepared), f"{self.study.name}: mutants", "mutant", enabled=progress)
         done: dict[int, dict[str, Any]] = {}
         pool = concurrent.futures.ThreadPoolExecutor(max_workers=jobs, thread_name_prefix="pcverify-mutant")
         try:

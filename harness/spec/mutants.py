@@ -28,12 +28,12 @@ from typing import Any
 
 from pcverify.fingerprint import find_spec
 from pcverify.harness.spec.schema import MUTANT, Field, Table, check, row_where
+from pcverify.harness.spec.shipped import BESIDE
 from pcverify.harness.spec.studyfile import read_study_document
 from pcverify.scene import SceneError, shown
 from pcverify.solvers.registry import SolverUnavailable, get_solver
 
 ENTRY_POINTS = "pcverify.mutants"
-BESIDE = ".mutants.toml"  # <study-stem>.mutants.toml beside a study file
 MUTANTS_FILE = Table("a mutants file", (Field("mutant", "tables", table=MUTANT, min_items=0),))
 IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 HUNK = re.compile(r"@@ -(\d+)(?:,(\d+))? \+(\d+)(?:,(\d+))? @@")

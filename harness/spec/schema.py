@@ -226,6 +226,7 @@ def _rows(value: Any, f: Field, where: str, path: str, reg: Registries) -> None:
 # Every field says what it is (`description`, rendered into docs/study-files.md by `schema_markdown`); a default
 # that is a value is declared as one, a default that depends on the row (an id, the file's name) is in words.
 
+MAX_CELLS = 10_000  # cells of one study file; a larger study needs --allow-large
 SAFE_NAME = r"[A-Za-z0-9][A-Za-z0-9._-]{0,79}"  # a file or folder name: no dot first, no separator
 NAME = Field("name", "text", "names the study and its report folder (default: the file's name without .toml)",
              hint="1 to 80 letters, digits, '.', '_' or '-', starting with a letter or digit", pattern=SAFE_NAME)

@@ -14,7 +14,6 @@ import copy
 import dataclasses
 import itertools
 from dataclasses import dataclass, field
-from importlib import resources
 from pathlib import Path
 from typing import Any
 
@@ -22,9 +21,10 @@ from pcverify.harness.spec.analyses import ANALYSES
 from pcverify.harness.spec.calibspec import Calibration, parse_calibrations
 from pcverify.harness.spec.catalogue import register_scene, spec_from_table
 from pcverify.harness.spec.claims import Claim, parse_claims
-from pcverify.harness.spec.mutants import BESIDE, Mutant, parse_mutants
+from pcverify.harness.spec.mutants import Mutant, parse_mutants
 from pcverify.harness.spec.plugins import load_plugins
-from pcverify.harness.spec.schema import NAME, SCENE, as_list, check_value, row_where
+from pcverify.harness.spec.schema import MAX_CELLS, NAME, SCENE, as_list, check_value, row_where
+from pcverify.harness.spec.shipped import study_path
 from pcverify.harness.spec.studyfile import (
     check_groups,
     check_study_document,
@@ -39,7 +39,6 @@ from pcverify.harness.spec.tasks import SOLVE, CellTask, ask_supports
 from pcverify.scene import Scene, SceneError
 from pcverify.solvers.registry import SolverUnavailable, get_solver, named
 
-MAX_CELLS = 10_000  # a larger study needs --allow-large
 DEFAULT_REPEATS = 3  # a timed cell's solves (the least CPU time is its cost; `execution.timed_result`)
 
 
@@ -109,23 +108,6 @@ class Study:
     def plugin_folder(self) -> str | None:
         """Where the study's plugin modules are searched first: the study file's folder."""
         return str(self.path.parent) if self.path is not None else None
-
-
-def study_files() -> dict[str, Path]:
-    """The study files shipped with the package, by name (not the mutants files beside them)."""
-    folder = resources.files("pcverify.harness") / "studies"
-    return {Path(str(p)).stem: Path(str(p)) for p in folder.iterdir()
-            if str(p).endswith(".toml") and not str(p).endswith(BESIDE)}
-
-
-def study_path(name_or_path: str) -> Path:
-    """The file of a shipped study name or of a path (SceneError if neither)."""
-    shipped = study_files()
-    path = shipped.get(name_or_path, Path(name_or_path))
-    if not path.is_file():
-        raise SceneError(f"study={name_or_path!r} is unknown; allowed: one of {', '.join(sorted(shipped))} "
-                         "or a path to a .toml file")
-    return path
 
 
 def load_study(name_or_path: str, allow_large: bool = False) -> Study:
