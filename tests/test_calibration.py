@@ -202,7 +202,7 @@ def test_killed_calibration_resumes_and_a_rerun_computes_nothing(tmp_path):
     proc.send_signal(signal.SIGKILL)
     proc.wait()
     first = _lines(log)
-    assert 20 <= len(first) < 60
+    assert len(first) >= 20  # how many more were solved before the kill landed is the machine's load
     entries = len(list((tmp_path / "out" / "cache").glob("*.json")))
     assert entries >= len(first) - 1  # every finished solve was stored (the last may have been killed storing)
 
@@ -211,6 +211,7 @@ def test_killed_calibration_resumes_and_a_rerun_computes_nothing(tmp_path):
     _, err = second.communicate(timeout=300)
     assert second.returncode == 0, err[-2000:]
     resumed = _lines(log)
+    assert resumed  # the kill landed halfway: the rerun had solves left to do
     assert not set(resumed) & set(first[:-1])  # nothing that was stored is solved again
     assert len(set(resumed)) == len(resumed)  # and nothing twice within the rerun
 

@@ -15,6 +15,7 @@ from __future__ import annotations
 import errno
 import json
 import os
+import select
 import shutil
 import signal
 import subprocess
@@ -318,25 +319,55 @@ def test_a_stale_takeover_decision_does_not_remove_a_live_lock(tmp_path) -> None
     assert not b.try_lock(key)
 
 
+def _race_for_the_lock(root: Path, key: str, processes: int, seconds: float = 120.0) -> list[int]:
+    """Fork `processes` children that each try once to take `key`'s lock: 0 if it got it, 1 if not, 3 if trying
+    failed.  They start together (a pipe they all read, released at once when it closes) and each stays alive
+    until all have answered (a holder that ended before a slow starter tried would be a dead holder again,
+    rightly taken over), so the outcome does not depend on how busy the machine is."""
+    go_r, go_w = os.pipe()
+    answers_r, answers_w = os.pipe()  # a byte from each child: its code
+    stay_r, stay_w = os.pipe()  # closed by this process once all have answered: they may end
+    parent_ends, children = [go_r, go_w, answers_r, answers_w, stay_r, stay_w], []
+    try:
+        for _ in range(processes):
+            pid = os.fork()
+            if pid == 0:  # child: wait for the common start, try once, stay alive while the others try
+                code = 3
+                try:
+                    try:
+                        for fd in (go_w, answers_r, stay_w):
+                            os.close(fd)
+                        os.read(go_r, 1)
+                        code = 0 if Cache(root).try_lock(key) else 1
+                    finally:
+                        os.write(answers_w, bytes([code]))
+                        os.read(stay_r, 1)
+                finally:
+                    os._exit(code)
+            children.append(pid)
+        for fd in (go_r, answers_w, stay_r, go_w):  # go_w last: the start
+            os.close(fd)
+            parent_ends.remove(fd)
+        answers, deadline = b"", time.monotonic() + seconds
+        while len(answers) < processes:
+            assert time.monotonic() < deadline, f"{len(answers)} of {processes} processes tried in {seconds:g} s"
+            if select.select([answers_r], [], [], 1.0)[0]:
+                chunk = os.read(answers_r, processes)
+                assert chunk, "a process ended without trying"
+                answers += chunk
+    finally:
+        for fd in parent_ends:  # every child starts (if it had not) and ends, also when this process failed
+            os.close(fd)
+        codes = [os.waitstatus_to_exitcode(os.waitpid(pid, 0)[1]) for pid in children]
+    return codes
+
+
 def test_processes_racing_for_a_dead_holders_lock_take_it_once(tmp_path) -> None:
     """Eight forked processes start together on a cell whose lock's holder has died, 10 rounds: in every
     round exactly one of them gets the lock (without the guard two could, each removing the other's)."""
     key = "k" * 16
     for _ in range(10):
         (tmp_path / f"{key}.lock").write_text(json.dumps({"pid": _dead_pid(), "host": cache_module.HOST}))
-        start = time.time() + 0.3
-        children = []
-        for _ in range(8):
-            pid = os.fork()
-            if pid == 0:  # child: wait for the common start, try once, stay alive while the others try
-                code = 3
-                try:
-                    time.sleep(max(0.0, start - time.time()))
-                    code = 0 if Cache(tmp_path).try_lock(key) else 1
-                    time.sleep(max(0.0, start + 1.0 - time.time()))
-                finally:
-                    os._exit(code)
-            children.append(pid)
-        codes = [os.waitstatus_to_exitcode(os.waitpid(pid, 0)[1]) for pid in children]
+        codes = _race_for_the_lock(tmp_path, key, 8)
         assert sorted(codes) == [0] + [1] * 7, codes
         (tmp_path / f"{key}.lock").unlink()

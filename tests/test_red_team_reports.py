@@ -483,11 +483,16 @@ def _timing_free(folder: Path) -> dict[str, pd.DataFrame]:
     return out
 
 
+WAITED = "pcverify: waiting for another process: cell lock "  # said once a wait lasts 10 s: the machine's load
+
+
 def test_concurrent_studies_on_one_out(tmp_path) -> None:
     """4 different studies x 8 rounds, each round a process of its own, the 4 lanes in parallel on one --out,
     together with 2 copies of a 6-cell study started at the same moment (their cells overlap beta's and
-    delta's).  Every process exits 0 without a warning; the cells computed add up to the distinct cells
-    (none computed twice); every study's tables equal a serial run's; no temporary or lock file is left."""
+    delta's).  Every process exits 0 without a warning (saying that it waits for another process's cell is
+    not one: it is said when the wait lasts 10 s, which on a busy machine it may); the cells computed add up
+    to the distinct cells (none computed twice); every study's tables equal a serial run's; no temporary or
+    lock file is left."""
     _write_studies(tmp_path)
     lanes = [("alpha.toml", 8), ("beta.toml", 8), ("gamma.toml", 8), ("delta.toml", 8), ("twin.toml", 1),
              ("twin.toml", 1)]
@@ -499,7 +504,8 @@ def test_concurrent_studies_on_one_out(tmp_path) -> None:
     assert [s["code"] for s in doc["serial"]] == [0] * len(STUDIES)
     failed = [r["err"][-1500:] for r in doc["runs"] if r["code"] != 0]
     assert not failed, failed
-    assert not [r["err"] for r in doc["runs"] if r["err"].strip()]  # not even a warning
+    said = [line for r in doc["runs"] for line in r["err"].splitlines() if line.strip()]
+    assert not [line for line in said if not line.startswith(WAITED)], said  # not even a warning
     summaries = [json.loads(r["out"])[0] for r in doc["runs"]]
     assert all(s["failed"] == 0 and s["corrupt"] == 0 and s["done"] + s["cached"] == s["cells"] for s in summaries)
     entries = len(list((tmp_path / "shared" / "cache").glob("*.json")))
