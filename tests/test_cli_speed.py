@@ -6,8 +6,10 @@ scene catalogue.  What a command runs costs more on import alone: pandas 0.36 s,
 (pandas, scipy, dask) 1.6 s; before, every command paid 2 s of CPU for it, a one-line error included.
 
 Measured as CPU time of the child process (os.wait4), not wall time: a busy machine stretches wall time many
-times over.  It inflates CPU time too, a little (caches, clock), never deflates it: the least of five runs is
-the command's cost.
+times over.  It inflates CPU time too (caches, clock, a shared host: by a third here at a load of 9 on two
+cores), never deflates it: the least of five runs is the command's cost.  On a machine so loaded that
+`import pcverify` alone, which no command can avoid, costs more than 0.2 s, the bound is what the command line
+may add to it (0.1 s) instead: a command that imported pandas would still be 0.3 s over it.
 """
 
 from __future__ import annotations
@@ -23,13 +25,14 @@ import pytest
 from pcverify.harness.cli import COMMANDS, build_parser, command
 
 LIMIT_S = 0.3  # CPU seconds of a command that answers at once
+ADDED_S = 0.1  # what the command line may add to `import pcverify` (a machine too loaded for LIMIT_S)
 HEAVY = ("pandas", "scipy", "matplotlib", "numba", "dask", "skfem", "fipy", "tqdm")  # what the light path never loads
 
 
-def _cpu(args: list[str]) -> tuple[float, int, str, str]:
-    """CPU seconds (user + system), exit code, stdout and stderr of `python -m pcverify.harness.cli ARGS`."""
+def _cpu(argv: list[str]) -> tuple[float, int, str, str]:
+    """CPU seconds (user + system), exit code, stdout and stderr of `python ARGV`."""
     with tempfile.TemporaryFile("w+") as out, tempfile.TemporaryFile("w+") as err:
-        proc = subprocess.Popen([sys.executable, "-m", "pcverify.harness.cli", *args], stdout=out, stderr=err)
+        proc = subprocess.Popen([sys.executable, *argv], stdout=out, stderr=err)
         _, status, usage = os.wait4(proc.pid, 0)  # this child's own CPU time, whatever else runs
         proc.returncode = os.waitstatus_to_exitcode(status)  # reaped here: Popen must not wait for it again
         out.seek(0)
@@ -37,14 +40,23 @@ def _cpu(args: list[str]) -> tuple[float, int, str, str]:
         return usage.ru_utime + usage.ru_stime, proc.returncode, out.read(), err.read()
 
 
-def _least_cpu(args: list[str]) -> tuple[float, int, str, str]:
-    """`_cpu` of the run with the least CPU time, of at most five (stops at the first within the limit)."""
-    runs = []
+def _least_cpu(args: list[str]) -> tuple[float, float, int, str, str]:
+    """The least CPU seconds of `pcverify ARGS` in at most five runs (stops at the first within LIMIT_S), the
+    least of `import pcverify` run beside them (0 when not needed), and the exit code and output of that run."""
+    runs, floor = [], []
     for _ in range(5):
-        runs.append(_cpu(args))
+        runs.append(_cpu(["-m", "pcverify.harness.cli", *args]))
         if runs[-1][0] <= LIMIT_S:
             break
-    return min(runs, key=lambda run: run[0])
+        floor.append(_cpu(["-c", "import pcverify"])[0])
+    seconds, code, out, err = min(runs, key=lambda run: run[0])
+    return seconds, min(floor, default=0.0), code, out, err
+
+
+def _check_cpu(args: list[str], seconds: float, floor: float) -> None:
+    allowed = max(LIMIT_S, floor + ADDED_S)
+    assert seconds <= allowed, (f"pcverify {' '.join(args)}: {seconds:.3f} s of CPU (allowed: {LIMIT_S} s, or "
+                                f"{ADDED_S} s over the {floor:.3f} s of `import pcverify`)")
 
 
 @pytest.mark.parametrize("args, check", [
@@ -54,9 +66,9 @@ def _least_cpu(args: list[str]) -> tuple[float, int, str, str]:
     (["scenes", "--json"], lambda out: "bar-heat-faces" in [row["name"] for row in json.loads(out)]),
 ])
 def test_help_and_scenes_answer_at_once(args: list[str], check) -> None:
-    seconds, code, out, err = _least_cpu(args)
+    seconds, floor, code, out, err = _least_cpu(args)
     assert code == 0 and check(out), (code, out[-1500:], err[-1500:])
-    assert seconds <= LIMIT_S, f"pcverify {' '.join(args)}: {seconds:.3f} s of CPU (allowed: {LIMIT_S} s)"
+    _check_cpu(args, seconds, floor)
 
 
 @pytest.mark.parametrize("args, word", [
@@ -68,11 +80,11 @@ def test_help_and_scenes_answer_at_once(args: list[str], check) -> None:
     (["study", "default", "--group", "g"], "--group needs one study"),
 ])
 def test_a_one_line_input_error_answers_at_once(args: list[str], word: str) -> None:
-    seconds, code, out, err = _least_cpu(args)
+    seconds, floor, code, out, err = _least_cpu(args)
     lines = err.strip().splitlines()
     assert code == 2 and out == "" and len(lines) == 1, (code, out[-500:], err[-1500:])
     assert lines[0].startswith("pcverify: error: ") and word in lines[0], lines[0]
-    assert seconds <= LIMIT_S, f"pcverify {' '.join(args)}: {seconds:.3f} s of CPU (allowed: {LIMIT_S} s)"
+    _check_cpu(args, seconds, floor)
 
 
 def test_the_light_path_imports_no_numerical_library_but_numpy() -> None:
