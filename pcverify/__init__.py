@@ -6,7 +6,7 @@ stable is listed in docs/plugins.md, "What is stable"):
 - the scene model: `Scene` and its parts (`Box`, `Material`, `Conduction` with a volumetric `source` and
   an `InterfaceFlux`, `Elasticity`, the constraints `FaceTemperature`, `PointTemperature`,
   `PatchTemperature`, `FaceSupport`, `FaceClamp`), `Resolution`, `Param` and `SceneError`, and
-  `SceneSpec` (a named, parameterised scene);
+  `SceneSpec` (a named, parameterised scene with its `Reference` and the `Scalar`s of its family's contract);
 - the solver contract: the `Solver` protocol (name, kind in KINDS, parameters, supports, solve),
   `Solution`, `skipped`, `effective_params`, and the optional stability probe (`StabilityProbe`,
   `ProbeSetup`, `ProbeRun`).
@@ -43,8 +43,10 @@ from pcverify.scene import (  # noqa: E402
     Param,
     PatchTemperature,
     PointTemperature,
+    Reference,
     Resolution,
     Response,
+    Scalar,
     Scene,
     SceneError,
     SceneSpec,
@@ -71,6 +73,7 @@ except metadata.PackageNotFoundError:  # a source tree that is not installed
 __all__ = [
     "ALUMINIUM", "API_VERSION", "DURALUMIN", "FACES", "KINDS", "PHYSICS", "STATUSES", "Box", "Conduction",
     "Elasticity", "FaceClamp", "FaceSupport", "FaceTemperature", "InterfaceFlux", "Material", "Param",
-    "PatchTemperature", "PointTemperature", "ProbeRun", "ProbeSetup", "Resolution", "Response", "Scene",
+    "PatchTemperature", "PointTemperature", "ProbeRun", "ProbeSetup", "Reference", "Resolution", "Response", "Scalar",
+    "Scene",
     "SceneError", "SceneSpec", "Solution", "Solver", "StabilityProbe", "__version__", "effective_params", "skipped",
 ]

@@ -23,12 +23,13 @@ from .loads import InterfaceFlux
 from .material import ALUMINIUM, DURALUMIN, MATERIALS, RESPONSES, Material, Response
 from .model import MODES, PHYSICS, Conduction, Elasticity, Scene
 from .params import Param, SceneError, is_real, resolve_params, shown
-from .spec import SceneSpec
+from .spec import Reference, Scalar, SceneSpec
 
 __all__ = [
     "ALUMINIUM", "DURALUMIN", "EXTENT_RANGE", "FACES", "MATERIALS", "MODES", "PHYSICS", "RESPONSES", "Box",
     "Conduction", "Constraint", "Contact", "Elasticity", "FaceClamp", "FaceSupport", "FaceTemperature",
     "InterfaceFlux", "Material", "Param",
-    "PatchTemperature", "PointTemperature", "Resolution", "Response", "Scene", "SceneError", "SceneSpec", "Support",
+    "PatchTemperature", "PointTemperature", "Reference", "Resolution", "Response", "Scalar", "Scene", "SceneError",
+    "SceneSpec", "Support",
     "TemperatureConstraint", "is_real", "point_patch_note", "resolve_params", "shown",
 ]
