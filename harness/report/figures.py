@@ -31,8 +31,7 @@ from PIL import Image  # noqa: E402
 
 from pcverify.harness.judge.tables import spacing, stored_errors  # noqa: E402
 from pcverify.harness.run.files import atomic_write  # noqa: E402
-from pcverify.harness.spec.catalogue import make_scene  # noqa: E402
-from pcverify.references import stick_slip  # noqa: E402
+from pcverify.harness.spec.catalogue import get_spec  # noqa: E402
 
 EDGES = ("front_top_edge", "bottom_back_edge")
 CONTINUUM_STYLES = tuple(dict(lw=2.0, color=c, ls=ls, alpha=0.75)
@@ -619,11 +618,10 @@ def parameter_figure(results: list[dict[str, Any]], path: Path, title: str, x: s
 
 
 
-def stick_slip_force(results: list[dict[str, Any]], path: Path, title: str) -> bool:
-    """Spring force against time of each stick-slip cell (its diagnostics' rows), over the analytic cycle of a
-    rigid block (references/stick_slip.py) of each scene drawn; one panel per lattice n."""
-    drawn = [r for r in results if ((r.get("diagnostics") or {}).get("history") or {}).get("columns", [None])[:2]
-             == ["t", "spring_force"]]
+def history(results: list[dict[str, Any]], path: Path, title: str) -> bool:
+    """The first history column of each cell's diagnostics against its time (column 0), over the reference curve
+    of each scene drawn (`Reference.history`, where its spec has one); one panel per lattice n."""
+    drawn = [r for r in results if len(((r.get("diagnostics") or {}).get("history") or {}).get("columns", [])) >= 2]
     if not drawn:
         return False
     ns = sorted({r["n"] for r in drawn})
@@ -631,23 +629,25 @@ def stick_slip_force(results: list[dict[str, Any]], path: Path, title: str) -> b
     fig, axes = plt.subplots(len(ns), 1, figsize=(10, 2.8 * len(ns)), squeeze=False)
     for ax, n in zip(axes[:, 0], ns, strict=True):
         for r in (r for r in drawn if r["n"] == n):
-            rows = np.asarray(r["diagnostics"]["history"]["rows"], float).reshape(-1, 4)
+            columns = r["diagnostics"]["history"]["columns"]
+            rows = np.asarray(r["diagnostics"]["history"]["rows"], float).reshape(-1, len(columns))
             label = _label(r, varying) + ("" if r["status"] == "ok" else f" ({r['status']})")
-            plot_once(ax, rows[:, 0] * 1e3, rows[:, 1], "", label, lw=1)
-            found = stick_slip.setting(make_scene(r["scene"], **r.get("scene_params", {})))
-            if found is not None and len(rows):
-                t = np.linspace(0.0, float(rows[-1, 0]), 2000)
-                plot_once(ax, t * 1e3, stick_slip.spring_force(t, *found), "", "rigid block (analytic)",
-                          **CONTINUUM_STYLES[1])
+            plot_once(ax, rows[:, 0], rows[:, 1], "", label, lw=1)
+            spec = get_spec(r["scene"])
+            curve = spec.reference.history if spec.reference is not None else None
+            t = np.linspace(0.0, float(rows[-1, 0]) if len(rows) else 0.0, 2000)
+            found = curve(spec.make(**r.get("scene_params", {})), t) if curve is not None and len(rows) else None
+            if found is not None:
+                plot_once(ax, t, found[0], "", found[1], **CONTINUUM_STYLES[1])
         ax.set_title(f"n = {n}", fontsize=8)
-        ax.set_xlabel("t since the spring started [ms]")
-        ax.set_ylabel("spring force [N]")
+        ax.set_xlabel(columns[0])
+        ax.set_ylabel(columns[1])
         ax.grid(True, alpha=0.3)
         legend_outside(ax)
     return _save(fig, path, title)
 
 
-GROUP_FIGURES = {"edge-profiles": edge_profiles, "render-3d": render_3d, "stick-slip": stick_slip_force}
+GROUP_FIGURES = {"edge-profiles": edge_profiles, "render-3d": render_3d, "history": history}
 
 
 def benchmark_history(runs: pd.DataFrame, path: Path) -> bool:

@@ -103,7 +103,7 @@ def cell_identity(cell: Cell) -> tuple[dict[str, Any], str | None]:
         return payload | {"params": dict(cell.solver_params), "broken": True}, _checks_raised(cell, exc)
     return payload | {"params": params, "code": code_fingerprint(solver),
                       "task_code": module_fingerprint(type(cell.task).__module__),
-                      "compare": module_fingerprint(compare.__name__)}, None
+                      "compare": compare.fingerprint(cell.scene)}, None
 
 
 def untimed_key(cell: Cell) -> str:

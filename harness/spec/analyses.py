@@ -18,7 +18,7 @@ from pcverify.harness.spec.stability import PROBE_KINDS
 from pcverify.harness.spec.tasks import SOLVE, TASKS, CellTask
 
 # the figures a group can ask for by name (its `figures` list), drawn by `report.figures.GROUP_FIGURES`
-GROUP_FIGURE_KINDS = ("edge-profiles", "render-3d", "stick-slip", "parameter")  # parameter: figure_y against figure_x
+GROUP_FIGURE_KINDS = ("edge-profiles", "render-3d", "history", "parameter")  # parameter: figure_y against figure_x
 
 
 @dataclass(frozen=True)

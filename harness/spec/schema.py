@@ -318,8 +318,9 @@ GROUP = Table("[[group]]", (
     Field("repeats", "int", "a timed group's solves per cell (the least CPU time is kept; repeated only while a solve "
           "takes under 0.5 s)", low=1, high=20, default=3),
     Field("figures", "text", "figures besides the analysis's own: edge-profiles (the paper's Fig. 9), render-3d "
-          "(the particles coloured by value), stick-slip (the spring force over the analytic cycle), parameter "
-          "(figure_y against figure_x)", registry="figures", shape="value or list", min_items=0, default=[]),
+          "(the particles coloured by value), history (a cell's history against time over its scene's reference "
+          "curve), parameter (figure_y against figure_x)", registry="figures", shape="value or list", min_items=0,
+          default=[]),
     Field("figure_x", "text", "the parameter figure's x axis: a swept solver or scene parameter, n, refine or h"),
     Field("figure_y", "text", "the parameter figure's metrics: summary scalars or err.SET.NORM",
           shape="value or list", default=["err.nodes.l2", "err.nodes.linf"]),

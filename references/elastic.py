@@ -1,4 +1,9 @@
-"""Elasticity references for the bar: analytic fields and frequencies, and the converged FE frequencies.
+"""The elastic family: the duralumin bar compressed, vibrating and pulled to fracture, its references and the
+summary scalars an elasticity solver reports (`SCALARS`: names, units, signs).  Reference scalars: bar-compression's
+E_eff = E and nu_eff = nu (uniaxial stress), bar-tension-fracture's failure_stress = sigma_c / k (the
+Drucker-Prager equivalent stress of uniaxial tension is k sigma).
+
+Formulas for the bar: analytic fields and frequencies, and the converged FE frequencies.
 
 Analytic (docs/physics.md, "Continuum references"):
 - `uniaxial_displacement`: the homogeneous uniaxial-stress field of bar-compression, sigma_zz = E eps,
@@ -40,9 +45,26 @@ from __future__ import annotations
 
 import itertools
 import math
+from typing import Any
 
 import numpy as np
 from scipy.linalg import eigh_tridiagonal
+
+from pcverify.references.shared import DIMENSIONS, box_of, params
+from pcverify.scene import (
+    DURALUMIN,
+    RESPONSES,
+    Elasticity,
+    FaceClamp,
+    FaceSupport,
+    Param,
+    Reference,
+    Response,
+    Scalar,
+    Scene,
+    SceneError,
+    SceneSpec,
+)
 
 # roots of 1 + cos(x) cosh(x) = 0 (clamped-free beam)
 CANTILEVER_BETA_L = (1.8751040687119611, 4.694091132974175, 7.854757438237613, 10.995540734875467,
@@ -158,3 +180,77 @@ def mca_rotational_hz(shear_modulus: float, density: float, spacing: float, krot
                             select="i", select_range=(0, 0))
     return float(np.sqrt(vals[0]) / (2 * math.pi))
 
+
+
+SCALARS = (
+    Scalar("reaction_force", "N", "axial force the support on face zL applies to the bar (negative in compression)"),
+    Scalar("E_eff", "Pa", "reaction_force / (W H) / axial strain: positive for both signs of the strain"),
+    Scalar("nu_eff", "", "-lateral strain / axial strain (face-averaged lateral displacements)"),
+    Scalar("failure_stress", "Pa", "peak reaction / (W H) of the bar pulled to fracture (positive in tension)"),
+    Scalar("energy_error", "", "energy balance of the elastic phase, relative to its largest elastic energy"),
+    Scalar("f_bending_x_hz", "Hz", "lowest bending frequency, deflection along x (also f_bending_y_hz, f_torsion_hz, "
+           "f_axial_hz, f_rotational_hz; the list frequencies_hz, spread into f1_hz, f2_hz, ... in tables)"),
+)
+
+
+def _hooke(scene: Scene, summary: dict[str, Any]) -> dict[str, float]:
+    return {"E_eff": scene.material.youngs_modulus, "nu_eff": scene.material.poisson_ratio}
+
+
+def _strength(scene: Scene, summary: dict[str, Any]) -> dict[str, float]:
+    response = scene.elasticity.response
+    return {"failure_stress": response.sigma_c / response.k}
+
+
+def _compression(p: dict[str, Any]) -> Scene:
+    box = box_of(p)
+    cons = (FaceSupport("z0"), FaceSupport("zL", p["strain"] * box.length))
+    return Scene("bar-compression", COMPRESSION.description, box, DURALUMIN, frozenset({"elasticity"}), cons,
+                 elasticity=Elasticity(), params=params(p))
+
+
+def _modes(p: dict[str, Any]) -> Scene:
+    return Scene("bar-modes", MODES.description, box_of(p), DURALUMIN, frozenset({"elasticity", "modes"}),
+                 (FaceClamp("z0"),), elasticity=Elasticity(modes=p["modes"]), params=params(p))
+
+
+def _fracture(p: dict[str, Any]) -> Scene:
+    if p["sigma_d"] >= p["sigma_c"] or p["sigma_y"] >= p["sigma_c"]:
+        raise SceneError(f"sigma_d={p['sigma_d']:g}, sigma_y={p['sigma_y']:g} are out of range; "
+                         f"allowed: below sigma_c={p['sigma_c']:g} Pa")
+    response = Response(p["response"], p["sigma_c"], p["sigma_d"], p["sigma_y"], p["hardening"], p["k"])
+    return Scene("bar-tension-fracture", FRACTURE.description, box_of(p), DURALUMIN,
+                 frozenset({"elasticity", "fracture"}), (FaceSupport("z0"), FaceSupport("zL")),
+                 elasticity=Elasticity(strain_rate=p["strain_rate"], response=response), params=params(p))
+
+
+COMPRESSION = SceneSpec(
+    "bar-compression",
+    "Uniaxial stress of the duralumin bar (E = 70 GPa, nu = 0.33): face z=0 on frictionless supports, "
+    "face z=L displaced by strain * L along z, lateral faces free (analytic: sigma = E eps, "
+    "lateral strain -nu eps)",
+    (*DIMENSIONS, Param("strain", -1e-3, "", "nominal axial strain (negative = compression; below 1e-12 in "
+                        "magnitude the loads underflow in floating point)", low=-0.01, high=-1e-12)),
+    _compression, Reference(scalars=_hooke), SCALARS)
+MODES = SceneSpec(
+    "bar-modes",
+    "Free vibration of the duralumin bar clamped at z=0: lowest bending, torsion and axial "
+    "eigenfrequencies (reference: scikit-fem Q2, converged)",
+    (*DIMENSIONS, Param("modes", 8, "", "number of lowest eigenfrequencies reported", low=1, high=50, kind=int)),
+    _modes, None, SCALARS)
+FRACTURE = SceneSpec(
+    "bar-tension-fracture",
+    "Tension of the duralumin bar to failure: face z=0 on frictionless supports, face z=L pulled "
+    "along z at strain_rate; material response function and strengths as given",
+    (
+        *DIMENSIONS,
+        Param("response", "elastic", "", "response function", choices=RESPONSES, kind=str),
+        Param("sigma_c", 400e6, "Pa", "strength (fracture stress)", low=0.0, high=1e10, low_open=True),
+        Param("sigma_d", 320e6, "Pa", "start of degradation", low=0.0, high=1e10, low_open=True),
+        Param("sigma_y", 300e6, "Pa", "yield stress", low=0.0, high=1e10, low_open=True),
+        Param("hardening", 7e9, "Pa", "plastic hardening modulus", low=0.0, high=7e10),
+        Param("k", 1.0, "", "sigma_c / sigma_t (Drucker-Prager)", low=0.1, high=20.0),
+        Param("strain_rate", 10.0, "1/s", "nominal axial strain rate", low=0.0, high=1e4, low_open=True),
+    ),
+    _fracture, Reference(scalars=_strength, kind="theory"), SCALARS)
+SCENES = (COMPRESSION, MODES, FRACTURE)

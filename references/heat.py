@@ -1,4 +1,8 @@
-"""Analytic references for heat flowing along one axis of the bar (a slab 0 <= z <= L).
+"""The heat family: the three bar-heating scenes (docs/physics.md, "The heating scenes"), their references and
+the summary scalars a heat solver reports.  Its field reference (`analytic`, exact T / t_max) is the slab below,
+for every heat scene that reduces to one (bar-heat-faces, a study file's scenes, frictional-heating's flux).
+
+Heat flowing along one axis of the bar (a slab 0 <= z <= L):
 
 The field depends on one coordinate z when the other faces are insulated, the initial temperature is
 uniform and every load is uniform across the section:
@@ -39,9 +43,27 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from scipy.special import erfc
+
+from pcverify.references.shared import DIMENSIONS, T_MAX, box_of, params
+from pcverify.scene import (
+    ALUMINIUM,
+    Box,
+    Conduction,
+    FaceTemperature,
+    Param,
+    PatchTemperature,
+    PointTemperature,
+    Reference,
+    Scalar,
+    Scene,
+    SceneError,
+    SceneSpec,
+    TemperatureConstraint,
+)
 
 MAX_TERMS = 2_000_000  # a guard against t -> 0 (the series then needs ~sqrt(ln(B/tol)/c) terms)
 
@@ -152,3 +174,126 @@ def effusivity(conductivity: float, density: float, heat_capacity: float) -> flo
 def effusivity_shares(e1: float, e2: float) -> tuple[float, float]:
     """Shares of a flux generated between two semi-infinite solids in perfect contact: e_i / (e1 + e2)."""
     return e1 / (e1 + e2), e2 / (e1 + e2)
+def slab_of(scene: Scene) -> tuple[Slab, int] | None:
+    """The one-dimensional problem a heat scene reduces to, and its axis, or None.
+
+    It does when every temperature constraint is a FaceTemperature and they hold the two faces of one axis
+    (or there is none: an insulated body), and an interface flux, if any, lies across that axis; the initial
+    temperature and the volumetric source are uniform in every scene.  Not one with dissimilar blocks (a contact
+    whose body 1 has thermal constants of its own): the slab is one material.
+    """
+    heat = scene.conduction
+    if heat is None:
+        return None
+    contact = scene.contact
+    if contact is not None and (contact.base_conductivity is not None or contact.base_heat_capacity is not None):
+        return None
+    plane = heat.interface if heat.interface is not None and heat.interface.flux != 0.0 else None
+    faces = {c.face: c.value for c in scene.constraints if isinstance(c, FaceTemperature)}
+    thermal = [c for c in scene.constraints if isinstance(c, TemperatureConstraint)]
+    if len(faces) != len(thermal):  # mechanical supports do not touch the heat problem
+        return None
+    if faces:
+        axes = {face[0] for face in faces}
+        if len(faces) != 2 or len(axes) != 1:
+            return None
+        axis = "xyz".index(axes.pop())
+        held: tuple[float, float] | None = (faces["xyz"[axis] + "0"], faces["xyz"[axis] + "WHL"[axis]])
+    else:
+        axis, held = plane.axis_index if plane is not None else 2, None
+    if plane is not None and plane.axis_index != axis:
+        return None
+    mat = scene.material
+    return Slab(float(scene.box.extent[axis]), mat.conductivity, mat.diffusivity, held=held,
+                initial=heat.initial_temperature, source=heat.source,
+                flux=plane.flux if plane is not None else 0.0,
+                plane=plane.position if plane is not None else 0.0), axis
+
+
+def analytic(scene: Scene, points: np.ndarray) -> np.ndarray | None:
+    """Exact relative temperature at `points`, or None if the scene has no analytic solution."""
+    found = slab_of(scene)
+    if found is None:
+        return None
+    slab, axis = found
+    heat = scene.conduction
+    coord = np.asarray(points, dtype=float).reshape(-1, 3)[:, axis]
+    if heat.mode == "steady":
+        if slab.held is None:
+            return None
+        return slab.steady(coord) / heat.t_max
+    return slab.transient(coord, heat.t_end, tol=1e-12 * heat.t_max) / heat.t_max
+
+
+def _paper_bulk(scene: Scene, summary: dict[str, Any]) -> dict[str, float]:
+    """The mesh limit of the paper's bulk: the mean of its three held corner fractions, 1/3."""
+    held = [c.value for c in scene.constraints if isinstance(c, TemperatureConstraint)]
+    return {"bulk_median": float(np.mean(held)) / scene.conduction.t_max}
+
+
+FIELD = Reference(field=analytic, kind="analytic")  # also what a study file's [[scene]] gets
+SCALARS = (
+    Scalar("bulk_median", "", "median of T / t_max over the lattice nodes (the paper's bulk temperature)"),
+    Scalar("volume_mean", "", "volume mean of T / t_max"),
+)
+PLACEMENTS = ("back-edge", "diagonal")
+PLACEMENT = Param("placement", "back-edge", "", "which two bottom corners are frozen", choices=PLACEMENTS, kind=str)
+
+
+def corners(box: Box, placement: str) -> list[tuple[tuple[float, float, float], float]]:
+    """(point, fraction of t_max) of the paper's three corners: the hot one on the front top edge, (0, H, 0),
+    and the two frozen ones on the bottom face (docs/physics.md, "The heating scenes")."""
+    frozen = {"back-edge": ((box.width, 0.0, 0.0), (box.width, 0.0, box.length)),
+              "diagonal": ((box.width, 0.0, 0.0), (0.0, 0.0, box.length))}[placement]
+    return [((0.0, box.height, 0.0), 1.0)] + [(c, 0.0) for c in frozen]
+
+
+def _paper(p: dict[str, Any]) -> Scene:
+    box = box_of(p)
+    cons = tuple(PointTemperature(pt, frac * p["t_max"]) for pt, frac in corners(box, p["placement"]))
+    return Scene("bar-heat-paper", PAPER.description, box, ALUMINIUM, frozenset({"conduction"}), cons,
+                 conduction=Conduction(t_max=p["t_max"]), params=params(p))
+
+
+def _patch(p: dict[str, Any]) -> Scene:
+    box = box_of(p)
+    cons = tuple(PatchTemperature(pt, p["rho"], frac * p["t_max"]) for pt, frac in corners(box, p["placement"]))
+    return Scene("bar-heat-patch", PATCH.description, box, ALUMINIUM, frozenset({"conduction"}), cons,
+                 conduction=Conduction(t_max=p["t_max"]), params=params(p))
+
+
+def _faces(p: dict[str, Any]) -> Scene:
+    if p["mode"] == "transient" and p["dt"] > p["t_end"]:
+        raise SceneError(f"dt={p['dt']!r} is out of range; allowed: number in (0, t_end={p['t_end']:g}] s")
+    transient = p["mode"] == "transient"
+    cons = (FaceTemperature("z0", p["t_max"]), FaceTemperature("zL", 0.0))
+    heat = Conduction(t_max=p["t_max"], mode=p["mode"], t_end=p["t_end"] if transient else 0.0,
+                      dt=p["dt"] if transient else 0.0, initial_temperature=0.0)
+    return Scene("bar-heat-faces", FACES.description, box_of(p), ALUMINIUM, frozenset({"conduction"}), cons,
+                 conduction=heat, params=params(p))
+
+
+PAPER = SceneSpec(
+    "bar-heat-paper",
+    "Steady conduction, insulated bar, hot corner at t_max and two frozen corners at 0 K fixed at "
+    "points (the paper's setting; mesh-dependent in 3-D)",
+    (*DIMENSIONS, PLACEMENT, T_MAX), _paper, Reference(scalars=_paper_bulk, kind="mesh-dependent"), SCALARS)
+PATCH = SceneSpec(
+    "bar-heat-patch",
+    "As bar-heat-paper, but each corner temperature is held on a spherical-octant patch of radius "
+    "rho (well-posed; mesh-converged reference)",
+    (*DIMENSIONS, PLACEMENT, T_MAX, Param("rho", 1e-3, "m", "patch radius", low=0.0, high=4e-3, low_open=True)),
+    _patch, None, SCALARS)
+FACES = SceneSpec(
+    "bar-heat-faces",
+    "Face z=0 at t_max, face z=L at 0 K, other faces insulated: linear steady profile, "
+    "Fourier-series transient from 0 K (analytic reference)",
+    (
+        *DIMENSIONS,
+        T_MAX,
+        Param("mode", "steady", "", "steady or transient", choices=("steady", "transient"), kind=str),
+        Param("t_end", 1.0, "s", "end time of the transient", low=0.0, high=1e4, low_open=True),
+        Param("dt", 0.01, "s", "continuum time step of the transient", low=0.0, high=1e4, low_open=True),
+    ),
+    _faces, FIELD, SCALARS)
+SCENES = (PAPER, PATCH, FACES)

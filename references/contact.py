@@ -1,0 +1,369 @@
+"""The contact family: two duralumin blocks pressed, slid, pulled by a spring, tilted and heated by friction; their
+references and the summary scalars a contact solver reports (`SCALARS`: names, units, signs).  Reference scalars:
+block-contact-compression's contact pressure E |strain| (uniform), stick-slip's rigid-block cycle, an incline's
+acceleration, frictional-heating's share of the heat the base holds, e1 / (e1 + e2); the history reference is the
+stick-slip spring force.  frictional-heating's field is the heat family's slab.
+
+The stick-slip cycle of a rigid block pulled by a spring across a plane with static and kinetic friction.
+
+A block of mass m, pressed by the normal force N, is pulled along the plane by a spring of stiffness k whose far
+end moves at the constant speed V; friction holds it while the spring force F stays within mu_s N (stick) and
+resists at mu_k N while it slides (mu_k <= mu_s).  Starting at rest with the spring unstretched, it sticks for
+t_0 = mu_s N / (k V); then every slip is the same.  With omega = sqrt(k / m), Delta = (mu_s - mu_k) N and tau
+the time since the slip began, F'' = -omega^2 (F - mu_k N) during the slip, from F = mu_s N and F' = k V:
+    F - mu_k N = Delta cos(omega tau) + (k V / omega) sin(omega tau),
+    x' = V (1 - cos(omega tau)) + (omega Delta / k) sin(omega tau)   (the block's velocity),
+and the slip ends when x' is 0 again: tan(omega tau / 2) = -omega Delta / (k V), i.e. after
+    t_slip = (pi + 2 atan(k V / (omega Delta))) / omega,
+where F - mu_k N = -Delta: the trough is (2 mu_k - mu_s) N, the force drop 2 Delta. While the block slips the force
+first still rises (F' = k (V - x')), to its largest value mu_k N + sqrt(Delta^2 + (k V / omega)^2). The block then
+sticks (|F| <= mu_s N) until F is back at mu_s N:
+    t_stick = 2 Delta / (k V),   period = t_stick + t_slip,
+and the largest slip velocity is V + sqrt(V^2 + (omega Delta / k)^2).  With mu_s = mu_k there is no stick:
+t_stick = 0 and the block slides on (its velocity touches 0 once a period 2 pi / omega).
+A scene's cycle: m = density x the slider's volume (body 2), N = normal_stress x its far face's area.
+
+An elastic slider need not break away at mu_s N (its contacts do not reach the static limit together: a slip
+front runs across them); whatever force F_p it breaks away at, the rigid block's slip from F_p follows from the
+same equations with Delta' = F_p - mu_k N in place of Delta (`given_peak`): trough mu_k N - Delta', slip time
+(pi + 2 atan(k V / (omega Delta'))) / omega, stick 2 Delta' / (k V), largest velocity V + sqrt(V^2 + (omega
+Delta' / k)^2), largest force mu_k N + sqrt(Delta'^2 + (k V / omega)^2): the kinetic half of the cycle, checked
+apart from the static limit.
+
+An incline (a block under its own weight m g tilted by theta from the plane's normal): it sticks while tan theta
+<= mu_s, else it slides with the acceleration g (sin theta - mu_k cos theta) (`incline_acceleration`).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from pcverify.references.heat import analytic, effusivity
+from pcverify.references.shared import DIMENSIONS, DURALUMIN_THERMAL, box_of, number, params
+from pcverify.scene import (
+    DURALUMIN,
+    Conduction,
+    Contact,
+    Elasticity,
+    FaceClamp,
+    FaceSupport,
+    InterfaceFlux,
+    Param,
+    Reference,
+    Scalar,
+    Scene,
+    SceneError,
+    SceneSpec,
+)
+
+
+class Cycle(NamedTuple):
+    """The steady cycle: spring force at slip onset (peak) and at slip end (trough) and their difference (N),
+    stick and slip times and their sum (s), the largest slip velocity (m/s), the first stick (s), omega (1/s), the
+    largest spring force (N, reached while slipping)."""
+
+    peak: float
+    trough: float
+    drop: float
+    stick: float
+    slip: float
+    period: float
+    slip_velocity: float
+    first_stick: float
+    omega: float
+    largest: float
+
+
+def cycle(mass: float, normal_force: float, stiffness: float, speed: float, mu_static: float,
+          mu_kinetic: float) -> Cycle:
+    """The closed-form cycle of the module docstring (SI units; mu_static >= mu_kinetic >= 0, the rest > 0)."""
+    omega = math.sqrt(stiffness / mass)
+    delta = (mu_static - mu_kinetic) * normal_force
+    slip = (math.pi + 2.0 * math.atan2(stiffness * speed, omega * delta)) / omega
+    stick = 2.0 * delta / (stiffness * speed)
+    return Cycle(peak=mu_static * normal_force, trough=(2.0 * mu_kinetic - mu_static) * normal_force,
+                 drop=2.0 * delta, stick=stick, slip=slip, period=stick + slip,
+                 slip_velocity=speed + math.hypot(speed, omega * delta / stiffness),
+                 first_stick=mu_static * normal_force / (stiffness * speed), omega=omega,
+                 largest=mu_kinetic * normal_force + math.hypot(delta, stiffness * speed / omega))
+
+
+def given_peak(setting: Setting, peak: float) -> dict[str, float]:
+    """The rigid block's cycle from a breakaway at the spring force `peak` (N) instead of mu_s N (module
+    docstring), by the summary names a solver reports with the suffix `_given_peak`; empty unless peak lies in
+    (mu_k N, inf)."""
+    kinetic = setting.mu_kinetic * setting.normal_force
+    if not (math.isfinite(peak) and peak > kinetic):
+        return {}
+    c = cycle(setting.mass, setting.normal_force, setting.stiffness, setting.speed, peak / setting.normal_force,
+              setting.mu_kinetic)
+    return {"spring_trough_N_given_peak": c.trough, "spring_max_N_given_peak": c.largest,
+            "stick_s_given_peak": c.stick, "slip_s_given_peak": c.slip, "period_s_given_peak": c.period,
+            "slip_velocity_peak_given_peak": c.slip_velocity}
+
+
+def spring_force(t: np.ndarray, mass: float, normal_force: float, stiffness: float, speed: float, mu_static: float,
+                 mu_kinetic: float) -> np.ndarray:
+    """The spring force F(t) (N) from the start (spring unstretched, block at rest): the first stick, then the
+    steady cycle (stick ramps at k V, slips as the module docstring's F)."""
+    c = cycle(mass, normal_force, stiffness, speed, mu_static, mu_kinetic)
+    t = np.asarray(t, dtype=float)
+    delta = (mu_static - mu_kinetic) * normal_force
+    out = stiffness * speed * np.maximum(t, 0.0)
+    late = t > c.first_stick
+    phase = np.mod(t[late] - c.first_stick, c.period)
+    slipping = phase < c.slip
+    wt = c.omega * phase
+    slip = mu_kinetic * normal_force + delta * np.cos(wt) + stiffness * speed / c.omega * np.sin(wt)
+    stick = c.trough + stiffness * speed * (phase - c.slip)
+    out[late] = np.where(slipping, slip, stick)
+    return out
+
+
+class Setting(NamedTuple):
+    """What the cycle of a scene takes: the slider's mass (kg), the normal force (N), the spring's stiffness
+    (N/m), its far end's speed (m/s) and the friction pair."""
+
+    mass: float
+    normal_force: float
+    stiffness: float
+    speed: float
+    mu_static: float
+    mu_kinetic: float
+
+
+def setting(scene: Scene) -> Setting | None:
+    """The rigid block a stick-slip scene declares (None for any other scene): body 2 (above the contact plane,
+    within its span along the sliding direction) as the block, pressed by normal_stress on its far face."""
+    contact = scene.contact
+    if contact is None or contact.spring_stiffness is None:
+        return None
+    extent = np.asarray(scene.box.extent, dtype=float).copy()
+    extent[contact.axis_index] -= contact.position
+    if contact.span is not None:
+        extent[contact.direction_index] = contact.span[1] - contact.span[0]
+    face = float(np.prod(np.delete(extent, contact.axis_index)))
+    return Setting(mass=scene.material.density * float(np.prod(extent)), normal_force=contact.normal_stress * face,
+                   stiffness=contact.spring_stiffness, speed=contact.speed, mu_static=contact.mu_static,
+                   mu_kinetic=contact.mu_kinetic)
+
+
+def expected(scene: Scene) -> dict[str, float]:
+    """The cycle of a stick-slip scene by the summary names a solver reports it under (empty for other scenes):
+    spring_peak_N, spring_trough_N, force_drop_N, spring_max_N, stick_s, slip_s, period_s, slip_velocity_peak
+    (m/s)."""
+    s = setting(scene)
+    if s is None:
+        return {}
+    c = cycle(*s)
+    return {"spring_peak_N": c.peak, "spring_trough_N": c.trough, "force_drop_N": c.drop, "spring_max_N": c.largest,
+            "stick_s": c.stick,
+            "slip_s": c.slip, "period_s": c.period, "slip_velocity_peak": c.slip_velocity}
+
+
+def incline_acceleration(scene: Scene) -> float | None:
+    """The acceleration (m/s^2) of a rigid block on an incline scene (None for any other scene): 0 while tan(theta)
+    <= mu_s (it sticks), else g (sin(theta) - mu_k cos(theta)), theta = incline_angle, g = gravity."""
+    contact = scene.contact
+    if contact is None or contact.incline_angle is None:
+        return None
+    theta = math.radians(contact.incline_angle)
+    if math.tan(theta) <= contact.mu_static:
+        return 0.0
+    return contact.gravity * (math.sin(theta) - contact.mu_kinetic * math.cos(theta))
+
+
+SCALARS = (
+    Scalar("contact_pressure_mean", "Pa", "area-weighted mean pressure of the closed contacts (positive in "
+           "compression)"),
+    Scalar("contact_pressure_uniformity", "", "(max - min) / mean of the closed contacts' pressure"),
+    Scalar("mu_dr_mean", "", "macroscopic friction coefficient F_dr / F_N over the sliding window (eq. 17), with "
+           "mu_dr_expected and mu_dr_error against the friction law"),
+    Scalar("energy_balance_error", "", "largest energy imbalance over the sliding window relative to the drive's work"),
+    Scalar("spring_peak_N", "N", "spring force at slip onset (breakaway), mean over the cycles after the first; also "
+           "spring_trough_N, force_drop_N, spring_max_N (N), stick_s, slip_s, period_s (s), slip_velocity_peak (m/s)"),
+    Scalar("slide_acceleration", "m/s^2", "the slider's acceleration down an incline (0 while it sticks)"),
+    Scalar("heat_share_base", "", "share of the friction heat the lower block (body 1) holds at t_end"),
+    Scalar("interface_rise_base_ratio", "", "rise next to the plane in the base against two semi-infinite solids in "
+           "contact (also _slider_ratio)"),
+    Scalar("flux_ratio", "", "the friction law's mean flux against the declared interface flux"),
+)
+GIVEN_PEAK = ("spring_trough_N", "spring_max_N", "stick_s", "slip_s", "period_s", "slip_velocity_peak")
+
+
+def _cycle(scene: Scene, summary: dict[str, Any]) -> dict[str, float]:
+    """The rigid block's cycle, and its kinetic half from the measured breakaway (NAME_given_peak: NaN unless the
+    summary's spring_peak_N is above mu_k N)."""
+    peak = number(summary.get("spring_peak_N"))
+    given = given_peak(setting(scene), peak if peak is not None else math.nan)
+    return expected(scene) | {f"{name}_given_peak": given.get(f"{name}_given_peak", math.nan) for name in GIVEN_PEAK}
+
+
+def _spring(scene: Scene, t: np.ndarray) -> tuple[np.ndarray, str]:
+    return spring_force(t, *setting(scene)), "rigid block (analytic)"
+
+
+def _slide(scene: Scene, summary: dict[str, Any]) -> dict[str, float]:
+    return {"slide_acceleration": incline_acceleration(scene)}
+
+
+def _pressure(scene: Scene, summary: dict[str, Any]) -> dict[str, float]:
+    """The uniaxial stress E |strain| of the bonded stack crosses the interface uniformly."""
+    return {"contact_pressure_mean": scene.material.youngs_modulus * abs(dict(scene.params)["strain"]),
+            "contact_pressure_uniformity": 0.0}
+
+
+def _heat_share(scene: Scene, summary: dict[str, Any]) -> dict[str, float]:
+    """Two semi-infinite solids in contact share a flux made between them as their effusivities (source=friction)."""
+    contact, mat = scene.contact, scene.material
+    if contact is None:
+        return {}
+    k = mat.conductivity if contact.base_conductivity is None else contact.base_conductivity
+    c = mat.heat_capacity if contact.base_heat_capacity is None else contact.base_heat_capacity
+    base, slider = effusivity(k, mat.density, c), effusivity(mat.conductivity, mat.density, mat.heat_capacity)
+    return {"heat_share_base": base / (base + slider)}
+
+
+def _pressed(p: dict[str, Any]) -> Scene:
+    box = box_of(p)
+    cons = (FaceSupport("z0"), FaceSupport("zL", p["strain"] * box.length))
+    return Scene("block-contact-compression", COMPRESSION.description, box, DURALUMIN,
+                 frozenset({"elasticity", "contact"}), cons, elasticity=Elasticity(),
+                 contact=Contact(axis="z", position=box.length / 2), params=params(p))
+
+
+def _slider(name: str, p: dict[str, Any], physics: set[str], **contact: Any) -> Scene:
+    """A slider (the middle third of the upper half) on its base clamped at y=0."""
+    box = box_of(p)
+    part = Contact(axis="y", position=box.height / 2, direction="z", duration=p["duration"],
+                   span=(box.length / 3, 2 * box.length / 3), **contact)
+    return Scene(name, SPECS[name].description, box, DURALUMIN, frozenset({"elasticity", "contact", *physics}),
+                 (FaceClamp("y0"),), elasticity=Elasticity(), contact=part, params=params(p))
+
+
+def _heating(p: dict[str, Any]) -> Scene:
+    if p["dt"] > p["t_end"]:
+        raise SceneError(f"dt={p['dt']!r} is out of range; allowed: number in (0, t_end={p['t_end']:g}] s")
+    box = box_of(p)
+    flux = p["friction"] * p["normal_stress"] * p["speed"]
+    heat = Conduction(t_max=p["t_max"], mode="transient", t_end=p["t_end"], dt=p["dt"],
+                      interface=InterfaceFlux(flux, box.length / 2, "z"))
+    physics = {"conduction", "interface-flux"}
+    base = {k: p[k] for k in ("base_conductivity", "base_heat_capacity") if p[k] is not None}
+    if p["source"] == "flux" and base:
+        name = next(iter(base))
+        raise SceneError(f"{name}={base[name]!r} is not allowed with source='flux'; allowed: source='friction' (the "
+                         "flux scene is one material, as the continuum solvers take it)")
+    if p["source"] == "flux":
+        return Scene("frictional-heating", HEATING.description, box, DURALUMIN_THERMAL, frozenset(physics), (),
+                     conduction=heat, params=params(p))
+    contact = Contact(axis="z", position=box.length / 2, normal_stress=p["normal_stress"], speed=p["speed"],
+                      direction="x", duration=p["duration"], heating=True, platen=True, **base)
+    return Scene("frictional-heating", HEATING.description, box, DURALUMIN_THERMAL,
+                 frozenset(physics | {"elasticity", "contact", "frictional-heating"}), (FaceClamp("z0"),),
+                 conduction=heat, elasticity=Elasticity(), contact=contact, params=params(p))
+
+
+def _pressure_param(default: float) -> Param:
+    return Param("normal_stress", default, "Pa", "pressure on the slider's top face", low=0.0, high=1e9,
+                 low_open=True)
+
+
+MU_STATIC = Param("mu_static", 0.4, "", "static friction coefficient of the two surfaces (>= mu_kinetic)", low=0.0,
+                  high=5.0)
+MU_KINETIC = Param("mu_kinetic", 0.3, "", "kinetic friction coefficient of the two surfaces", low=0.0, high=5.0)
+HEAT_SOURCES = ("friction", "flux")
+COMPRESSION = SceneSpec(
+    "block-contact-compression",
+    "Two duralumin blocks stacked along z, unlinked at the interface z = L/2 (contact by the segment method), "
+    "compressed between frictionless supports on z=0 and z=L by strain * L (analytic: the uniaxial stress "
+    "E |strain| of the bonded bar crosses the interface uniformly); n even",
+    (*DIMENSIONS, Param("strain", -1e-3, "", "nominal axial strain (negative = compression)", low=-0.01,
+                        high=0.0, high_open=True)),
+    _pressed, Reference(scalars=_pressure), SCALARS)
+SLIDING = SceneSpec(
+    "block-sliding",
+    "A duralumin slider (the middle third of the upper half, y > H/2) pressed by normal_stress on a base "
+    "(y < H/2, clamped at y=0) and driven along z at speed for duration after a smooth start: the macroscopic "
+    "friction coefficient mu_dr = F_dr / F_N (eq. 17) and the energy balance; n even",
+    (
+        *DIMENSIONS,
+        _pressure_param(1e6),
+        Param("speed", 1.0, "m/s", "sliding speed of the slider's top face", low=0.0, high=100.0, low_open=True),
+        Param("duration", 1e-3, "s", "sliding time at full speed (the averaging window)", low=0.0, high=1.0,
+              low_open=True),
+    ),
+    lambda p: _slider("block-sliding", p, set(), normal_stress=p["normal_stress"], speed=p["speed"]), None, SCALARS)
+STICK_SLIP = SceneSpec(
+    "stick-slip",
+    "The block-sliding slider pressed by normal_stress on its clamped base and pulled along z by a spring of "
+    "stiffness spring_stiffness whose far end moves at speed (pulling at the slider's centre of mass), with "
+    "static and kinetic friction mu_static >= mu_kinetic: the analytic stick-slip cycle of a rigid block "
+    "(references/stick_slip.py: peak mu_static N, force drop 2 (mu_static - mu_kinetic) N, period, largest "
+    "slip velocity); defaults: the spring's 0.95 kHz far below the slider's lowest elastic frequency (~150 "
+    "kHz), 3 cycles after the first in duration; n even",
+    (
+        *DIMENSIONS,
+        _pressure_param(1e6),
+        Param("speed", 0.5, "m/s", "speed of the spring's far end", low=0.0, high=100.0, low_open=True),
+        Param("spring_stiffness", 5e4, "N/m", "stiffness of the drive spring", low=0.0, high=1e12, low_open=True),
+        MU_STATIC,
+        MU_KINETIC,
+        Param("duration", 7e-3, "s", "time the spring's far end moves (the whole run after the preload)",
+              low=0.0, high=1.0, low_open=True),
+    ),
+    lambda p: _slider("stick-slip", p, {"stick-slip"}, normal_stress=p["normal_stress"], speed=p["speed"],
+                      spring_stiffness=p["spring_stiffness"], mu_static=p["mu_static"], mu_kinetic=p["mu_kinetic"]),
+    Reference(scalars=_cycle, history=_spring), SCALARS)
+INCLINE = SceneSpec(
+    "incline",
+    "The block-sliding slider on its clamped base under its own weight only, the body force gravity tilted by "
+    "angle from the contact's normal towards +z, friction pair mu_static >= mu_kinetic: a rigid block sticks "
+    "while tan(angle) <= mu_static, else slides with the acceleration gravity (sin(angle) - mu_kinetic "
+    "cos(angle)) (references/stick_slip.py); gravity is large by default (1e5 m/s^2: the slider's weight "
+    "137 N) so that the contact is pressed as in stick-slip; n even",
+    (
+        *DIMENSIONS,
+        Param("angle", 30.0, "degrees", "tilt of the body force from the contact's normal", low=0.0, high=89.0),
+        Param("gravity", 1e5, "m/s^2", "magnitude of the body force per mass", low=0.0, high=1e9, low_open=True),
+        MU_STATIC,
+        MU_KINETIC,
+        Param("duration", 5e-4, "s", "time the tilted weight acts (after the normal preload)", low=0.0,
+              high=1.0, low_open=True),
+    ),
+    lambda p: _slider("incline", p, {"incline"}, mu_static=p["mu_static"], mu_kinetic=p["mu_kinetic"],
+                      incline_angle=p["angle"], gravity=p["gravity"]),
+    Reference(scalars=_slide), SCALARS)
+HEATING = SceneSpec(
+    "frictional-heating",
+    "Two duralumin blocks stacked along z (interface z = L/2, base clamped at z=0), the upper one pressed by "
+    "normal_stress and slid along x at speed under a platen: the friction power heats both (MCA mechanics "
+    "-> MCA heat, source=friction); the reference is the same bar with the interface flux q = friction * "
+    "normal_stress * speed (source=flux: continuum solvers; analytic slab and, at short times, the "
+    "semi-infinite rise); insulated faces, from 0 K to t_end; n even",
+    (
+        *DIMENSIONS,
+        Param("source", "friction", "", "friction: MCA's sliding contact makes the heat; flux: the interface "
+              "flux is given (any heat solver)", choices=HEAT_SOURCES, kind=str),
+        Param("normal_stress", 1e6, "Pa", "pressure on the upper block's top face", low=0.0, high=1e9,
+              low_open=True),
+        Param("speed", 1.0, "m/s", "sliding speed", low=0.0, high=100.0, low_open=True),
+        Param("friction", 0.3, "", "friction coefficient of the declared flux q = friction normal_stress "
+              "speed (MCA's own law must dissipate it: its mu1 defaults to the same 0.3)", low=0.0, high=5.0),
+        Param("duration", 3e-4, "s", "sliding time at full speed over which the friction power is averaged",
+              low=0.0, high=1.0, low_open=True),
+        Param("t_end", 0.5, "s", "heating time", low=0.0, high=1e4, low_open=True),
+        Param("dt", 0.005, "s", "continuum time step", low=0.0, high=1e4, low_open=True),
+        Param("t_max", 10.0, "K", "temperature scale (relative results are T/t_max)", low=1e-3, high=1e5),
+        Param("base_conductivity", None, "W/(m K)", "the lower block's own conductivity (dissimilar blocks, "
+              "source=friction; none = duralumin's 121)", low=0.0, high=1e4, low_open=True, optional=True),
+        Param("base_heat_capacity", None, "J/(kg K)", "the lower block's own heat capacity (dissimilar "
+              "blocks, source=friction; none = duralumin's 875)", low=0.0, high=1e5, low_open=True,
+              optional=True),
+    ),
+    _heating, Reference(field=analytic, scalars=_heat_share), SCALARS)
+SCENES = (COMPRESSION, SLIDING, STICK_SLIP, INCLINE, HEATING)
+SPECS = {spec.name: spec for spec in SCENES}
