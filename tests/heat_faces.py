@@ -1,4 +1,5 @@
-"""Analytic references for `bar-heat-faces`: face z=0 at t_max, z=L at 0 K, others insulated.
+"""The Fourier series of `bar-heat-faces` written out on its own, a cross-check of the heat family's slab (tests only):
+face z=0 at t_max, z=L at 0 K, others insulated.
 
 The field depends on z only.  Steady: T = t_max (1 - z/L).  Transient from T = 0 at t = 0
 (the faces switched on at t = 0+), by separation of variables:

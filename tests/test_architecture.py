@@ -23,7 +23,7 @@ def test_import_contracts_hold() -> None:
     ("solvers/particles/mca/heat.py", "from pcverify.harness.spec import study", "Data flows one way"),
     ("harness/report/write.py", "from pcverify.solvers.particles.macromolecule import solver",
      "The harness reaches solvers only through the registry"),
-    ("references/heat_faces.py", "import pcverify.solvers.registry", "Data flows one way"),
+    ("references/shared.py", "import pcverify.solvers.registry", "Data flows one way"),
     ("scene/geometry.py", "from pcverify.harness.run import cache", "Data flows one way"),
     ("fingerprint.py", "from pcverify.scene import params", "Data flows one way"),
     ("harness/spec/study.py", "from pcverify.harness.run import cache", "Harness layers"),

@@ -22,7 +22,7 @@ import pytest
 from pcverify.harness.cli import main
 from pcverify.harness.judge.metrics import field_errors
 from pcverify.harness.spec.catalogue import make_scene
-from pcverify.references import analytic
+from pcverify.references.heat import analytic
 from pcverify.scene import Resolution
 
 REPO = Path(__file__).resolve().parent.parent

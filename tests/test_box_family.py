@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from pcverify.harness.spec.catalogue import make_scene
-from pcverify.references import analytic
+from pcverify.references.heat import analytic
 from pcverify.scene import ALUMINIUM, Box, Conduction, FaceTemperature, Resolution, Scene
 from pcverify.solvers.registry import SHIPPED, get_solver
 

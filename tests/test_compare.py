@@ -15,8 +15,6 @@ from pathlib import Path
 import pandas as pd
 from lint_imports import installed_layout
 
-from pcverify import references
-from pcverify.fingerprint import module_fingerprint
 from pcverify.harness.cli import main
 from pcverify.harness.judge import compare
 from pcverify.harness.judge.tables import cells_table
@@ -25,6 +23,7 @@ from pcverify.harness.run.cache import Cache
 from pcverify.harness.run.execution import cell_identity, execute
 from pcverify.harness.spec.catalogue import make_scene
 from pcverify.harness.spec.study import Group, Study, load_study
+from pcverify.references import heat
 
 REPO = Path(__file__).resolve().parent.parent
 TIMES = ("wall_s", "kernel_s", "kernel_cpu_s", "kernel_wall_s")
@@ -168,7 +167,7 @@ def test_tables_and_calibrations_read_the_stored_errors(tmp_path, monkeypatch) -
         raise AssertionError("a table evaluated the reference")
 
     for name, module in list(sys.modules.items()):
-        if name.startswith("pcverify") and getattr(module, "analytic", None) is references.analytic:
+        if name.startswith("pcverify") and getattr(module, "analytic", None) is heat.analytic:
             monkeypatch.setattr(module, "analytic", boom)
     monkeypatch.setattr(compare, "errors", boom)
     for p in (out / "stored-errors").glob("*.csv"):
@@ -180,26 +179,31 @@ def test_tables_and_calibrations_read_the_stored_errors(tmp_path, monkeypatch) -
     assert steady and all(set(r["errors"]["nodes"]) == {"l2", "linf", "reference"} for r in steady)
 
 
-def test_the_cell_key_covers_the_compare_step_and_the_references(tmp_path) -> None:
-    """The key payload holds the compare module's fingerprint, which follows its imports into the references:
-    an edit of references/slab.py (a copy of the source) changes it."""
+def test_the_cell_key_covers_the_compare_step_and_the_scene_family(tmp_path) -> None:
+    """The key payload holds the compare step's fingerprint: its own module's (which follows its imports) and
+    that of the family module defining the scene's spec and reference.  An edit of references/contact.py (a copy
+    of the source) changes the key of a contact cell, one of references/heat.py that of a heat cell."""
     paper = load_study("continuum-heat").groups[0]
     payload, skip = cell_identity(paper.cells[0])
-    assert skip is None and payload["compare"] == module_fingerprint(compare.__name__)
+    assert skip is None and payload["compare"] == compare.fingerprint(paper.cells[0].scene)
     copy = installed_layout(REPO, tmp_path / "copy")
-    probe = ("import json, pcverify.harness.judge.compare as c; from pcverify.fingerprint import "
-             "module_fingerprint as f; print(json.dumps([c.__file__, f(c.__name__)]))")
+    probe = ("import json, pcverify.harness.judge.compare as c; from pcverify.harness.spec.catalogue import "
+             "make_scene as m; print(json.dumps([c.__file__, c.fingerprint(m('bar-heat-faces')), "
+             "c.fingerprint(m('stick-slip'))]))")
 
-    def fingerprint() -> tuple[str, str]:
+    def fingerprint() -> tuple[str, str, str]:
         done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True,
                               env={**os.environ, "PYTHONPATH": str(copy)}, cwd=tmp_path)
         return tuple(json.loads(done.stdout))
 
-    where, same = fingerprint()
-    assert where.startswith(str(copy)) and same == payload["compare"]
-    slab = copy / "pcverify" / "references" / "slab.py"
+    where, heat, contact = fingerprint()
+    assert where.startswith(str(copy)) and heat == compare.fingerprint(make_scene("bar-heat-faces"))
+    family = copy / "pcverify" / "references" / "contact.py"
+    family.write_text(family.read_text().replace("import math", "import math\nSHIFT = 1.0", 1))
+    assert fingerprint()[2] != contact
+    slab = copy / "pcverify" / "references" / "heat.py"
     slab.write_text(slab.read_text().replace("import math", "import math\nSHIFT = 1.0", 1))
-    assert fingerprint()[1] != same
+    assert fingerprint()[1] != heat
 
 
 def test_a_scene_without_a_reference_has_no_errors() -> None:

@@ -1,5 +1,5 @@
 """Heat released inside the body: the volumetric source and the interface flux in both continuum heat
-solvers (scikit-fem Q1, FiPy FV), against the slab references (references/slab.py).
+solvers (scikit-fem Q1, FiPy FV), against the slab references (references/heat.py).
 
 Every scene here reduces to one dimension (loads uniform across the section, side faces insulated), so
 the exact solution is known; measured values are quoted in the comments (deterministic up to round-off).
@@ -10,8 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pcverify.references import analytic
-from pcverify.references.slab import semi_infinite_rise
+from pcverify.references.heat import analytic, semi_infinite_rise
 from pcverify.scene import (
     ALUMINIUM,
     Box,

@@ -1,7 +1,7 @@
 """bar-modes on the particle lattices: MCA and the macromolecule lattice against scikit-fem Q2.
 
 The reference is scikit-fem Q2 on the n = 2 grid refined 3 times (h = 3.3 mm), within ~0.3 % of the
-Richardson-extrapolated frequencies (references.elasticity.converged_frequencies: bending 8412.7 Hz):
+Richardson-extrapolated frequencies (references.elastic: bending 8412.7 Hz):
 small against the lattice errors asserted here (MCA 5-13 %, the macromolecule lattice ~40 %).
 """
 

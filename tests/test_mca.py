@@ -16,8 +16,7 @@ import pytest
 from mca_block import block_curve
 
 from pcverify.harness.spec.catalogue import make_scene
-from pcverify.references import analytic
-from pcverify.references.slab import semi_infinite_rise
+from pcverify.references.heat import analytic, semi_infinite_rise
 from pcverify.scene import (
     ALUMINIUM,
     Box,

@@ -20,7 +20,8 @@ import numpy as np
 import pytest
 
 from pcverify.harness.spec.catalogue import make_scene
-from pcverify.references import analytic, slab
+from pcverify.references import heat as slab
+from pcverify.references.heat import analytic
 from pcverify.scene import Box, Contact, Resolution, SceneError
 from pcverify.solvers.particles.mca import contact as ct
 from pcverify.solvers.particles.mca import contact_scenes as cs

@@ -4,12 +4,12 @@ energy balance; the short-time limit of the interface flux is the semi-infinite 
 import dataclasses
 import math
 
+import heat_faces
 import numpy as np
 import pytest
 
 from pcverify.harness.spec.catalogue import make_scene
-from pcverify.references import analytic, heat_faces
-from pcverify.references.slab import Slab, effusivity, effusivity_shares, semi_infinite_rise
+from pcverify.references.heat import Slab, analytic, effusivity, effusivity_shares, semi_infinite_rise
 from pcverify.scene import ALUMINIUM, Box, Conduction, FaceTemperature, InterfaceFlux, Scene
 
 L, ALPHA = 0.03, 237.0 / (2700.0 * 897.0)

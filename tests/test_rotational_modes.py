@@ -20,7 +20,7 @@ import pytest
 
 import pcverify.solvers.modes as modes
 from pcverify.harness.spec.catalogue import make_scene
-from pcverify.references.elasticity import mca_rotational_hz
+from pcverify.references.elastic import mca_rotational_hz
 from pcverify.scene import Resolution
 from pcverify.solvers.particles.mca.solver import Mca
 

@@ -20,7 +20,7 @@ from scipy.integrate import solve_ivp
 from pcverify.harness.cli import main
 from pcverify.harness.judge.compare import scalar_errors
 from pcverify.harness.spec.catalogue import make_scene
-from pcverify.references import stick_slip as ref
+from pcverify.references import contact as ref
 from pcverify.scene import Contact, SceneError
 from pcverify.solvers.particles.mca import stick_slip as mss
 from pcverify.solvers.particles.mca.solver import PARAMETERS

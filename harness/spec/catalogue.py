@@ -15,7 +15,8 @@ from typing import Any
 
 from pcverify import references
 from pcverify.harness.spec.schema import SCENE, check
-from pcverify.references import heat
+from pcverify.references.heat import FIELD as SLAB
+from pcverify.references.heat import SCALARS as HEAT_SCALARS
 from pcverify.references.shared import BOX, DIMENSIONS, box_of
 from pcverify.scene import (
     MATERIALS,
@@ -92,7 +93,7 @@ def make_scene(name: str, **params: Any) -> Scene:
 def reference_of(name: str) -> Reference | None:
     """The reference of the scene called `name`; a name this process does not know (a study file's scene, in a
     worker that did not load that study file) gets what every study-file scene gets, the heat family's slab."""
-    return get_spec(name).reference if name in entries() else heat.FIELD
+    return get_spec(name).reference if name in entries() else SLAB
 
 
 def spec_modules(name: str) -> tuple[str, ...]:
@@ -166,6 +167,6 @@ def spec_from_table(table: dict[str, Any], where: str) -> SceneSpec:
         return Scene(name, str(description), box_of(p), material, frozenset(physics), tuple(constraints),
                      conduction=conduction, elasticity=elasticity, params=tuple(sorted(p.items())))
 
-    spec = SceneSpec(name, str(description), dims, build, heat.FIELD, heat.SCALARS)
+    spec = SceneSpec(name, str(description), dims, build, SLAB, HEAT_SCALARS)
     spec.make()  # the scene at its defaults is valid now, not when a cell runs
     return spec
