@@ -150,6 +150,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
 
     p = sub.add_parser("scenes", help="list the scene catalogue with parameters (name, default, range, unit)")
+    p.add_argument("scene", nargs="?", help="one scene, with its reference and its family's summary scalars")
     p.add_argument("--json", action="store_true", help="machine-readable output")
 
     p = sub.add_parser("solvers", help="list the solvers with their parameters")

@@ -48,7 +48,6 @@ import math
 from typing import Any
 
 import numpy as np
-from scipy.linalg import eigh_tridiagonal
 
 from pcverify.references.shared import DIMENSIONS, box_of, params
 from pcverify.scene import (
@@ -176,9 +175,27 @@ def mca_rotational_hz(shear_modulus: float, density: float, spacing: float, krot
     spring = krot * shear_modulus * a
     diag = 8 * krot * shear_modulus * t + spring * np.r_[np.full(nz - 1, 2.0), 1.0]
     scale = 1.0 / np.sqrt(inertia)
-    vals = eigh_tridiagonal(diag * scale**2, -spring * scale[:-1] * scale[1:], eigvals_only=True,
-                            select="i", select_range=(0, 0))
-    return float(np.sqrt(vals[0]) / (2 * math.pi))
+    return math.sqrt(lowest_eigenvalue(diag * scale**2, -spring * scale[:-1] * scale[1:])) / (2 * math.pi)
+
+
+def lowest_eigenvalue(diag: np.ndarray, off: np.ndarray) -> float:
+    """The lowest eigenvalue of the symmetric tridiagonal matrix (diag, off) by bisection on its Sturm count (the
+    number of negative pivots of A - s I is the number of eigenvalues below s), to the last bit; numpy only, so
+    that the scene catalogue imports no scipy."""
+    radius = np.abs(np.r_[0.0, off]) + np.abs(np.r_[off, 0.0])
+    lo, hi = float((diag - radius).min()), float((diag + radius).max())
+    squares = np.r_[0.0, off**2].tolist()
+    while True:
+        mid = 0.5 * (lo + hi)
+        if not lo < mid < hi:
+            return mid
+        pivot, below = 1.0, False
+        for d, e2 in zip(diag.tolist(), squares, strict=True):  # one pass down the chain of planes
+            pivot = d - mid - e2 / pivot if pivot != 0.0 else d - mid - e2 / 1e-300
+            if pivot < 0.0:
+                below = True
+                break
+        lo, hi = (lo, mid) if below else (mid, hi)
 
 
 

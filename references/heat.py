@@ -46,7 +46,6 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from scipy.special import erfc
 
 from pcverify.references.shared import DIMENSIONS, T_MAX, box_of, params
 from pcverify.scene import (
@@ -65,6 +64,7 @@ from pcverify.scene import (
     TemperatureConstraint,
 )
 
+ERFC = np.vectorize(math.erfc, otypes=[float])  # numpy only: the scene catalogue imports no scipy
 MAX_TERMS = 2_000_000  # a guard against t -> 0 (the series then needs ~sqrt(ln(B/tol)/c) terms)
 
 
@@ -162,7 +162,7 @@ def semi_infinite_rise(flux: float, conductivity: float, diffusivity: float, t: 
     x = np.asarray(depth, dtype=float)
     root = math.sqrt(diffusivity * t)
     u = x / (2.0 * root)
-    ierfc = np.exp(-u * u) / math.sqrt(math.pi) - u * erfc(u)
+    ierfc = np.exp(-u * u) / math.sqrt(math.pi) - u * ERFC(u)
     return 2.0 * flux / conductivity * root * ierfc
 
 

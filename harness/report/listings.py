@@ -27,18 +27,36 @@ def _param_rows(params: tuple[Param, ...]) -> list[dict[str, Any]]:
 
 
 def list_scenes(args: argparse.Namespace) -> int:
-    """`pcverify scenes [--json]`: every scene of the catalogue, its description and parameters."""
+    """`pcverify scenes [NAME] [--json]`: every scene of the catalogue (or the one named: SceneError if unknown),
+    its description, parameters and reference kind; for one scene also the summary scalars of its family's
+    contract (name, unit, meaning and sign) and those its reference expects at the defaults."""
     rows = []
-    for name, entry in scene_entries().items():
+    table = scene_entries()
+    for name in table if args.scene is None else [get_spec(args.scene).name]:
         try:
             spec = get_spec(name)
-            rows.append({"name": name, "available": True, "origin": entry.origin, "description": spec.description,
-                         "parameters": _param_rows(spec.parameters)})
+            ref = spec.reference
+            row = {"name": name, "available": True, "origin": table[name].origin, "description": spec.description,
+                   "parameters": _param_rows(spec.parameters), "reference": None if ref is None else ref.kind,
+                   "scalars": [{"name": s.name, "unit": s.unit, "description": s.description} for s in spec.scalars]}
+            if args.scene is not None:
+                row["expected"] = ref.scalars(spec.make(), {}) if ref is not None and ref.scalars is not None else {}
+            rows.append(row)
         except SceneError as exc:
-            rows.append({"name": name, "available": False, "origin": entry.origin, "reason": str(exc),
+            rows.append({"name": name, "available": False, "origin": table[name].origin, "reason": str(exc),
                          "parameters": []})
-    return _print_entries(rows, args.json, lambda row, origin: f"{row['name']}{origin}\n  {row['description']}",
-                          (12, 10))
+    return _print_entries(rows, args.json, _scene_lines, (12, 10))
+
+
+def _scene_lines(row: dict[str, Any], origin: str) -> str:
+    """A scene's headline: name, description, reference kind; asked alone, its expected scalars and contract."""
+    lines = [f"{row['name']}{origin}", f"  {row['description']}",
+             f"  reference: {row['reference'] or 'none (compared with continuum solvers only)'}"]
+    if "expected" in row:
+        lines += [f"    expected {k:<30} {v:.9g}" for k, v in row["expected"].items()]
+        lines += ["  summary scalars of its family:"] + [f"    {s['name']:<30} [{s['unit'] or '-'}] {s['description']}"
+                                                      for s in row["scalars"]]
+    return "\n".join(lines)
 
 
 def list_solvers(args: argparse.Namespace) -> int:
