@@ -1,5 +1,6 @@
-"""An example pcverify plugin: an explicit finite-difference heat solver and a scene of its own.
+"""An example pcverify plugin: an explicit finite-difference heat solver and scenes of its own with their reference.
 
 Written only against pcverify's public API (`import pcverify`).  Installed with pip, it registers the
-solver `fd-heat` and the scene `long-bar-faces` through the entry points in its pyproject.toml.
+solver `fd-heat` and the scenes `long-bar-faces` and `long-bar-source` through the entry points in its
+pyproject.toml.
 """

@@ -1,4 +1,5 @@
-"""Explicit finite differences for transient heat conduction on the lattice grid of a box.
+"""Explicit finite differences for transient heat conduction, with a uniform volumetric source, on the lattice grid
+of a box.
 
 Nodes are the lattice of resolution n refined `refine` times (h = a / refine, the same grid pcverify's
 continuum solvers use).  Interior: the 7-point Laplacian; insulated faces: mirror ghost nodes
@@ -35,8 +36,8 @@ class FiniteDifferenceHeat:
     )
 
     def supports(self, scene: Scene) -> tuple[bool, str]:
-        if scene.physics != frozenset({"conduction"}):
-            return False, f"fd-heat does conduction without sources; the scene needs {sorted(scene.physics)}"
+        if not scene.physics <= {"conduction", "heat-source"}:
+            return False, f"fd-heat does conduction with a uniform source; the scene needs {sorted(scene.physics)}"
         if scene.conduction.mode != "transient":
             return False, "fd-heat is an explicit time stepper: transient scenes only"
         if not all(isinstance(c, FaceTemperature) for c in scene.constraints):
@@ -67,11 +68,13 @@ class FiniteDifferenceHeat:
             temp[tuple(index)] = c.value
             held[tuple(index)] = True
         rate = alpha * dt / (h * h)
+        rise = heat.source * dt / (scene.material.density * scene.material.heat_capacity)  # K per step
         for _ in range(steps):
             ghost = np.pad(temp, 1, mode="reflect")  # mirror nodes: zero normal gradient on free faces
             lap = (ghost[2:, 1:-1, 1:-1] + ghost[:-2, 1:-1, 1:-1] + ghost[1:-1, 2:, 1:-1] + ghost[1:-1, :-2, 1:-1]
                    + ghost[1:-1, 1:-1, 2:] + ghost[1:-1, 1:-1, :-2] - 6.0 * temp)
             temp = np.where(held, temp, temp + rate * lap)
+            temp[~held] += rise
         axes = [np.linspace(0.0, e, s) for e, s in zip(scene.box.extent, shape, strict=True)]
         field = RegularGridInterpolator(axes, temp / heat.t_max)
         sets = scene.sample_sets(resolution.n) if samples is None else samples
