@@ -54,6 +54,7 @@ COMMANDS = {  # command -> "module:function" that runs it, given the parsed argu
 EPILOG = """\
 examples:
   pcverify scenes                                   list the scenes and their parameters
+  pcverify scenes stick-slip                        one scene: its reference and its family's summary scalars
   pcverify solvers                                  list the solvers and their parameters
   pcverify run bar-heat-faces --solver skfem --n 4 --json
   pcverify run bar-heat-patch --solver fipy --n 3 --refine 4 --set rho=0.002

@@ -1,5 +1,4 @@
-"""Explicit finite differences for transient heat conduction, with a uniform volumetric source, on the lattice grid
-of a box.
+"""Explicit finite differences for transient heat conduction with a uniform source on the lattice grid of a box.
 
 Nodes are the lattice of resolution n refined `refine` times (h = a / refine, the same grid pcverify's
 continuum solvers use).  Interior: the 7-point Laplacian; insulated faces: mirror ghost nodes
