@@ -1,8 +1,6 @@
-"""The contact family: two duralumin blocks pressed, slid, pulled by a spring, tilted and heated by friction; their
-references and the summary scalars a contact solver reports (`SCALARS`: names, units, signs).  Reference scalars:
-block-contact-compression's contact pressure E |strain| (uniform), stick-slip's rigid-block cycle, an incline's
-acceleration, frictional-heating's share of the heat the base holds, e1 / (e1 + e2); the history reference is the
-stick-slip spring force.  frictional-heating's field is the heat family's slab.
+"""The contact family: two duralumin blocks pressed, slid, pulled by a spring, tilted and heated by friction, their
+references (the contact pressure, the rigid block's stick-slip cycle and incline, the heat share e1 / (e1 + e2), the
+heat family's slab) and the summary scalars a contact solver reports (`SCALARS`: names, units, signs).
 
 The stick-slip cycle of a rigid block pulled by a spring across a plane with static and kinetic friction.
 
@@ -41,7 +39,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from pcverify.references.heat import analytic, effusivity
+from pcverify.references.heat import analytic, effusivity, effusivity_shares
 from pcverify.references.shared import DIMENSIONS, DURALUMIN_THERMAL, box_of, number, params
 from pcverify.scene import (
     DURALUMIN,
@@ -177,19 +175,16 @@ def incline_acceleration(scene: Scene) -> float | None:
 
 
 SCALARS = (
-    Scalar("contact_pressure_mean", "Pa", "area-weighted mean pressure of the closed contacts (positive in "
-           "compression)"),
+    Scalar("contact_pressure_mean", "Pa", "area-weighted mean pressure of the closed contacts (positive pressing)"),
     Scalar("contact_pressure_uniformity", "", "(max - min) / mean of the closed contacts' pressure"),
-    Scalar("mu_dr_mean", "", "macroscopic friction coefficient F_dr / F_N over the sliding window (eq. 17), with "
-           "mu_dr_expected and mu_dr_error against the friction law"),
-    Scalar("energy_balance_error", "", "largest energy imbalance over the sliding window relative to the drive's work"),
-    Scalar("spring_peak_N", "N", "spring force at slip onset (breakaway), mean over the cycles after the first; also "
-           "spring_trough_N, force_drop_N, spring_max_N (N), stick_s, slip_s, period_s (s), slip_velocity_peak (m/s)"),
+    Scalar("mu_dr_mean", "", "friction coefficient F_dr / F_N over the sliding window (eq. 17; also mu_dr_error)"),
+    Scalar("energy_balance_error", "", "largest energy imbalance over the sliding window per the drive's work"),
+    Scalar("spring_peak_N", "N", "spring force at breakaway, mean over the cycles after the first (also "
+           "spring_trough_N, force_drop_N, spring_max_N; stick_s, slip_s, period_s in s; slip_velocity_peak in m/s)"),
     Scalar("slide_acceleration", "m/s^2", "the slider's acceleration down an incline (0 while it sticks)"),
-    Scalar("heat_share_base", "", "share of the friction heat the lower block (body 1) holds at t_end"),
-    Scalar("interface_rise_base_ratio", "", "rise next to the plane in the base against two semi-infinite solids in "
-           "contact (also _slider_ratio)"),
-    Scalar("flux_ratio", "", "the friction law's mean flux against the declared interface flux"),
+    Scalar("heat_share_base", "", "share of the friction heat the lower block holds at t_end"),
+    Scalar("interface_rise_base_ratio", "", "rise next to the plane in the base against two semi-infinite solids "
+           "(also _slider_ratio; flux_ratio: the law's mean flux against the declared one)"),
 )
 GIVEN_PEAK = ("spring_trough_N", "spring_max_N", "stick_s", "slip_s", "period_s", "slip_velocity_peak")
 
@@ -200,14 +195,6 @@ def _cycle(scene: Scene, summary: dict[str, Any]) -> dict[str, float]:
     peak = number(summary.get("spring_peak_N"))
     given = given_peak(setting(scene), peak if peak is not None else math.nan)
     return expected(scene) | {f"{name}_given_peak": given.get(f"{name}_given_peak", math.nan) for name in GIVEN_PEAK}
-
-
-def _spring(scene: Scene, t: np.ndarray) -> tuple[np.ndarray, str]:
-    return spring_force(t, *setting(scene)), "rigid block (analytic)"
-
-
-def _slide(scene: Scene, summary: dict[str, Any]) -> dict[str, float]:
-    return {"slide_acceleration": incline_acceleration(scene)}
 
 
 def _pressure(scene: Scene, summary: dict[str, Any]) -> dict[str, float]:
@@ -223,8 +210,8 @@ def _heat_share(scene: Scene, summary: dict[str, Any]) -> dict[str, float]:
         return {}
     k = mat.conductivity if contact.base_conductivity is None else contact.base_conductivity
     c = mat.heat_capacity if contact.base_heat_capacity is None else contact.base_heat_capacity
-    base, slider = effusivity(k, mat.density, c), effusivity(mat.conductivity, mat.density, mat.heat_capacity)
-    return {"heat_share_base": base / (base + slider)}
+    return {"heat_share_base": effusivity_shares(effusivity(k, mat.density, c), effusivity(
+        mat.conductivity, mat.density, mat.heat_capacity))[0]}
 
 
 def _pressed(p: dict[str, Any]) -> Scene:
@@ -267,11 +254,6 @@ def _heating(p: dict[str, Any]) -> Scene:
                  conduction=heat, elasticity=Elasticity(), contact=contact, params=params(p))
 
 
-def _pressure_param(default: float) -> Param:
-    return Param("normal_stress", default, "Pa", "pressure on the slider's top face", low=0.0, high=1e9,
-                 low_open=True)
-
-
 MU_STATIC = Param("mu_static", 0.4, "", "static friction coefficient of the two surfaces (>= mu_kinetic)", low=0.0,
                   high=5.0)
 MU_KINETIC = Param("mu_kinetic", 0.3, "", "kinetic friction coefficient of the two surfaces", low=0.0, high=5.0)
@@ -291,7 +273,7 @@ SLIDING = SceneSpec(
     "friction coefficient mu_dr = F_dr / F_N (eq. 17) and the energy balance; n even",
     (
         *DIMENSIONS,
-        _pressure_param(1e6),
+        Param("normal_stress", 1e6, "Pa", "pressure on the slider's top face", low=0.0, high=1e9, low_open=True),
         Param("speed", 1.0, "m/s", "sliding speed of the slider's top face", low=0.0, high=100.0, low_open=True),
         Param("duration", 1e-3, "s", "sliding time at full speed (the averaging window)", low=0.0, high=1.0,
               low_open=True),
@@ -307,7 +289,7 @@ STICK_SLIP = SceneSpec(
     "kHz), 3 cycles after the first in duration; n even",
     (
         *DIMENSIONS,
-        _pressure_param(1e6),
+        Param("normal_stress", 1e6, "Pa", "pressure on the slider's top face", low=0.0, high=1e9, low_open=True),
         Param("speed", 0.5, "m/s", "speed of the spring's far end", low=0.0, high=100.0, low_open=True),
         Param("spring_stiffness", 5e4, "N/m", "stiffness of the drive spring", low=0.0, high=1e12, low_open=True),
         MU_STATIC,
@@ -317,7 +299,8 @@ STICK_SLIP = SceneSpec(
     ),
     lambda p: _slider("stick-slip", p, {"stick-slip"}, normal_stress=p["normal_stress"], speed=p["speed"],
                       spring_stiffness=p["spring_stiffness"], mu_static=p["mu_static"], mu_kinetic=p["mu_kinetic"]),
-    Reference(scalars=_cycle, history=_spring), SCALARS)
+    Reference(scalars=_cycle, history=lambda scene, t: (spring_force(t, *setting(scene)), "rigid block (analytic)")),
+    SCALARS)
 INCLINE = SceneSpec(
     "incline",
     "The block-sliding slider on its clamped base under its own weight only, the body force gravity tilted by "
@@ -336,7 +319,7 @@ INCLINE = SceneSpec(
     ),
     lambda p: _slider("incline", p, {"incline"}, mu_static=p["mu_static"], mu_kinetic=p["mu_kinetic"],
                       incline_angle=p["angle"], gravity=p["gravity"]),
-    Reference(scalars=_slide), SCALARS)
+    Reference(scalars=lambda scene, summary: {"slide_acceleration": incline_acceleration(scene)}), SCALARS)
 HEATING = SceneSpec(
     "frictional-heating",
     "Two duralumin blocks stacked along z (interface z = L/2, base clamped at z=0), the upper one pressed by "

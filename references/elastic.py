@@ -1,23 +1,8 @@
-"""The elastic family: the duralumin bar compressed, vibrating and pulled to fracture, its references and the
-summary scalars an elasticity solver reports (`SCALARS`: names, units, signs).  Reference scalars: bar-compression's
-E_eff = E and nu_eff = nu (uniaxial stress), bar-tension-fracture's failure_stress = sigma_c / k (the
-Drucker-Prager equivalent stress of uniaxial tension is k sigma).
+"""The elastic family: the duralumin bar compressed, vibrating and pulled to fracture, its reference scalars (E_eff =
+E, nu_eff = nu; failure_stress = sigma_c / k: uniaxial tension's Drucker-Prager stress is k sigma) and the summary
+scalars an elasticity solver reports (`SCALARS`: names, units, signs).
 
-Formulas for the bar: analytic fields and frequencies, and the converged FE frequencies.
-
-Analytic (docs/physics.md, "Continuum references"):
-- `uniaxial_displacement`: the homogeneous uniaxial-stress field of bar-compression, sigma_zz = E eps,
-  lateral strain -nu eps, u = (-nu eps (x - x0), -nu eps (y - y0), eps z) about a lateral origin (x0, y0).
-- `thin_rod_axial_hz`: axial modes of a clamped-free thin rod, f_m = (2m - 1) c / (4 L), c = sqrt(E / rho)
-  (one-dimensional; ignores the lateral inertia and the clamp's restraint of the Poisson contraction).
-- `euler_bernoulli_cantilever_hz`: bending modes of a slender cantilever, f_m = (beta_m L)^2 / (2 pi L^2)
-  sqrt(E I / (rho A)) — sanity only: the bar is 3:1, shear and rotary inertia lower the real values.
-- `saint_venant_torsion_hz`: torsion modes of a clamped-free rod, f_m = (2m - 1) / (4 L) sqrt(G J / (rho Ip)),
-  J of the rectangular section by its series (warping ignored at the clamp, so also sanity only).
-- `roller_box_hz`: exact eigenfrequencies of the box with frictionless supports (zero normal displacement)
-  on all six faces: separable modes u_x ~ sin(a x) cos(b y) cos(c z) (and cyclic), k = pi (l/W, m/H, n/L),
-  one pressure mode omega = c_L |k| and (d - 1) shear modes omega = c_T |k| per index triple with d nonzero
-  indices.  A smooth problem: it shows the elements' full convergence order.
+Formulas of the MCA model on the bar (the study's targets for its rotational modes and its packing's bending):
 - `mca_rotational_hz`: the lowest rotational mode of the MCA bar (nodes on the faces, spacing a, clamped at
   z = 0), from the model's potential by hand, not from its code: a rotational pair spring k_r = krot G S r0 on
   phi_j - phi_i, a shear spring that sees only phi_i + phi_j (a rotation about the pair's own axis is not
@@ -43,7 +28,6 @@ group (`modes-q2-convergence` of the elasticity study), not a formula: it lives 
 
 from __future__ import annotations
 
-import itertools
 import math
 from typing import Any
 
@@ -65,45 +49,6 @@ from pcverify.scene import (
     SceneSpec,
 )
 
-# roots of 1 + cos(x) cosh(x) = 0 (clamped-free beam)
-CANTILEVER_BETA_L = (1.8751040687119611, 4.694091132974175, 7.854757438237613, 10.995540734875467,
-                     14.137168391046471)
-
-
-def uniaxial_displacement(points: np.ndarray, strain: float, nu: float,
-                          origin: tuple[float, float] = (0.0, 0.0)) -> np.ndarray:
-    """Homogeneous uniaxial-stress displacement (k, 3) at `points`, u_z = 0 on z = 0, lateral centre `origin`."""
-    x = np.asarray(points, dtype=float).reshape(-1, 3)
-    return np.stack([-nu * strain * (x[:, 0] - origin[0]), -nu * strain * (x[:, 1] - origin[1]), strain * x[:, 2]],
-                    axis=1)
-
-
-def uniaxial_stress(youngs_modulus: float, strain: float) -> float:
-    """Axial stress sigma_zz = E eps (Pa) of the uniaxial-stress state."""
-    return youngs_modulus * strain
-
-
-def bar_wave_speed(youngs_modulus: float, density: float) -> float:
-    """Longitudinal wave speed of a thin bar, c = sqrt(E / rho) (m/s)."""
-    return math.sqrt(youngs_modulus / density)
-
-
-def thin_rod_axial_hz(youngs_modulus: float, density: float, length: float, modes: int = 1) -> np.ndarray:
-    """Axial eigenfrequencies (Hz) of a clamped-free thin rod: (2m - 1) c / (4 L), m = 1..modes."""
-    c = bar_wave_speed(youngs_modulus, density)
-    return np.array([(2 * m - 1) * c / (4.0 * length) for m in range(1, modes + 1)])
-
-
-def euler_bernoulli_cantilever_hz(youngs_modulus: float, density: float, width: float, height: float,
-                                  length: float, modes: int = 1, axis: str = "x") -> np.ndarray:
-    """Bending eigenfrequencies (Hz) of a slender rectangular cantilever, deflection along `axis` (x or y)."""
-    if modes > len(CANTILEVER_BETA_L):
-        raise ValueError(f"modes={modes} is out of range; allowed: integer in [1, {len(CANTILEVER_BETA_L)}]")
-    area = width * height
-    inertia = height * width**3 / 12.0 if axis == "x" else width * height**3 / 12.0
-    scale = math.sqrt(youngs_modulus * inertia / (density * area)) / (2.0 * math.pi * length**2)
-    return np.array([b**2 * scale for b in CANTILEVER_BETA_L[:modes]])
-
 
 def packing_second_moment_ratio(packing: str, spacings: float) -> float:
     """I_lattice / I of a section `spacings` = H / a lattice spacings deep: 1 + 2 (a/H)^2 for "nodes"
@@ -120,42 +65,6 @@ def packing_bending_ratio(packing: str, n: int) -> float:
     """Predicted bending frequency ratio lattice / continuum of a square section at resolution n:
     sqrt(I_lattice / I) with H / a = n - 1 ("nodes", n nodes across) or n ("cells", n automata across)."""
     return math.sqrt(packing_second_moment_ratio(packing, n - 1 if packing == "nodes" else n))
-
-
-def torsion_constant(width: float, height: float, terms: int = 50) -> float:
-    """Saint-Venant torsion constant J of a w x h rectangle (series of Timoshenko & Goodier)."""
-    a, b = max(width, height), min(width, height)
-    s = sum(math.tanh((2 * k + 1) * math.pi * a / (2 * b)) / (2 * k + 1) ** 5 for k in range(terms))
-    return a * b**3 / 3.0 * (1.0 - 192.0 * b / (math.pi**5 * a) * s)
-
-
-def saint_venant_torsion_hz(youngs_modulus: float, poisson_ratio: float, density: float, width: float,
-                            height: float, length: float, modes: int = 1) -> np.ndarray:
-    """Torsion eigenfrequencies (Hz) of a clamped-free rod, (2m - 1) / (4 L) sqrt(G J / (rho Ip))."""
-    shear = youngs_modulus / (2.0 * (1.0 + poisson_ratio))
-    polar = width * height * (width**2 + height**2) / 12.0
-    c = math.sqrt(shear * torsion_constant(width, height) / (density * polar))
-    return np.array([(2 * m - 1) * c / (4.0 * length) for m in range(1, modes + 1)])
-
-
-def roller_box_hz(youngs_modulus: float, poisson_ratio: float, density: float, extent: tuple[float, float, float],
-                  count: int) -> np.ndarray:
-    """The `count` lowest eigenfrequencies (Hz, with multiplicity) of a box on rollers all round."""
-    lam = youngs_modulus * poisson_ratio / ((1 + poisson_ratio) * (1 - 2 * poisson_ratio))
-    mu = youngs_modulus / (2 * (1 + poisson_ratio))
-    c_l, c_t = math.sqrt((lam + 2 * mu) / density), math.sqrt(mu / density)
-    w, h, ell = extent
-    top = count + 2
-    freqs = []
-    for idx in itertools.product(range(top + 1), repeat=3):
-        d = sum(1 for i in idx if i)
-        if d == 0:
-            continue
-        k = math.pi * math.sqrt((idx[0] / w) ** 2 + (idx[1] / h) ** 2 + (idx[2] / ell) ** 2)
-        freqs.append(c_l * k / (2 * math.pi))
-        freqs.extend([c_t * k / (2 * math.pi)] * (d - 1))
-    freqs.sort()
-    return np.array(freqs[:count])
 
 
 def mca_rotational_hz(shear_modulus: float, density: float, spacing: float, krot: float,
@@ -179,24 +88,18 @@ def mca_rotational_hz(shear_modulus: float, density: float, spacing: float, krot
 
 
 def lowest_eigenvalue(diag: np.ndarray, off: np.ndarray) -> float:
-    """The lowest eigenvalue of the symmetric tridiagonal matrix (diag, off) by bisection on its Sturm count (the
-    number of negative pivots of A - s I is the number of eigenvalues below s), to the last bit; numpy only, so
-    that the scene catalogue imports no scipy."""
+    """The lowest eigenvalue of the symmetric tridiagonal matrix (diag, off), to the last bit, by bisection on the
+    Sturm count (a negative pivot of A - s I: an eigenvalue below s); numpy only (the catalogue imports no scipy)."""
     radius = np.abs(np.r_[0.0, off]) + np.abs(np.r_[off, 0.0])
-    lo, hi = float((diag - radius).min()), float((diag + radius).max())
-    squares = np.r_[0.0, off**2].tolist()
-    while True:
-        mid = 0.5 * (lo + hi)
-        if not lo < mid < hi:
-            return mid
-        pivot, below = 1.0, False
-        for d, e2 in zip(diag.tolist(), squares, strict=True):  # one pass down the chain of planes
-            pivot = d - mid - e2 / pivot if pivot != 0.0 else d - mid - e2 / 1e-300
+    lo, hi, squares = float((diag - radius).min()), float((diag + radius).max()), np.r_[0.0, off**2].tolist()
+    while lo < (mid := 0.5 * (lo + hi)) < hi:
+        pivot = 1.0
+        for d, e2 in zip(diag.tolist(), squares, strict=True):  # down the chain of planes
+            pivot = d - mid - e2 / (pivot or 1e-300)
             if pivot < 0.0:
-                below = True
                 break
-        lo, hi = (lo, mid) if below else (mid, hi)
-
+        lo, hi = (lo, mid) if pivot < 0.0 else (mid, hi)
+    return mid
 
 
 SCALARS = (
@@ -204,19 +107,9 @@ SCALARS = (
     Scalar("E_eff", "Pa", "reaction_force / (W H) / axial strain: positive for both signs of the strain"),
     Scalar("nu_eff", "", "-lateral strain / axial strain (face-averaged lateral displacements)"),
     Scalar("failure_stress", "Pa", "peak reaction / (W H) of the bar pulled to fracture (positive in tension)"),
-    Scalar("energy_error", "", "energy balance of the elastic phase, relative to its largest elastic energy"),
-    Scalar("f_bending_x_hz", "Hz", "lowest bending frequency, deflection along x (also f_bending_y_hz, f_torsion_hz, "
-           "f_axial_hz, f_rotational_hz; the list frequencies_hz, spread into f1_hz, f2_hz, ... in tables)"),
+    Scalar("f_bending_x_hz", "Hz", "lowest bending frequency along x (also f_bending_y_hz, f_torsion_hz, f_axial_hz, "
+           "f_rotational_hz; the list frequencies_hz: f1_hz, f2_hz, ... in tables)"),
 )
-
-
-def _hooke(scene: Scene, summary: dict[str, Any]) -> dict[str, float]:
-    return {"E_eff": scene.material.youngs_modulus, "nu_eff": scene.material.poisson_ratio}
-
-
-def _strength(scene: Scene, summary: dict[str, Any]) -> dict[str, float]:
-    response = scene.elasticity.response
-    return {"failure_stress": response.sigma_c / response.k}
 
 
 def _compression(p: dict[str, Any]) -> Scene:
@@ -248,7 +141,8 @@ COMPRESSION = SceneSpec(
     "lateral strain -nu eps)",
     (*DIMENSIONS, Param("strain", -1e-3, "", "nominal axial strain (negative = compression; below 1e-12 in "
                         "magnitude the loads underflow in floating point)", low=-0.01, high=-1e-12)),
-    _compression, Reference(scalars=_hooke), SCALARS)
+    _compression, Reference(scalars=lambda scene, summary: {"E_eff": scene.material.youngs_modulus,
+                                                            "nu_eff": scene.material.poisson_ratio}), SCALARS)
 MODES = SceneSpec(
     "bar-modes",
     "Free vibration of the duralumin bar clamped at z=0: lowest bending, torsion and axial "
@@ -269,5 +163,6 @@ FRACTURE = SceneSpec(
         Param("k", 1.0, "", "sigma_c / sigma_t (Drucker-Prager)", low=0.1, high=20.0),
         Param("strain_rate", 10.0, "1/s", "nominal axial strain rate", low=0.0, high=1e4, low_open=True),
     ),
-    _fracture, Reference(scalars=_strength, kind="theory"), SCALARS)
+    _fracture, Reference(scalars=lambda scene, summary: {"failure_stress": scene.elasticity.response.sigma_c
+                                                         / scene.elasticity.response.k}, kind="theory"), SCALARS)
 SCENES = (COMPRESSION, MODES, FRACTURE)

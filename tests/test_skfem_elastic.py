@@ -17,13 +17,13 @@ from __future__ import annotations
 import dataclasses
 import json
 
+import elastic_formulas as ref
 import numpy as np
 import pytest
 
 from pcverify.harness.judge import tables
 from pcverify.harness.judge.metrics import richardson
 from pcverify.harness.spec.catalogue import make_scene
-from pcverify.references import elastic as ref
 from pcverify.scene import FaceSupport, Resolution, SceneError
 from pcverify.solvers.continuum.skfem_elastic import mode_shape
 from pcverify.solvers.registry import get_solver

@@ -1,15 +1,10 @@
-"""The comparison of a cell's solution with its scene's reference: once, right after the solve.
+"""The comparison of a cell's solution with its scene's reference (`catalogue.reference_of`: the scene spec's),
+once, right after the solve; stored with the cell, so tables, calibrations and `pcverify run` read these numbers.
 
-The reference is the scene spec's (`catalogue.reference_of`: a family of `pcverify.references`, a plugin's own,
-or the heat family's slab for a study file's scene).  Per sample set, the absolute L2 (root mean square) and
-L-infinity errors of the sampled values against the reference field at the same points (in the units of the
-solution's `quantity`), with the reference's kind (analytic, theory, ...).  The errors are stored with the cell
-(its `errors`), so the tables, the calibrations and `pcverify run` read the numbers computed here from the cell's
-own Scene, never from a scene rebuilt by name.  A set of vector values (a displacement) has no errors: the field
-is one scalar per point.  Per scalar the reference expects (`Reference.scalars`), the summary's value under that
-name, the expected value and the relative error (`scalar_errors`); a scalar named NAME_given_CONDITION is the
-expected NAME under a condition the reference read from the summary, compared with the summary's NAME.  The cell
-key holds `fingerprint`: this module's code and that of the modules defining the scene's spec and reference.
+`errors`: per sample set of one scalar per point, the absolute L2 (RMS) and L-infinity errors against the
+reference field, with the reference's kind.  `scalar_errors`: per scalar the reference expects, the summary's
+value under that name (NAME_given_CONDITION: the expected NAME given what the reference read from the summary),
+the expected value and the relative error.  `fingerprint`: what the cell key holds of both.
 """
 
 from __future__ import annotations

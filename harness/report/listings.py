@@ -27,11 +27,9 @@ def _param_rows(params: tuple[Param, ...]) -> list[dict[str, Any]]:
 
 
 def list_scenes(args: argparse.Namespace) -> int:
-    """`pcverify scenes [NAME] [--json]`: every scene of the catalogue (or the one named: SceneError if unknown),
-    its description, parameters and reference kind; for one scene also the summary scalars of its family's
-    contract (name, unit, meaning and sign) and those its reference expects at the defaults."""
-    rows = []
-    table = scene_entries()
+    """`pcverify scenes [NAME] [--json]`: every scene (or the one named) with its description, parameters and
+    reference kind; for one scene also its family's summary scalars and those its reference expects."""
+    rows, table = [], scene_entries()
     for name in table if args.scene is None else [get_spec(args.scene).name]:
         try:
             spec = get_spec(name)
@@ -49,13 +47,10 @@ def list_scenes(args: argparse.Namespace) -> int:
 
 
 def _scene_lines(row: dict[str, Any], origin: str) -> str:
-    """A scene's headline: name, description, reference kind; asked alone, its expected scalars and contract."""
-    lines = [f"{row['name']}{origin}", f"  {row['description']}",
-             f"  reference: {row['reference'] or 'none (compared with continuum solvers only)'}"]
-    if "expected" in row:
-        lines += [f"    expected {k:<30} {v:.9g}" for k, v in row["expected"].items()]
-        lines += ["  summary scalars of its family:"] + [f"    {s['name']:<30} [{s['unit'] or '-'}] {s['description']}"
-                                                      for s in row["scalars"]]
+    lines = [f"{row['name']}{origin}", f"  {row['description']}", f"  reference: {row['reference']}"]
+    lines += [f"    expected {k:<30} {v:.9g}" for k, v in row.get("expected", {}).items()]
+    lines += [f"  summary scalar {s['name']:<24} [{s['unit'] or '-'}] {s['description']}"
+              for s in row["scalars"] if "expected" in row]
     return "\n".join(lines)
 
 

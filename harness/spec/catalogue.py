@@ -54,10 +54,6 @@ def register_scene(spec: SceneSpec, origin: str) -> None:
     SCENES.register(spec.name, spec, origin)
 
 
-def scene_names() -> list[str]:
-    return list(entries())
-
-
 def get_spec(name: str) -> SceneSpec:
     """The spec of the scene called `name` (SceneError if unknown or if a plugin's spec cannot be loaded)."""
     table = entries()
@@ -91,18 +87,16 @@ def make_scene(name: str, **params: Any) -> Scene:
 
 
 def reference_of(name: str) -> Reference | None:
-    """The reference of the scene called `name`; a name this process does not know (a study file's scene, in a
-    worker that did not load that study file) gets what every study-file scene gets, the heat family's slab."""
+    """The reference of the scene `name`; one this process does not know (a study file's scene, in a worker that
+    did not load the study file) gets what every study-file scene gets, the heat family's slab."""
     return get_spec(name).reference if name in entries() else SLAB
 
 
 def spec_modules(name: str) -> tuple[str, ...]:
-    """The modules that define the scene's spec and reference (builder, field, scalars, history): what its
-    compared results depend on besides the scene's content, for the cell key."""
+    """The modules defining the scene's builder and reference (its compared results depend on them)."""
     spec = get_spec(name)
-    ref = spec.reference or Reference()
-    parts = (spec.build, ref.field, ref.scalars, ref.history)
-    return tuple(sorted({getattr(f, "__module__", None) or type(f).__module__ for f in parts if f is not None}))
+    parts = (spec.build, *(spec.reference or Reference()).__dict__.values())
+    return tuple(sorted({getattr(f, "__module__", None) or type(f).__module__ for f in parts if callable(f)}))
 
 
 # -- scenes from data: a study file's [[scene]] tables, built from the shipped building blocks, compared with the
