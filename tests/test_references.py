@@ -59,7 +59,7 @@ def test_analytic_dispatch():
 
 
 # ---------------------------------------------------------------------------------------------------
-# the slab: held or insulated faces, a uniform source and an interface flux (references/slab.py)
+# the slab: held or insulated faces, a uniform source and an interface flux (references/heat.py)
 
 K_AL = 237.0
 HELD_SOURCE = Slab(L, K_AL, ALPHA, held=(0.0, 0.0), source=1e6)

@@ -11,7 +11,7 @@ scene material's).  Body 1 is held by the scene's constraints (a clamp or suppor
 drive, or by supports when the contact is only compressed.  With `spring_stiffness`, body 2 is not driven at a
 prescribed speed but pulled along `direction` by a spring of that stiffness whose far end moves at `speed` (the
 stick-slip drive; its far face carries only the normal stress), and `mu_static`, `mu_kinetic` are the friction
-pair of the two surfaces that the analytic stick-slip cycle takes (references/stick_slip.py).  With
+pair of the two surfaces that the analytic stick-slip cycle takes (references/contact.py).  With
 `incline_angle`, body 2 carries only its weight under the body force `gravity` (m/s^2) tilted by that angle from
 the contact's normal towards `direction` (an incline: the pair mu_static, mu_kinetic decides whether it sticks).
 """
