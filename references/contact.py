@@ -40,7 +40,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from pcverify.references.heat import analytic, effusivity, effusivity_shares
-from pcverify.references.shared import DIMENSIONS, DURALUMIN_THERMAL, box_of, number, params
+from pcverify.references.shared import DIMENSIONS, DURALUMIN_THERMAL, box_of, number
 from pcverify.scene import (
     DURALUMIN,
     Conduction,
@@ -219,7 +219,7 @@ def _pressed(p: dict[str, Any]) -> Scene:
     cons = (FaceSupport("z0"), FaceSupport("zL", p["strain"] * box.length))
     return Scene("block-contact-compression", COMPRESSION.description, box, DURALUMIN,
                  frozenset({"elasticity", "contact"}), cons, elasticity=Elasticity(),
-                 contact=Contact(axis="z", position=box.length / 2), params=params(p))
+                 contact=Contact(axis="z", position=box.length / 2), params=tuple(sorted(p.items())))
 
 
 def _slider(name: str, p: dict[str, Any], physics: set[str], **contact: Any) -> Scene:
@@ -228,7 +228,7 @@ def _slider(name: str, p: dict[str, Any], physics: set[str], **contact: Any) -> 
     part = Contact(axis="y", position=box.height / 2, direction="z", duration=p["duration"],
                    span=(box.length / 3, 2 * box.length / 3), **contact)
     return Scene(name, SPECS[name].description, box, DURALUMIN, frozenset({"elasticity", "contact", *physics}),
-                 (FaceClamp("y0"),), elasticity=Elasticity(), contact=part, params=params(p))
+                 (FaceClamp("y0"),), elasticity=Elasticity(), contact=part, params=tuple(sorted(p.items())))
 
 
 def _heating(p: dict[str, Any]) -> Scene:
@@ -246,12 +246,12 @@ def _heating(p: dict[str, Any]) -> Scene:
                          "flux scene is one material, as the continuum solvers take it)")
     if p["source"] == "flux":
         return Scene("frictional-heating", HEATING.description, box, DURALUMIN_THERMAL, frozenset(physics), (),
-                     conduction=heat, params=params(p))
+                     conduction=heat, params=tuple(sorted(p.items())))
     contact = Contact(axis="z", position=box.length / 2, normal_stress=p["normal_stress"], speed=p["speed"],
                       direction="x", duration=p["duration"], heating=True, platen=True, **base)
     return Scene("frictional-heating", HEATING.description, box, DURALUMIN_THERMAL,
                  frozenset(physics | {"elasticity", "contact", "frictional-heating"}), (FaceClamp("z0"),),
-                 conduction=heat, elasticity=Elasticity(), contact=contact, params=params(p))
+                 conduction=heat, elasticity=Elasticity(), contact=contact, params=tuple(sorted(p.items())))
 
 
 MU_STATIC = Param("mu_static", 0.4, "", "static friction coefficient of the two surfaces (>= mu_kinetic)", low=0.0,

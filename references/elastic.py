@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from pcverify.references.shared import DIMENSIONS, box_of, params
+from pcverify.references.shared import DIMENSIONS, box_of
 from pcverify.scene import (
     DURALUMIN,
     RESPONSES,
@@ -116,22 +116,23 @@ def _compression(p: dict[str, Any]) -> Scene:
     box = box_of(p)
     cons = (FaceSupport("z0"), FaceSupport("zL", p["strain"] * box.length))
     return Scene("bar-compression", COMPRESSION.description, box, DURALUMIN, frozenset({"elasticity"}), cons,
-                 elasticity=Elasticity(), params=params(p))
+                 elasticity=Elasticity(), params=tuple(sorted(p.items())))
 
 
 def _modes(p: dict[str, Any]) -> Scene:
     return Scene("bar-modes", MODES.description, box_of(p), DURALUMIN, frozenset({"elasticity", "modes"}),
-                 (FaceClamp("z0"),), elasticity=Elasticity(modes=p["modes"]), params=params(p))
+                 (FaceClamp("z0"),), elasticity=Elasticity(modes=p["modes"]), params=tuple(sorted(p.items())))
 
 
 def _fracture(p: dict[str, Any]) -> Scene:
     if p["sigma_d"] >= p["sigma_c"] or p["sigma_y"] >= p["sigma_c"]:
         raise SceneError(f"sigma_d={p['sigma_d']:g}, sigma_y={p['sigma_y']:g} are out of range; "
                          f"allowed: below sigma_c={p['sigma_c']:g} Pa")
-    response = Response(p["response"], p["sigma_c"], p["sigma_d"], p["sigma_y"], p["hardening"], p["k"])
+    elastic = Elasticity(strain_rate=p["strain_rate"], response=Response(
+        p["response"], p["sigma_c"], p["sigma_d"], p["sigma_y"], p["hardening"], p["k"]))
     return Scene("bar-tension-fracture", FRACTURE.description, box_of(p), DURALUMIN,
                  frozenset({"elasticity", "fracture"}), (FaceSupport("z0"), FaceSupport("zL")),
-                 elasticity=Elasticity(strain_rate=p["strain_rate"], response=response), params=params(p))
+                 elasticity=elastic, params=tuple(sorted(p.items())))
 
 
 COMPRESSION = SceneSpec(

@@ -47,7 +47,7 @@ from typing import Any
 
 import numpy as np
 
-from pcverify.references.shared import DIMENSIONS, T_MAX, box_of, params
+from pcverify.references.shared import DIMENSIONS, T_MAX, box_of
 from pcverify.scene import (
     ALUMINIUM,
     Box,
@@ -246,14 +246,14 @@ def _paper(p: dict[str, Any]) -> Scene:
     box = box_of(p)
     cons = tuple(PointTemperature(pt, frac * p["t_max"]) for pt, frac in corners(box, p["placement"]))
     return Scene("bar-heat-paper", PAPER.description, box, ALUMINIUM, frozenset({"conduction"}), cons,
-                 conduction=Conduction(t_max=p["t_max"]), params=params(p))
+                 conduction=Conduction(t_max=p["t_max"]), params=tuple(sorted(p.items())))
 
 
 def _patch(p: dict[str, Any]) -> Scene:
     box = box_of(p)
     cons = tuple(PatchTemperature(pt, p["rho"], frac * p["t_max"]) for pt, frac in corners(box, p["placement"]))
     return Scene("bar-heat-patch", PATCH.description, box, ALUMINIUM, frozenset({"conduction"}), cons,
-                 conduction=Conduction(t_max=p["t_max"]), params=params(p))
+                 conduction=Conduction(t_max=p["t_max"]), params=tuple(sorted(p.items())))
 
 
 def _faces(p: dict[str, Any]) -> Scene:
@@ -264,7 +264,7 @@ def _faces(p: dict[str, Any]) -> Scene:
     heat = Conduction(t_max=p["t_max"], mode=p["mode"], t_end=p["t_end"] if transient else 0.0,
                       dt=p["dt"] if transient else 0.0, initial_temperature=0.0)
     return Scene("bar-heat-faces", FACES.description, box_of(p), ALUMINIUM, frozenset({"conduction"}), cons,
-                 conduction=heat, params=params(p))
+                 conduction=heat, params=tuple(sorted(p.items())))
 
 
 PAPER = SceneSpec(

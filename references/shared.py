@@ -31,11 +31,6 @@ def box_of(p: dict[str, Any]) -> Box:
     return Box(p["width"], p["height"], p["length"])
 
 
-def params(p: dict[str, Any]) -> tuple[tuple[str, Any], ...]:
-    """The recipe a scene records: its effective parameters, sorted by name."""
-    return tuple(sorted(p.items()))
-
-
 def number(value: Any) -> float | None:
     """A summary value as a finite float, else None."""
     ok = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
