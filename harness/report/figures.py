@@ -619,8 +619,8 @@ def parameter_figure(results: list[dict[str, Any]], path: Path, title: str, x: s
 
 
 def history(results: list[dict[str, Any]], path: Path, title: str) -> bool:
-    """The first history column of each cell's diagnostics against its time (column 0), over the reference curve
-    of each scene drawn (`Reference.history`, where its spec has one); one panel per lattice n."""
+    """Column 1 of each cell's diagnostics history against column 0 (time), over the reference curve of each scene
+    drawn (`Reference.history`, where its spec has one); one panel per lattice n."""
     drawn = [r for r in results if len(((r.get("diagnostics") or {}).get("history") or {}).get("columns", [])) >= 2]
     if not drawn:
         return False
