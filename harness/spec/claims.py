@@ -4,18 +4,29 @@ A claim names a table, its rows (`select`), a column (`metric`), how rows combin
 tolerance with its sense, the kind of reference the number stands on, the uncertainty to weigh it with, and
 which cell statuses its cases may stand on.  `pcverify.harness.judge.verdict` judges claims on tables; this
 module only reads and checks them (one line naming the claim and the field, before anything runs).
+
+A target is a number, `"reference:NAME"` (the scalar NAME of the scene's reference) or an expression of the
+case's resolution (n, refine, a, h), the scene's numeric parameters and its reference scalars, e.g.
+`"sqrt(1 + 2 / (n - 1)**2) - 1"`: a number computed elsewhere is named, not pasted.  A text target is
+evaluated here at every (n, refine) of the claim's group, so a bad name fails at load.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
+from pcverify.harness.spec.expressions import evaluate
 from pcverify.harness.spec.schema import CLAIM, STUDY, check_value, row_where
-from pcverify.scene import SceneError
+from pcverify.scene import SceneError, shown
 
 SPREAD = "spread"  # uncertainty = the standard error of the mean over a case's replica rows
+REFERENCE = "reference:"  # a target naming a scalar of the scene's reference
+# what a text target may name at each (n, refine) of its group: (the reference's scalars, the other names)
+Levels = dict[tuple[int, int], tuple[dict[str, float], dict[str, float]]]
 
 
 @dataclass(frozen=True)
@@ -28,7 +39,7 @@ class Claim:
     metric: str
     reference: str
     tolerance: float
-    target: float = 0.0
+    target: float | str = 0.0  # a number, "reference:NAME" or an expression (the module's docstring)
     select: dict[str, Any] = field(default_factory=dict)
     aggregate: str = "max"
     absolute: bool = False  # compare |value| (e.g. signed differences) with the target
@@ -40,15 +51,41 @@ class Claim:
     sense: str = "within"  # within: |value - target| <= tol; at-most: value <= target + tol; at-least: >= target - tol
     statuses: tuple[str, ...] = ("ok",)  # cell statuses a case may stand on
     allow_skipped: bool = False  # a case whose cells were all skipped is not-applicable instead of fail
+    targets: tuple[tuple[int, int, float], ...] = ()  # a text target's value at each (n, refine) of its group
 
 
-def parse_claims(items: list[dict[str, Any]], where: str) -> list[Claim]:
+def parse_claims(items: list[dict[str, Any]], where: str, levels: Callable[[str], Levels | None] = lambda t: None
+                 ) -> list[Claim]:
     """The `[[claim]]` tables of a study file as claims, checked against `schema.CLAIM` before anything runs
-    (SceneError, one line, naming the claim, the field and the allowed values)."""
+    (SceneError, one line, naming the claim, the field and the allowed values); `levels(table)`: what a text
+    target on that table may name (None: no group makes the table)."""
     check_value(items, STUDY.field("claim"), where)
+    claims = []
     for number, item in enumerate(items, 1):
+        at = row_where(where, "claim", number, item, CLAIM)
         if item.get("uncertainty") == SPREAD and item.get("aggregate", "max") != "mean":
-            at = row_where(where, "claim", number, item, CLAIM)
             raise SceneError(f"{at}: uncertainty=\"spread\" is the standard error of a mean; allowed: it with "
                              "aggregate = \"mean\"")
-    return [Claim(**item | ({"statuses": tuple(item["statuses"])} if "statuses" in item else {})) for item in items]
+        claim = Claim(**item | ({"statuses": tuple(item["statuses"])} if "statuses" in item else {}))
+        if isinstance(claim.target, str):
+            claim = dataclasses.replace(claim, targets=_targets(claim.target, levels(claim.table), at))
+        claims.append(claim)
+    return claims
+
+
+def _targets(text: str, levels: Levels | None, at: str) -> tuple[tuple[int, int, float], ...]:
+    """A text target's value at each (n, refine) of its group (SceneError naming the claim and the field)."""
+    if not levels:
+        raise SceneError(f"{at}: target={shown(text)} is not valid; allowed: a number (no group makes the table)")
+    out = []
+    for (n, refine), (scalars, names) in sorted(levels.items()):
+        if text.startswith(REFERENCE) and text.removeprefix(REFERENCE) not in scalars:
+            raise SceneError(f"{at}: target={shown(text)} is not valid; allowed: reference:NAME, NAME one of the "
+                             f"scene's reference scalars ({', '.join(scalars) or 'it has none'})")
+        try:
+            value = scalars[text.removeprefix(REFERENCE)] if text.startswith(REFERENCE) else \
+                evaluate("target", text, names | scalars)
+        except SceneError as exc:
+            raise SceneError(f"{at}: {exc}") from None
+        out.append((n, refine, value))
+    return tuple(out)

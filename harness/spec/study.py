@@ -34,6 +34,7 @@ from pcverify.harness.spec.studyfile import (
     scene_at,
     solver_params_at,
     solver_params_of,
+    target_names,
 )
 from pcverify.harness.spec.tasks import SOLVE, CellTask, ask_supports
 from pcverify.scene import Scene, SceneError
@@ -129,7 +130,13 @@ def load_study(name_or_path: str, allow_large: bool = False) -> Study:
                        f"study file {path}")
     check_groups(doc, path)
     groups = [_group(g, gi, plugins, str(path.resolve().parent)) for gi, g in enumerate(doc.get("group", []))]
-    claims = parse_claims(doc.get("claim", []), f"study file {path.name}")
+    by_id = {group.id: g for group, g in zip(groups, doc.get("group", []), strict=True)}
+
+    def levels(table: str) -> Any:
+        gid = max((i for i in by_id if table.startswith(f"{i}-")), key=len, default=None)
+        return None if gid is None else target_names(by_id[gid])
+
+    claims = parse_claims(doc.get("claim", []), f"study file {path.name}", levels)
     calibrations = parse_calibrations(doc["calibration"], f"study file {path.name}") if "calibration" in doc else []
     require_solvers(sorted({c.solver for g in groups for c in g.cells} | {c.solver for c in calibrations}),
                     f"study file {path.name}")

@@ -12,6 +12,7 @@ trust.
 from __future__ import annotations
 
 import itertools
+import math
 import tomllib
 from pathlib import Path
 from typing import Any
@@ -20,7 +21,7 @@ from pcverify.harness.spec.analyses import ANALYSES, REGISTRIES
 from pcverify.harness.spec.catalogue import get_spec, make_scene
 from pcverify.harness.spec.expressions import is_expression, resolve, variables
 from pcverify.harness.spec.schema import GROUP, STUDY, as_list, check, row_where
-from pcverify.scene import Scene, SceneError
+from pcverify.scene import Scene, SceneError, is_real
 from pcverify.solvers.registry import SolverUnavailable, get_solver
 
 
@@ -88,6 +89,20 @@ def scene_at(scene: str, scene_params: dict[str, Any], n: int, refine: int
     names = resolution_names(scene, scene_params, n, refine)
     values, expressions = resolve(scene_params, get_spec(scene).parameters, names)
     return make_scene(scene, **values), values, expressions
+
+
+def target_names(g: dict[str, Any]) -> dict[tuple[int, int], tuple[dict[str, float], dict[str, float]]]:
+    """What a claim's target on a group's tables may name at each (n, refine) of the group: (the scalars of the
+    scene's reference, asked before any solve; the resolution's names, pi and the scene's numeric parameters)."""
+    spec, given, out = get_spec(g["scene"]), g.get("scene_params", {}), {}
+    for n, refine in resolutions(g):
+        scene, values, _ = scene_at(g["scene"], given, n, refine)
+        ref = spec.reference.scalars(scene, {}) if spec.reference and spec.reference.scalars else {}
+        params = {p.name: p.default for p in spec.parameters} | values
+        out[n, refine] = ({k: float(v) for k, v in ref.items() if is_real(v)},
+                          {k: float(v) for k, v in params.items() if is_real(v)} | {"pi": math.pi}
+                          | resolution_names(g["scene"], given, n, refine))
+    return out
 
 
 def solver_params_at(solver: str, params: dict[str, Any], names: dict[str, float]
