@@ -28,7 +28,7 @@ from pcverify.harness.spec.calibspec import Calibration
 from pcverify.harness.spec.claims import Claim
 from pcverify.harness.spec.schema import CALIBRATION, CLAIM, GROUP
 from pcverify.harness.spec.schema_markdown import BEGIN, END, study_file_reference
-from pcverify.harness.spec.study import DEFAULT_REPEATS, load_study
+from pcverify.harness.spec.study import load_study
 
 ROOT = Path(__file__).resolve().parent.parent
 DOCS = ROOT / "docs"
@@ -69,7 +69,6 @@ def test_the_defaults_the_reference_states_are_the_codes(table, cls) -> None:
 
 
 def test_the_group_defaults_the_reference_states_are_the_codes() -> None:
-    assert GROUP.field("repeats").default == DEFAULT_REPEATS
     assert GROUP.field("figure_y").default == list(PARAMETER_Y)
 
 

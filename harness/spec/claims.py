@@ -59,14 +59,13 @@ def parse_claims(items: list[dict[str, Any]], where: str, levels: Callable[[str]
     """The `[[claim]]` tables of a study file as claims, checked against `schema.CLAIM` before anything runs
     (SceneError, one line, naming the claim, the field and the allowed values); `levels(table)`: what a text
     target on that table may name (None: no group makes the table)."""
-    check_value(items, STUDY.field("claim"), where)
     claims = []
-    for number, item in enumerate(items, 1):
+    for number, item in enumerate(check_value(items, STUDY.field("claim"), where), 1):
         at = row_where(where, "claim", number, item, CLAIM)
-        if item.get("uncertainty") == SPREAD and item.get("aggregate", "max") != "mean":
+        if item.get("uncertainty") == SPREAD and item["aggregate"] != "mean":
             raise SceneError(f"{at}: uncertainty=\"spread\" is the standard error of a mean; allowed: it with "
                              "aggregate = \"mean\"")
-        claim = Claim(**item | ({"statuses": tuple(item["statuses"])} if "statuses" in item else {}))
+        claim = Claim(**item | {"statuses": tuple(item["statuses"])})
         if isinstance(claim.target, str):
             claim = dataclasses.replace(claim, targets=_targets(claim.target, levels(claim.table), at))
         claims.append(claim)

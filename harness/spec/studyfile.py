@@ -44,19 +44,20 @@ def read_study_document(path: Path) -> dict[str, Any]:
                          "[[claim]] and [[scene]] tables") from None
 
 
-def check_study_document(doc: dict[str, Any], path: Path) -> None:
+def check_study_document(doc: dict[str, Any], path: Path) -> dict[str, Any]:
     """Keys, types and values of the whole file against the schema (`schema.STUDY`); a study has groups unless
-    it calibrates."""
+    it calibrates.  The document back with the schema's defaults filled in (`schema.check`)."""
     where = f"study file {path.name}"
-    check(doc, STUDY, where, REGISTRIES)
+    normal = check(doc, STUDY, where, REGISTRIES)
     if not doc.get("group") and "calibration" not in doc:
         raise SceneError(f"{where}: no [[group]] tables; allowed: one or more [[group]] tables")
+    return normal
 
 
 def check_groups(doc: dict[str, Any], path: Path) -> None:
     """What a group's keys mean, once the study's scenes are known: its scene built with its scene_params (at each
     of its resolutions, where a parameter is an expression of the resolution), and every solver parameter and
-    sweep value within the solver's declared ranges."""
+    sweep value within the solver's declared ranges (`doc`: as `check_study_document` returns it)."""
     for number, g in enumerate(doc.get("group", []), 1):
         where = row_where(f"study file {path.name}", "group", number, g, GROUP)
         try:
@@ -64,15 +65,15 @@ def check_groups(doc: dict[str, Any], path: Path) -> None:
                 scene_at(g["scene"], g.get("scene_params", {}), n, refine)
         except SceneError as exc:
             raise SceneError(f"{where}: {exc}") from None
-        _check_solver_params(g, as_list(g["solvers"]), where, ANALYSES[g.get("analysis", "table")].task(g))
-        if "parameter" in as_list(g.get("figures", [])) and "figure_x" not in g:
+        _check_solver_params(g, as_list(g["solvers"]), where, ANALYSES[g["analysis"]].task(g))
+        if "parameter" in as_list(g["figures"]) and "figure_x" not in g:
             raise SceneError(f"{where}: figures = \"parameter\" needs figure_x; allowed: figure_x = a swept solver or "
                              "scene parameter, n, refine or h")
 
 
 def resolutions(g: dict[str, Any]) -> list[tuple[int, int]]:
-    """The (n, refine) pairs of a group."""
-    return [(int(n), int(r)) for n in as_list(g.get("n", [4])) for r in as_list(g.get("refine", [1]))]
+    """The (n, refine) pairs of a (normalised) group."""
+    return [(int(n), int(r)) for n in as_list(g["n"]) for r in as_list(g["refine"])]
 
 
 def resolution_names(scene: str, scene_params: dict[str, Any], n: int, refine: int) -> dict[str, float]:
