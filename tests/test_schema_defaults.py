@@ -8,7 +8,10 @@ from pathlib import Path
 
 import pytest
 
-from pcverify.harness.spec import calibspec, claims, study, studyfile
+from pcverify.harness.judge import group_tables
+from pcverify.harness.report import group_figures
+from pcverify.harness.spec import analyses, calibspec, claims, study, studyfile
+from pcverify.harness.spec.analyses import REGISTRIES
 from pcverify.harness.spec.calibspec import Calibration
 from pcverify.harness.spec.schema import (
     CALIBRATION,
@@ -106,9 +109,10 @@ def test_the_check_fills_every_declared_default_and_leaves_the_document_read_as_
 
 
 def test_no_reader_of_the_spec_repeats_a_default_the_schema_declares() -> None:
+    options = [f for fields in REGISTRIES["analyses"].values() for f in fields]
     defaults = {(f.name, repr(f.default)) for t in [*TABLES.values(), CALIBRATION_CELL, PARAMETER, REFERENCE]
-                for f in t.fields if f.default is not None}
-    for module in (study, studyfile, claims, calibspec):
+                for f in [*t.fields, *options] if f.default is not None}
+    for module in (study, studyfile, claims, calibspec, analyses, group_tables, group_figures):
         text = Path(module.__file__).read_text(encoding="utf-8")
         for name, default in defaults:
             literal = "|".join(re.escape(d) for d in {default, default.replace("'", '"')})

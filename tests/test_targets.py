@@ -65,16 +65,15 @@ def test_a_reference_target_is_the_scalar_of_the_scenes_reference(study) -> None
     assert [v for _, _, v in kinetic.targets] == [pytest.approx(30.0)] * 2
 
 
-def test_a_case_reads_the_cells_cached_reference_first_then_the_resolved_value(study) -> None:
+def test_a_case_is_judged_against_the_value_at_its_rows_level(study) -> None:
     cells = pd.DataFrame({"n": [4, 6], "refine": [1, 1], "status": ["ok", "ok"], "spring_peak_N": [37.0, 36.0],
-                          "ref.spring_peak_N": [39.0, 40.0]})
+                          "ref.spring_peak_N": [40.0, 40.0]})
     table = verdicts("targets", study.claims, {"cycle-cells": cells})
-    assert table["target"].tolist() == [39.0, 40.0, 30.0, 30.0]  # ref.NAME as the compare step stored it
+    assert table["target"].tolist() == [pytest.approx(40.0)] * 2 + [pytest.approx(30.0)] * 2
+    assert table["target"].tolist()[:2] == pytest.approx(cells["ref.spring_peak_N"].tolist())  # as compare stored it
     assert table["target_from"].tolist()[:2] == ["reference:spring_peak_N"] * 2
     assert table["verdict"].tolist() == ["pass"] * 4
-    plain = verdicts("targets", study.claims, {"cycle-cells": cells.drop(columns="ref.spring_peak_N")})
-    assert plain["target"].tolist() == [pytest.approx(40.0)] * 2 + [pytest.approx(30.0)] * 2
-    record = plain.iloc[0].to_dict() | {"metric": "spring_peak_N"}
+    record = table.iloc[0].to_dict() | {"metric": "spring_peak_N"}
     assert target_text(record).endswith("(reference:spring_peak_N)") and target_text(record).startswith("at most")
 
 
@@ -83,6 +82,9 @@ def test_a_case_whose_rows_span_levels_of_different_targets_is_not_judged(study)
     claim = dataclasses.replace(study.claims[0], per="", targets=((4, 1, 40.0), (6, 1, 41.0)))
     row = verdicts("targets", [claim], {"cycle-cells": cells}).iloc[0]
     assert row["verdict"] == "fail" and "no finite target" in row["note"]
+    fits = pd.DataFrame({"quantity": ["q"], "order": [2.0]})  # a table of no level: every level's value is the same
+    claim = dataclasses.replace(claim, metric="order", targets=((4, 1, 2.0), (6, 1, 2.0)))
+    assert verdicts("targets", [claim], {"cycle-cells": fits})["verdict"].tolist() == ["pass"]
 
 
 @pytest.mark.parametrize("target, words", [

@@ -36,7 +36,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from pcverify.harness.spec.claims import REFERENCE, SPREAD, Claim
+from pcverify.harness.spec.claims import SPREAD, Claim
 from pcverify.harness.spec.schema import AGGREGATES as AGGREGATE_NAMES
 
 STATES = ("fail", "inconclusive", "not-applicable", "pass")  # worst first
@@ -165,17 +165,12 @@ def decide(value: float, target: float, tolerance: float, sense: str, uncertaint
 
 
 def _target(claim: Claim, rows: pd.DataFrame) -> float:
-    """A claim's target for a case: its number, or its text's value at the (n, refine) of the case's rows (a
-    reference scalar read from the rows' own ref.NAME, as compared after each solve, where the table has it);
-    NaN where the rows' levels give different values."""
+    """A claim's target for a case: its number, or its text's value at the (n, refine) of the case's rows (NaN
+    where the rows stand on levels of different values)."""
     if not isinstance(claim.target, str):
         return claim.target
-    cached = f"ref.{claim.target.removeprefix(REFERENCE)}"
-    if claim.target.startswith(REFERENCE) and cached in rows:
-        found = _values(rows, cached)
-    else:
-        found = np.array([v for n, refine, v in claim.targets if ("n" not in rows or n in set(rows["n"]))
-                          and ("refine" not in rows or refine in set(rows["refine"]))])
+    found = np.array([v for n, refine, v in claim.targets if ("n" not in rows or n in set(rows["n"]))
+                      and ("refine" not in rows or refine in set(rows["refine"]))])
     return float(found[0]) if found.size and np.allclose(found, found[0], rtol=1e-12, atol=0.0) else math.nan
 
 

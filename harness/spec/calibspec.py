@@ -122,15 +122,15 @@ class Calibration:
     parameters: tuple[FreeParam, ...]
     calibrate: tuple[CalibCell, ...]
     validate: tuple[CalibCell, ...]
-    budget: int = 32
-    design: str = "sobol"
-    design_points: int = 16
-    starts: int = 1
-    seed: int = 0
+    budget: int = CALIBRATION.field("budget").default  # the search options' defaults are the schema's
+    design: str = CALIBRATION.field("design").default
+    design_points: int = CALIBRATION.field("design_points").default
+    starts: int = CALIBRATION.field("starts").default
+    seed: int = CALIBRATION.field("seed").default
     replicas: tuple[tuple[str, tuple[Any, ...]], ...] = ()
-    noise_factor: float = 2.0
-    noise_floor: float = 0.0
-    sensitivity_step: float = 0.1
+    noise_factor: float = CALIBRATION.field("noise_factor").default
+    noise_floor: float = CALIBRATION.field("noise_floor").default
+    sensitivity_step: float = CALIBRATION.field("sensitivity_step").default
     tolerance: float = math.nan
     defaults: dict[str, Any] = field(default_factory=dict)  # the solver's declared values of the free parameters
 

@@ -5,10 +5,9 @@ tolerance with its sense, the kind of reference the number stands on, the uncert
 which cell statuses its cases may stand on.  `pcverify.harness.judge.verdict` judges claims on tables; this
 module only reads and checks them (one line naming the claim and the field, before anything runs).
 
-A target is a number, `"reference:NAME"` (the scalar NAME of the scene's reference) or an expression of the
-case's resolution (n, refine, a, h), the scene's numeric parameters and its reference scalars, e.g.
-`"sqrt(1 + 2 / (n - 1)**2) - 1"`: a number computed elsewhere is named, not pasted.  A text target is
-evaluated here at every (n, refine) of the claim's group, so a bad name fails at load.
+A target is a number, `"reference:NAME"` (a scalar of the scene's reference) or an expression of the resolution
+(n, refine, a, h), the scene's numeric parameters and reference scalars (`"sigma_c / k"`): computed, not pasted.
+It is evaluated at every (n, refine) of the claim's group when the study loads (a bad name fails there).
 """
 
 from __future__ import annotations
@@ -39,18 +38,18 @@ class Claim:
     metric: str
     reference: str
     tolerance: float
-    target: float | str = 0.0  # a number, "reference:NAME" or an expression (the module's docstring)
+    target: float | str = CLAIM.field("target").default  # a number, "reference:NAME" or an expression (above)
     select: dict[str, Any] = field(default_factory=dict)
-    aggregate: str = "max"
-    absolute: bool = False  # compare |value| (e.g. signed differences) with the target
+    aggregate: str = CLAIM.field("aggregate").default  # the defaults of a claim built here are the schema's
+    absolute: bool = CLAIM.field("absolute").default  # compare |value| (e.g. signed differences) with the target
     per: str = ""
     against: dict[str, Any] = field(default_factory=dict)
     against_table: str = ""  # default: the claim's own table
     against_metric: str = ""  # default: the claim's metric
     uncertainty: float | str = math.nan  # a number, a column aggregated like the metric, or "spread"
-    sense: str = "within"  # within: |value - target| <= tol; at-most: value <= target + tol; at-least: >= target - tol
-    statuses: tuple[str, ...] = ("ok",)  # cell statuses a case may stand on
-    allow_skipped: bool = False  # a case whose cells were all skipped is not-applicable instead of fail
+    sense: str = CLAIM.field("sense").default  # within: |value - target| <= tol; at-most: <= target + tol; ...
+    statuses: tuple[str, ...] = tuple(CLAIM.field("statuses").default)  # cell statuses a case may stand on
+    allow_skipped: bool = CLAIM.field("allow_skipped").default  # all cells skipped: not-applicable, not fail
     targets: tuple[tuple[int, int, float], ...] = ()  # a text target's value at each (n, refine) of its group
 
 
@@ -76,15 +75,13 @@ def _targets(text: str, levels: Levels | None, at: str) -> tuple[tuple[int, int,
     """A text target's value at each (n, refine) of its group (SceneError naming the claim and the field)."""
     if not levels:
         raise SceneError(f"{at}: target={shown(text)} is not valid; allowed: a number (no group makes the table)")
-    out = []
+    name, out = text.removeprefix(REFERENCE), []
     for (n, refine), (scalars, names) in sorted(levels.items()):
-        if text.startswith(REFERENCE) and text.removeprefix(REFERENCE) not in scalars:
+        if name != text and name not in scalars:
             raise SceneError(f"{at}: target={shown(text)} is not valid; allowed: reference:NAME, NAME one of the "
                              f"scene's reference scalars ({', '.join(scalars) or 'it has none'})")
         try:
-            value = scalars[text.removeprefix(REFERENCE)] if text.startswith(REFERENCE) else \
-                evaluate("target", text, names | scalars)
+            out.append((n, refine, scalars[name] if name != text else evaluate("target", text, names | scalars)))
         except SceneError as exc:
             raise SceneError(f"{at}: {exc}") from None
-        out.append((n, refine, value))
     return tuple(out)
