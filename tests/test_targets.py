@@ -115,7 +115,14 @@ def test_a_text_target_on_a_table_no_group_makes_is_refused(study, tmp_path) -> 
 # text, the n its case is at, None: every level of its group).  A pasted value that was wrong shows as a difference
 # beyond its last digit (listed in `WRONG` with the value the computation gives).
 PASTED = {
+    **{("elasticity", f"{c}-hooke-{q}"): (v, None) for c in ("continuum", "mca", "mca-cells")
+       for q, v in (("E", "70e9"), ("nu", "0.33"))},
     ("elasticity", "mca-fracture-strength"): ("400e6", None),
+    ("contact-friction", "contact-pressure"): ("70e6", None),
+    ("contact-friction", "heating-dissimilar-share"): ("0.41421356237309503", None),
+    ("stick-slip", "stick-slip-breakaway"): ("40.0", None),
+    ("stick-slip", "stick-slip-breakaway-above-kinetic"): ("30.0", None),
+    ("stick-slip", "stick-slip-breakaway-nearer-static"): ("35.0", None),
     **{("elasticity", f"mca-nodes-bending-geometry-n{n}"): (v, n)
        for n, v in ((3, "0.224745"), (4, "0.105542"), (6, "0.039230"), (8, "0.020204"))},
     **{("elasticity", f"mca-cells-bending-geometry-n{n}"): (v, n)
