@@ -123,11 +123,12 @@ PASTED = {
     ("stick-slip", "stick-slip-breakaway"): ("40.0", None),
     ("stick-slip", "stick-slip-breakaway-above-kinetic"): ("30.0", None),
     ("stick-slip", "stick-slip-breakaway-nearer-static"): ("35.0", None),
+    **{("stick-slip", f"incline-stick-{a}"): ("0.0", None) for a in (15, 18, 20)},
     **{("elasticity", f"mca-nodes-bending-geometry-n{n}"): (v, n)
        for n, v in ((3, "0.224745"), (4, "0.105542"), (6, "0.039230"), (8, "0.020204"))},
     **{("elasticity", f"mca-cells-bending-geometry-n{n}"): (v, n)
        for n, v in ((3, "0.057191"), (4, "0.031754"), (6, "0.013987"), (8, "0.007843"))},
-    ("continuum-heat", "paper-bulk-mesh-limit"): ("0.3333333333333333", None),
+    ("continuum-heat", "paper-bulk-mesh-limit"): ("0.3333333333333333", None),  # the paper scene's bulk_median
     ("heat-particles", "paper-bulk-one-third"): ("0.3333333333333333", None),
 }
 WRONG: dict[tuple[str, str], float] = {}
