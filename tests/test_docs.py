@@ -23,12 +23,11 @@ from pathlib import Path
 import pytest
 
 from pcverify.harness.cli import build_parser
-from pcverify.harness.report.group_figures import PARAMETER_Y
 from pcverify.harness.spec.calibspec import Calibration
 from pcverify.harness.spec.claims import Claim
-from pcverify.harness.spec.schema import CALIBRATION, CLAIM, GROUP
+from pcverify.harness.spec.schema import CALIBRATION, CLAIM
 from pcverify.harness.spec.schema_markdown import BEGIN, END, study_file_reference
-from pcverify.harness.spec.study import DEFAULT_REPEATS, load_study
+from pcverify.harness.spec.study import load_study
 
 ROOT = Path(__file__).resolve().parent.parent
 DOCS = ROOT / "docs"
@@ -66,11 +65,6 @@ def test_the_defaults_the_reference_states_are_the_codes(table, cls) -> None:
     for name, default in declared.items():
         value = _dataclass_default(cls, name)
         assert (list(value) if isinstance(value, tuple) else value) == default, name
-
-
-def test_the_group_defaults_the_reference_states_are_the_codes() -> None:
-    assert GROUP.field("repeats").default == DEFAULT_REPEATS
-    assert GROUP.field("figure_y").default == list(PARAMETER_Y)
 
 
 def test_the_first_example_study_loads(tmp_path) -> None:

@@ -25,7 +25,7 @@ def _reference_values(g: Any, done: Tables) -> dict[str, dict[str, Any]] | None:
     table = done.get(name)
     if table is None or table.empty:
         return {}
-    metric = g.options.get("reference_metric", "extrapolated")
+    metric = g.options["reference_metric"]
     rows = table.dropna(subset=[metric]) if metric in table else table.iloc[0:0]
     unc = rows[f"{metric}_unc"] if f"{metric}_unc" in rows else pd.Series(0.0, index=rows.index)
     kind = rows["kind"] if "kind" in rows else pd.Series("", index=rows.index)
@@ -34,18 +34,18 @@ def _reference_values(g: Any, done: Tables) -> dict[str, dict[str, Any]] | None:
 
 
 def _convergence_tables(g: Any, res: list[dict[str, Any]], done: Tables) -> Tables:
-    quantities = list(g.options.get("quantities", ["volume_mean", "bulk_median"]))
+    quantities = list(g.options["quantities"])
     levels, fits = tables.convergence(res, quantities, _reference_values(g, done),
                                       self_reference=g.options.get("reference") == "self")
     return {f"{g.id}-levels": levels, f"{g.id}-fits": fits}
 
 
 def _work_precision_tables(g: Any, res: list[dict[str, Any]], done: Tables) -> Tables:
-    return {f"{g.id}-work-precision": tables.work_precision(res, g.options.get("error", "nodes.l2"))}
+    return {f"{g.id}-work-precision": tables.work_precision(res, g.options["error"])}
 
 
 def _stability_tables(g: Any, res: list[dict[str, Any]], done: Tables) -> Tables:
-    limits, smap = stability.tables(res, g.options.get("probe", "limit"))
+    limits, smap = stability.tables(res, g.options["probe"])
     out = {}
     if not limits.empty:
         out[f"{g.id}-limits"] = limits

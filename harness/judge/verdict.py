@@ -44,8 +44,8 @@ AGGREGATES = dict(zip(AGGREGATE_NAMES, (np.max, np.min, np.median, np.mean), str
 CHAOTIC = ("defect",)  # statuses of runs whose digits are a property of the arithmetic, not of the model
 MIN_REPLICAS = 3
 SUSPECT_SEQUENCES = ("oscillatory", "divergent")
-VERDICT_COLUMNS = ("study", "claim", "statement", "case", "solver", "reference", "metric", "value", "target", "error",
-                   "uncertainty", "tolerance", "sense", "verdict", "basis", "note", "command")
+VERDICT_COLUMNS = ("study", "claim", "statement", "case", "solver", "reference", "metric", "value", "target",
+                   "target_from", "error", "uncertainty", "tolerance", "sense", "verdict", "basis", "note", "command")
 
 
 def _rows(df: pd.DataFrame, select: dict[str, Any]) -> pd.DataFrame:
@@ -164,6 +164,16 @@ def decide(value: float, target: float, tolerance: float, sense: str, uncertaint
     return "fail" if miss - u > 0 else "inconclusive"
 
 
+def _target(claim: Claim, rows: pd.DataFrame) -> float:
+    """A claim's target for a case: its number, or its text's value at the (n, refine) of the case's rows (NaN
+    where the rows stand on levels of different values)."""
+    if not isinstance(claim.target, str):
+        return claim.target
+    found = np.array([v for n, refine, v in claim.targets if ("n" not in rows or n in set(rows["n"]))
+                      and ("refine" not in rows or refine in set(rows["refine"]))])
+    return float(found[0]) if found.size and np.allclose(found, found[0], rtol=1e-12, atol=0.0) else math.nan
+
+
 # the command that reproduces a verdict's number, from the claim, its case, its value rows and its target rows
 Command = Callable[["Claim", str, pd.DataFrame, "pd.DataFrame | None"], str]
 
@@ -197,7 +207,8 @@ def judge(study: str, claim: Claim, tables: dict[str, pd.DataFrame], command: Co
     study did not plan (and why); a claim on them is judged as on skipped cells: not-applicable where the claim
     allows skips and names only such cells (a case of its own with `per = "solver"`), fail otherwise."""
     base = {"study": study, "claim": claim.id, "statement": claim.text, "reference": claim.reference,
-            "metric": claim.metric, "tolerance": claim.tolerance, "sense": claim.sense, "basis": ""}
+            "metric": claim.metric, "tolerance": claim.tolerance, "sense": claim.sense, "basis": "",
+            "target_from": claim.target if isinstance(claim.target, str) else ""}
 
     def whole(note: str, state: str = "fail", case: str = "") -> list[dict[str, Any]]:
         cmd = command(claim, case, pd.DataFrame(), None) if command else ""
@@ -270,7 +281,7 @@ def _judge_case(claim: Claim, base: dict[str, Any], rows: pd.DataFrame, others: 
         return row | {"verdict": "fail", "note": "no rows for this case" + (" in the target" if not part.empty else "")}
     values = _values(part, claim.metric)
     value = _aggregate(values, claim.aggregate)
-    target, target_u = claim.target, 0.0
+    target, target_u = _target(claim, part), 0.0
     metric = claim.against_metric or claim.metric
     if ref is not None:
         target = _aggregate(_values(ref, metric), claim.aggregate)

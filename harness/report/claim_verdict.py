@@ -58,8 +58,8 @@ def judge_claim(args: argparse.Namespace) -> int:
     else:
         for r in records:
             print(f"{r['study']}/{r['claim']}" + (f" {r['case']}" if r["case"] else "") + f": {r['verdict']}")
-            for key in ("metric", "value", "uncertainty", "target", "error", "tolerance", "sense", "reference",
-                        "basis", "note", "solver"):
+            for key in ("metric", "value", "uncertainty", "target", "target_from", "error", "tolerance", "sense",
+                        "reference", "basis", "note", "solver"):
                 if r.get(key) not in (None, ""):
                     print(f"  {key:<12} {r[key]!r}" if isinstance(r[key], float) else f"  {key:<12} {r[key]}")
     return 0 if all(r["verdict"] == "pass" for r in records) else 1

@@ -39,10 +39,11 @@ def value_text(record: dict[str, Any]) -> str:
 
 
 def target_text(record: dict[str, Any]) -> str:
-    """The bound a verdict is judged against: "0.3333", "at least 1.8", "at most 0.01"; its tolerance is written
-    apart ("±" is kept for uncertainties)."""
+    """The bound a verdict is judged against: "0.3333", "at least 1.8", "at most 0.01", "70 GPa (reference:E_eff)"
+    (a computed target with its source); its tolerance is written apart ("±" is kept for uncertainties)."""
     word = {"within": "", "at-most": "at most ", "at-least": "at least "}[record.get("sense") or "within"]
-    return f"{word}{number(record.get('target'), unit(record), 4)}"
+    source = f" ({record['target_from']})" if record.get("target_from") else ""
+    return f"{word}{number(record.get('target'), unit(record), 4)}{source}"
 
 
 def tolerance_text(record: dict[str, Any]) -> str:

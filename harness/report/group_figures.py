@@ -13,15 +13,12 @@ import pandas as pd
 from pcverify.harness.judge.group_tables import Tables, group_tables
 from pcverify.harness.report import figures
 
-PARAMETER_Y = ("err.nodes.l2", "err.nodes.linf")  # what a parameter figure draws unless `figure_y` says
-NORMS = ("l2", "linf")  # the error norms a convergence figure draws unless its group's `norms` says otherwise
-
 
 def _convergence_figures(g: Any, res: list[dict[str, Any]], t: Tables, folder: Path) -> list[str]:
     levels, fits = t[f"{g.id}-levels"], t[f"{g.id}-fits"]
     levels = _ok(levels)
-    quantities = list(g.options.get("quantities", ["volume_mean", "bulk_median"]))
-    norms = tuple(f".{n}" for n in g.options.get("norms", NORMS))
+    quantities = list(g.options["quantities"])
+    norms = tuple(f".{n}" for n in g.options["norms"])
     err_cols = [c for c in levels.columns if (c.endswith(norms) or c.startswith("err.")) and not c.endswith("_unc")]
     drawn = not levels.empty and figures.convergence(levels, err_cols or quantities, folder / g.id, g.title, fits)
     return [f"{g.id}.png"] if drawn else []
@@ -39,7 +36,7 @@ def _timing_figures(g: Any, res: list[dict[str, Any]], t: Tables, folder: Path) 
 
 
 def _work_precision_figures(g: Any, res: list[dict[str, Any]], t: Tables, folder: Path) -> list[str]:
-    error = f"err.{g.options.get('error', 'nodes.l2')}"
+    error = f"err.{g.options['error']}"
     df = _ok(t[f"{g.id}-work-precision"]).dropna(subset=[error]) if error in t[f"{g.id}-work-precision"] else None
     beside = []
     for other in g.options.get("beside", []):
@@ -86,10 +83,10 @@ def group_report(g: Any, res: list[dict[str, Any]], cells: pd.DataFrame, folder:
     out = group_tables(g, res, done)
     drawn = FIGURES[g.analysis](g, res, done | out, folder)  # a figure may draw earlier groups' tables beside
     out.setdefault(f"{g.id}-cells", cells)
-    for kind in g.options.get("figures", []):
+    for kind in g.options["figures"]:
         if kind == "parameter":
             x = g.options["figure_x"]
-            ys = g.options.get("figure_y", list(PARAMETER_Y))
+            ys = g.options["figure_y"]
             ys = [ys] if isinstance(ys, str) else list(ys)
             if figures.parameter_figure(res, folder / f"{g.id}-{x}", f"{g.title}: against {x}", x, ys):
                 drawn.append(f"{g.id}-{x}.png")

@@ -58,7 +58,7 @@ ANALYSES: dict[str, Analysis] = {a.name: a for a in (
     Analysis("stability", "measured time-step limits (probe = limit) or a stability map (probe = map)",
              options=(Field("probe", "text", "a limit per case, or a map over dt and the swept parameters",
                             choices=PROBE_KINDS, default="limit"),),
-             task=lambda options: TASKS[f"stability-{options.get('probe', 'limit')}"]),
+             task=lambda options: TASKS[f"stability-{options['probe']}"]),
 )}
 
 # what the study-file schema's registries name: each analysis's options, and the figure kinds

@@ -122,15 +122,15 @@ class Calibration:
     parameters: tuple[FreeParam, ...]
     calibrate: tuple[CalibCell, ...]
     validate: tuple[CalibCell, ...]
-    budget: int = 32
-    design: str = "sobol"
-    design_points: int = 16
-    starts: int = 1
-    seed: int = 0
+    budget: int = CALIBRATION.field("budget").default  # the search options' defaults are the schema's
+    design: str = CALIBRATION.field("design").default
+    design_points: int = CALIBRATION.field("design_points").default
+    starts: int = CALIBRATION.field("starts").default
+    seed: int = CALIBRATION.field("seed").default
     replicas: tuple[tuple[str, tuple[Any, ...]], ...] = ()
-    noise_factor: float = 2.0
-    noise_floor: float = 0.0
-    sensitivity_step: float = 0.1
+    noise_factor: float = CALIBRATION.field("noise_factor").default
+    noise_floor: float = CALIBRATION.field("noise_floor").default
+    sensitivity_step: float = CALIBRATION.field("sensitivity_step").default
     tolerance: float = math.nan
     defaults: dict[str, Any] = field(default_factory=dict)  # the solver's declared values of the free parameters
 
@@ -143,7 +143,7 @@ def _solver_params_ok(solver: Any, params: dict[str, Any], where: str) -> dict[s
 
 
 def _parameter(item: dict[str, Any], solver: Any, fixed: dict[str, Any], where: str) -> FreeParam:
-    name, low, high, log = item["name"], item["low"], item["high"], item.get("log", False)
+    name, low, high, log = item["name"], item["low"], item["high"], item["log"]
     known = [p.name for p in solver.parameters]
     if name not in known:
         raise SceneError(f"{where}: name={shown(name)} is not a parameter of solver {solver.name!r}; allowed: one "
@@ -163,7 +163,7 @@ def _parameter(item: dict[str, Any], solver: Any, fixed: dict[str, Any], where: 
 def _reference(value: Any, where: str) -> Reference | None:
     if value == "analytic":
         return None
-    refine = value.get("refine", 1)
+    refine = value["refine"]
     refines = as_list(refine)
     if len(refines) == 2 or len(set(refines)) != len(refines):
         raise SceneError(f"{where}: reference.refine={shown(refine)} is not valid; allowed: one integer, or a list "
@@ -185,17 +185,17 @@ def _cells(item: dict[str, Any], where: str, refine_read: bool) -> list[CalibCel
     if reference is None and not metric.endswith(FIELD_KINDS):
         raise SceneError(f"{where}: metric={metric!r} with reference = \"analytic\"; allowed: a field error "
                          "<samples>.l2 or .linf (a scalar metric needs a solver reference)")
-    return [CalibCell(scene, tuple(sorted(scene_params.items())), n, item.get("refine", 1), metric, reference,
-                      item.get("error", "relative"), refine_read) for n in as_list(item.get("n", 4))]
+    return [CalibCell(scene, tuple(sorted(scene_params.items())), n, item["refine"], metric, reference,
+                      item["error"], refine_read) for n in as_list(item["n"])]
 
 
 def parse_calibrations(items: Any, where: str) -> list[Calibration]:
     """Check every `[[calibration]]` table of a study file against `schema.CALIBRATION`, then against its solver
     and scenes; SceneError (one line) names the first bad field, and the overlapping cells of a calibration
     whose calibration and validation cells overlap."""
-    check_value(items, STUDY.field("calibration"), where)
     out: list[Calibration] = []
-    for number, item in enumerate(items, 1):
+    for number, (given, item) in enumerate(zip(items, check_value(items, STUDY.field("calibration"), where),
+                                               strict=True), 1):
         at = row_where(where, "calibration", number, item, CALIBRATION)
         cid = item.get("id", CALIBRATION.default_key.format(number))
         try:
@@ -212,9 +212,9 @@ def parse_calibrations(items: Any, where: str) -> list[Calibration]:
         _overlap(cells["calibrate"], cells["validate"], solver, at)
         opts = {k: float(item[k]) if isinstance(getattr(Calibration, k), float) else item[k] for k in OPTIONS
                 if k in item}
-        budget = opts.get("budget", Calibration.budget)
+        budget = opts["budget"]
         if budget < len(cells["calibrate"]):
-            raise SceneError(f"{at}: budget={budget}{'' if 'budget' in item else ' (the default)'} is below the "
+            raise SceneError(f"{at}: budget={budget}{'' if 'budget' in given else ' (the default)'} is below the "
                              f"{len(cells['calibrate'])} calibration cells (one parameter set costs one run per cell: "
                              f"nothing would be evaluated); allowed: integer in [{len(cells['calibrate'])}, 100000]")
         reps = tuple((k, tuple(as_list(v))) for k, v in sorted(item.get("replicas", {}).items()))

@@ -4,18 +4,28 @@ A claim names a table, its rows (`select`), a column (`metric`), how rows combin
 tolerance with its sense, the kind of reference the number stands on, the uncertainty to weigh it with, and
 which cell statuses its cases may stand on.  `pcverify.harness.judge.verdict` judges claims on tables; this
 module only reads and checks them (one line naming the claim and the field, before anything runs).
+
+A target is a number, `"reference:NAME"` (a scalar of the scene's reference) or an expression of the resolution
+(n, refine, a, h), the scene's numeric parameters and reference scalars (`"sigma_c / k"`): computed, not pasted.
+It is evaluated at every (n, refine) of the claim's group when the study loads (a bad name fails there).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
+from pcverify.harness.spec.expressions import evaluate
 from pcverify.harness.spec.schema import CLAIM, STUDY, check_value, row_where
-from pcverify.scene import SceneError
+from pcverify.scene import SceneError, shown
 
 SPREAD = "spread"  # uncertainty = the standard error of the mean over a case's replica rows
+REFERENCE = "reference:"  # a target naming a scalar of the scene's reference
+# what a text target may name at each (n, refine) of its group: (the reference's scalars, the other names)
+Levels = dict[tuple[int, int], tuple[dict[str, float], dict[str, float]]]
 
 
 @dataclass(frozen=True)
@@ -28,27 +38,50 @@ class Claim:
     metric: str
     reference: str
     tolerance: float
-    target: float = 0.0
+    target: float | str = CLAIM.field("target").default  # a number, "reference:NAME" or an expression (above)
     select: dict[str, Any] = field(default_factory=dict)
-    aggregate: str = "max"
-    absolute: bool = False  # compare |value| (e.g. signed differences) with the target
+    aggregate: str = CLAIM.field("aggregate").default  # the defaults of a claim built here are the schema's
+    absolute: bool = CLAIM.field("absolute").default  # compare |value| (e.g. signed differences) with the target
     per: str = ""
     against: dict[str, Any] = field(default_factory=dict)
     against_table: str = ""  # default: the claim's own table
     against_metric: str = ""  # default: the claim's metric
     uncertainty: float | str = math.nan  # a number, a column aggregated like the metric, or "spread"
-    sense: str = "within"  # within: |value - target| <= tol; at-most: value <= target + tol; at-least: >= target - tol
-    statuses: tuple[str, ...] = ("ok",)  # cell statuses a case may stand on
-    allow_skipped: bool = False  # a case whose cells were all skipped is not-applicable instead of fail
+    sense: str = CLAIM.field("sense").default  # within: |value - target| <= tol; at-most: <= target + tol; ...
+    statuses: tuple[str, ...] = tuple(CLAIM.field("statuses").default)  # cell statuses a case may stand on
+    allow_skipped: bool = CLAIM.field("allow_skipped").default  # all cells skipped: not-applicable, not fail
+    targets: tuple[tuple[int, int, float], ...] = ()  # a text target's value at each (n, refine) of its group
 
 
-def parse_claims(items: list[dict[str, Any]], where: str) -> list[Claim]:
+def parse_claims(items: list[dict[str, Any]], where: str, levels: Callable[[str], Levels | None] = lambda t: None
+                 ) -> list[Claim]:
     """The `[[claim]]` tables of a study file as claims, checked against `schema.CLAIM` before anything runs
-    (SceneError, one line, naming the claim, the field and the allowed values)."""
-    check_value(items, STUDY.field("claim"), where)
-    for number, item in enumerate(items, 1):
-        if item.get("uncertainty") == SPREAD and item.get("aggregate", "max") != "mean":
-            at = row_where(where, "claim", number, item, CLAIM)
+    (SceneError, one line, naming the claim, the field and the allowed values); `levels(table)`: what a text
+    target on that table may name (None: no group makes the table)."""
+    claims = []
+    for number, item in enumerate(check_value(items, STUDY.field("claim"), where), 1):
+        at = row_where(where, "claim", number, item, CLAIM)
+        if item.get("uncertainty") == SPREAD and item["aggregate"] != "mean":
             raise SceneError(f"{at}: uncertainty=\"spread\" is the standard error of a mean; allowed: it with "
                              "aggregate = \"mean\"")
-    return [Claim(**item | ({"statuses": tuple(item["statuses"])} if "statuses" in item else {})) for item in items]
+        claim = Claim(**item | {"statuses": tuple(item["statuses"])})
+        if isinstance(claim.target, str):
+            claim = dataclasses.replace(claim, targets=_targets(claim.target, levels(claim.table), at))
+        claims.append(claim)
+    return claims
+
+
+def _targets(text: str, levels: Levels | None, at: str) -> tuple[tuple[int, int, float], ...]:
+    """A text target's value at each (n, refine) of its group (SceneError naming the claim and the field)."""
+    if not levels:
+        raise SceneError(f"{at}: target={shown(text)} is not valid; allowed: a number (no group makes the table)")
+    name, out = text.removeprefix(REFERENCE), []
+    for (n, refine), (scalars, names) in sorted(levels.items()):
+        if name != text and name not in scalars:
+            raise SceneError(f"{at}: target={shown(text)} is not valid; allowed: reference:NAME, NAME one of the "
+                             f"scene's reference scalars ({', '.join(scalars) or 'it has none'})")
+        try:
+            out.append((n, refine, scalars[name] if name != text else evaluate("target", text, names | scalars)))
+        except SceneError as exc:
+            raise SceneError(f"{at}: {exc}") from None
+    return tuple(out)

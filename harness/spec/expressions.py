@@ -40,7 +40,7 @@ def variables(n: int, refine: int, spacing: float) -> dict[str, float]:
 def evaluate(name: str, text: str, names: dict[str, float]) -> float:
     """The value of the expression `text` given for parameter `name`; SceneError (one line naming the parameter,
     the expression and what is allowed) for anything else than the grammar above."""
-    allowed = (f"an expression of {', '.join(NAMES)} with numbers, + - * / ** and "
+    allowed = (f"an expression of {', '.join(names)} with numbers, + - * / ** and "
                f"{', '.join(FUNCTIONS)}")
     if len(text) > MAX_LENGTH:
         raise SceneError(f"{name}={shown(text)} is not valid; allowed: {allowed} (at most {MAX_LENGTH} characters)")

@@ -17,6 +17,7 @@ overlap guard) run after the walk, in the modules that own those objects.
 
 from __future__ import annotations
 
+import copy
 import re
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -126,18 +127,18 @@ class Table:
         return next(f for f in self.fields if f.name == name)
 
 
-def check(value: Any, table: Table, where: str, registries: Registries | None = None) -> None:
-    """Check `value` (a parsed TOML table) against `table`: SceneError, one line, at the first problem."""
+def check(value: Any, table: Table, where: str, registries: Registries | None = None) -> dict[str, Any]:
+    """Check `value` (a parsed TOML table) against `table`: SceneError, one line, at the first problem.  The
+    value back normalised: a copy with every declared default filled in, so readers repeat none."""
     if not isinstance(value, dict):
         keys = ", ".join(f.name for f in table.fields)
         raise SceneError(f"{where}: {shown(value)} is not valid; allowed: a table {{ {keys} }}")
-    _record(value, table, where, "", registries or {})
+    return _record(value, table, where, "", registries or {})
 
 
 def check_value(value: Any, field: Field, where: str, registries: Registries | None = None) -> Any:
-    """Check one value against one field (e.g. a name taken from a file name); the value back."""
-    _value(value, field, where, field.name, registries or {})
-    return value
+    """Check one value against one field (e.g. a name taken from a file name); the value back, normalised."""
+    return _value(value, field, where, field.name, registries or {})
 
 
 def row_where(where: str, name: str, number: int, item: Any, table: Table) -> str:
@@ -153,7 +154,7 @@ def _invalid(where: str, path: str, value: Any, allowed: str) -> SceneError:
     return SceneError(f"{where}: {path}={shown(value)} is not valid; allowed: {allowed}")
 
 
-def _record(item: Any, table: Table, where: str, prefix: str, reg: Registries) -> None:
+def _record(item: Any, table: Table, where: str, prefix: str, reg: Registries) -> dict[str, Any]:
     fields = {f.name: f for f in table.fields}
     what = table.title
     if table.variant:
@@ -165,34 +166,37 @@ def _record(item: Any, table: Table, where: str, prefix: str, reg: Registries) -
     unknown = sorted(set(item) - set(fields), key=str)
     if unknown:
         raise SceneError(f"{where}: {prefix}{unknown[0]} is not a field of {what}; allowed: {', '.join(fields)}")
+    out = dict(item)
     for f in fields.values():
         if f.name in item:
-            _value(item[f.name], f, where, prefix + f.name, reg)
+            out[f.name] = _value(item[f.name], f, where, prefix + f.name, reg)
         elif f.required:
             raise SceneError(f"{where}: {prefix}{f.name} is missing; allowed: {f.allowed(reg)}")
+        elif f.default is not None:
+            out[f.name] = copy.deepcopy(f.default)
     given = [k for k in table.one_of if k in item]
     if table.one_of and len(given) != 1:
         keys = ", ".join(prefix + k for k in table.one_of)
         raise SceneError(f"{where}: {' and '.join(prefix + k for k in given) or 'none of ' + keys} "
                          f"{'is' if len(given) < 2 else 'are'} given; allowed: exactly one of {keys}")
+    return out
 
 
-def _value(value: Any, f: Field, where: str, path: str, reg: Registries) -> None:
+def _value(value: Any, f: Field, where: str, path: str, reg: Registries) -> Any:
     if f.alternatives:
         fitting = next((a for a in f.alternatives if a.type_fits(value)), None)
         if fitting is None:
             raise _invalid(where, path, value, f.allowed(reg))
-        _value(value, fitting, where, path, reg)
-    elif f.kind == "tables":
-        _rows(value, f, where, path, reg)
-    elif f.kind in ("record", "table"):
+        return _value(value, fitting, where, path, reg)
+    if f.kind == "tables":
+        return _rows(value, f, where, path, reg)
+    if f.kind in ("record", "table"):
         if not isinstance(value, dict):
             raise _invalid(where, path, value, f.allowed(reg))
-        if f.kind == "record":
-            _record(value, f.table, where, f"{path}.", reg)
         for key, item in value.items() if f.values else ():
             _value(item, f.values, where, f"{path}.{key}", reg)
-    elif f.shape:
+        return _record(value, f.table, where, f"{path}.", reg) if f.kind == "record" else value
+    if f.shape:
         items = value if isinstance(value, list) else [value] if f.shape == "value or list" else None
         if items is None or not f.min_items <= len(items) <= (f.max_items or len(items)):
             raise _invalid(where, path, value, f.allowed(reg))
@@ -201,16 +205,18 @@ def _value(value: Any, f: Field, where: str, path: str, reg: Registries) -> None
                 raise _invalid(where, path, item, f.allowed(reg))
     elif not f.fits(value, reg):
         raise _invalid(where, path, value, f.allowed(reg))
+    return value
 
 
-def _rows(value: Any, f: Field, where: str, path: str, reg: Registries) -> None:
+def _rows(value: Any, f: Field, where: str, path: str, reg: Registries) -> list[dict[str, Any]]:
     table = f.table
     if not isinstance(value, list) or not all(isinstance(t, dict) for t in value) or len(value) < f.min_items:
         raise _invalid(where, path, value, f.allowed(reg))
     seen: dict[str, dict[Any, int]] = {u.name: {} for u in table.fields if u.unique}
+    rows = []
     for number, item in enumerate(value, 1):
         at = row_where(where, path, number, item, table)
-        _record(item, table, at, "", reg)
+        rows.append(_record(item, table, at, "", reg))
         for name, numbers in seen.items():
             key = item.get(name, table.default_key.format(number) if name == table.key else None)
             if key is None:
@@ -220,6 +226,7 @@ def _rows(value: Any, f: Field, where: str, path: str, reg: Registries) -> None:
                 raise SceneError(f"{at}: {name}={shown(key)} is not valid; allowed: {article} {name} no other {path} "
                                  f"has ({path}[{numbers[key]}] has it)")
             numbers[key] = number
+    return rows
 
 
 # -- the study file ----------------------------------------------------------------------------------------
@@ -333,7 +340,10 @@ CLAIM = Table("[[claim]]", (
     Field("metric", "text", "the column judged", required=True),
     Field("reference", "text", "the kind of reference the number stands on", choices=REFERENCE_KINDS, required=True),
     Field("tolerance", "real", "the bound around the target", low=0.0, required=True),
-    Field("target", "real", "the value claimed (unless against gives it)", default=0.0),
+    Field("target", "any", "the value claimed (unless against gives it): a number, \"reference:NAME\" (the scalar "
+          "NAME of the scene's reference) or an expression of n, refine, a, h, pi, the scene's numeric parameters and "
+          "its reference scalars", default=0.0, alternatives=(Field("target", "real"), Field(
+              "target", "text", hint="reference:NAME or an expression", pattern=r"(?s).{1,200}"))),
     Field("select", "table", "the rows read: { column = value or [values] }", values=TEXT_TABLE, default={}),
     Field("aggregate", "text", "how the rows of a case combine", choices=AGGREGATES, default="max"),
     Field("absolute", "bool", "judge |value| (e.g. a signed difference)", default=False),

@@ -23,7 +23,7 @@ from pcverify.harness.spec.catalogue import register_scene, spec_from_table
 from pcverify.harness.spec.claims import Claim, parse_claims
 from pcverify.harness.spec.mutants import Mutant, parse_mutants
 from pcverify.harness.spec.plugins import load_plugins
-from pcverify.harness.spec.schema import MAX_CELLS, NAME, SCENE, as_list, check_value, row_where
+from pcverify.harness.spec.schema import GROUP, MAX_CELLS, NAME, SCENE, as_list, check_value, row_where
 from pcverify.harness.spec.shipped import study_path
 from pcverify.harness.spec.studyfile import (
     check_groups,
@@ -34,12 +34,11 @@ from pcverify.harness.spec.studyfile import (
     scene_at,
     solver_params_at,
     solver_params_of,
+    target_names,
 )
 from pcverify.harness.spec.tasks import SOLVE, CellTask, ask_supports
 from pcverify.scene import Scene, SceneError
 from pcverify.solvers.registry import SolverUnavailable, get_solver, named
-
-DEFAULT_REPEATS = 3  # a timed cell's solves (the least CPU time is its cost; `execution.timed_result`)
 
 
 @dataclass(frozen=True)
@@ -121,15 +120,21 @@ def load_study(name_or_path: str, allow_large: bool = False) -> Study:
     if count > MAX_CELLS and not allow_large:
         raise SceneError(f"study file {path.name} has {count} cells; allowed: at most {MAX_CELLS} without "
                          "--allow-large")
-    check_study_document(doc, path)  # one-line errors for bad fields, before any cell is built
+    normal = check_study_document(doc, path)  # one-line errors for bad fields, before any cell is built
     plugins = tuple(as_list(doc.get("plugins", [])))
     load_plugins(plugins, str(path.resolve().parent))
     for number, table in enumerate(doc.get("scene", []), 1):
         register_scene(spec_from_table(table, row_where(f"study file {path.name}", "scene", number, table, SCENE)),
                        f"study file {path}")
-    check_groups(doc, path)
-    groups = [_group(g, gi, plugins, str(path.resolve().parent)) for gi, g in enumerate(doc.get("group", []))]
-    claims = parse_claims(doc.get("claim", []), f"study file {path.name}")
+    check_groups(normal, path)
+    groups = [_group(g, gi, plugins, str(path.resolve().parent)) for gi, g in enumerate(normal.get("group", []))]
+    by_id = {group.id: g for group, g in zip(groups, normal.get("group", []), strict=True)}
+
+    def levels(table: str) -> Any:
+        gid = max((i for i in by_id if table.startswith(f"{i}-")), key=len, default=None)
+        return None if gid is None else target_names(by_id[gid])
+
+    claims = parse_claims(normal.get("claim", []), f"study file {path.name}", levels)
     calibrations = parse_calibrations(doc["calibration"], f"study file {path.name}") if "calibration" in doc else []
     require_solvers(sorted({c.solver for g in groups for c in g.cells} | {c.solver for c in calibrations}),
                     f"study file {path.name}")
@@ -165,15 +170,15 @@ def require_solvers(names: list[str], where: str) -> None:
 
 def cell_count(doc: dict[str, Any], path: Path) -> int:
     """How many cells the study's groups make (solvers x n x refine x the sweep's combinations), from the
-    lengths of the lists alone."""
+    lengths of the lists alone (of the document as read: this count comes before its check)."""
     total = 0
     for gi, g in enumerate(doc.get("group", []) if isinstance(doc.get("group"), list) else []):
         if not isinstance(g, dict):
             continue
         where = f"{path.name} group {gi + 1}"
         size = 1
-        for key, default in (("solvers", None), ("n", [4]), ("refine", [1])):
-            value = g.get(key, default)
+        for key in ("solvers", "n", "refine"):
+            value = g.get(key, GROUP.field(key).default)
             size *= len(value) if isinstance(value, list) else 1
         sweep = g.get("sweep", {})
         for values in (sweep.values() if isinstance(sweep, dict) else []):
@@ -186,7 +191,7 @@ def cell_count(doc: dict[str, Any], path: Path) -> int:
 
 def _group(g: dict[str, Any], gi: int, plugins: tuple[str, ...], folder: str) -> Group:
     gid = g.get("id", f"group{gi + 1}")
-    analysis = ANALYSES[g.get("analysis", "table")]
+    analysis = ANALYSES[g["analysis"]]
     options = {k: v for k, v in g.items() if k not in ("id", "title", "scene", "scene_params", "solvers", "n",
                                                         "refine", "solver_params", "sweep", "analysis", "serial",
                                                         "repeats")}
@@ -197,7 +202,7 @@ def _group(g: dict[str, Any], gi: int, plugins: tuple[str, ...], folder: str) ->
     keys = sorted(sweep)
     combos = list(itertools.product(*[as_list(sweep[k]) for k in keys])) or [()]
     cells, unplanned = [], []
-    ns, refines = as_list(g.get("n", [4])), as_list(g.get("refine", [1]))
+    ns, refines = as_list(g["n"]), as_list(g["refine"])
     solvers = []
     for solver in as_list(g["solvers"]):
         why = _unsupported(task, solver, scene)
@@ -215,9 +220,8 @@ def _group(g: dict[str, Any], gi: int, plugins: tuple[str, ...], folder: str) ->
         cells.append(Cell(gid, here if scene_expressions else scene, tuple(sorted(values.items())), solver, int(n),
                           int(refine), tuple(sorted(params.items())), task=task, plugins=plugins,
                           plugin_folder=folder if plugins else None, expressions=tuple(sorted(expressions.items()))))
-    if bool(g.get("serial", analysis.serial)):
-        repeats = int(g.get("repeats", DEFAULT_REPEATS))
-        cells = [dataclasses.replace(c, serial=True, repeats=repeats) for c in cells]
+    if bool(g.get("serial", analysis.serial)):  # a timed cell: its least CPU time of `repeats` solves is its cost
+        cells = [dataclasses.replace(c, serial=True, repeats=int(g["repeats"])) for c in cells]
     return Group(gid, g.get("title", gid), analysis.name, cells, options, unplanned)
 
 

@@ -12,6 +12,7 @@ trust.
 from __future__ import annotations
 
 import itertools
+import math
 import tomllib
 from pathlib import Path
 from typing import Any
@@ -20,7 +21,7 @@ from pcverify.harness.spec.analyses import ANALYSES, REGISTRIES
 from pcverify.harness.spec.catalogue import get_spec, make_scene
 from pcverify.harness.spec.expressions import is_expression, resolve, variables
 from pcverify.harness.spec.schema import GROUP, STUDY, as_list, check, row_where
-from pcverify.scene import Scene, SceneError
+from pcverify.scene import Scene, SceneError, is_real
 from pcverify.solvers.registry import SolverUnavailable, get_solver
 
 
@@ -43,19 +44,20 @@ def read_study_document(path: Path) -> dict[str, Any]:
                          "[[claim]] and [[scene]] tables") from None
 
 
-def check_study_document(doc: dict[str, Any], path: Path) -> None:
+def check_study_document(doc: dict[str, Any], path: Path) -> dict[str, Any]:
     """Keys, types and values of the whole file against the schema (`schema.STUDY`); a study has groups unless
-    it calibrates."""
+    it calibrates.  The document back with the schema's defaults filled in (`schema.check`)."""
     where = f"study file {path.name}"
-    check(doc, STUDY, where, REGISTRIES)
+    normal = check(doc, STUDY, where, REGISTRIES)
     if not doc.get("group") and "calibration" not in doc:
         raise SceneError(f"{where}: no [[group]] tables; allowed: one or more [[group]] tables")
+    return normal
 
 
 def check_groups(doc: dict[str, Any], path: Path) -> None:
     """What a group's keys mean, once the study's scenes are known: its scene built with its scene_params (at each
     of its resolutions, where a parameter is an expression of the resolution), and every solver parameter and
-    sweep value within the solver's declared ranges."""
+    sweep value within the solver's declared ranges (`doc`: as `check_study_document` returns it)."""
     for number, g in enumerate(doc.get("group", []), 1):
         where = row_where(f"study file {path.name}", "group", number, g, GROUP)
         try:
@@ -63,15 +65,15 @@ def check_groups(doc: dict[str, Any], path: Path) -> None:
                 scene_at(g["scene"], g.get("scene_params", {}), n, refine)
         except SceneError as exc:
             raise SceneError(f"{where}: {exc}") from None
-        _check_solver_params(g, as_list(g["solvers"]), where, ANALYSES[g.get("analysis", "table")].task(g))
-        if "parameter" in as_list(g.get("figures", [])) and "figure_x" not in g:
+        _check_solver_params(g, as_list(g["solvers"]), where, ANALYSES[g["analysis"]].task(g))
+        if "parameter" in as_list(g["figures"]) and "figure_x" not in g:
             raise SceneError(f"{where}: figures = \"parameter\" needs figure_x; allowed: figure_x = a swept solver or "
                              "scene parameter, n, refine or h")
 
 
 def resolutions(g: dict[str, Any]) -> list[tuple[int, int]]:
-    """The (n, refine) pairs of a group."""
-    return [(int(n), int(r)) for n in as_list(g.get("n", [4])) for r in as_list(g.get("refine", [1]))]
+    """The (n, refine) pairs of a (normalised) group."""
+    return [(int(n), int(r)) for n in as_list(g["n"]) for r in as_list(g["refine"])]
 
 
 def resolution_names(scene: str, scene_params: dict[str, Any], n: int, refine: int) -> dict[str, float]:
@@ -88,6 +90,20 @@ def scene_at(scene: str, scene_params: dict[str, Any], n: int, refine: int
     names = resolution_names(scene, scene_params, n, refine)
     values, expressions = resolve(scene_params, get_spec(scene).parameters, names)
     return make_scene(scene, **values), values, expressions
+
+
+def target_names(g: dict[str, Any]) -> dict[tuple[int, int], tuple[dict[str, float], dict[str, float]]]:
+    """What a claim's target on a group's tables may name at each (n, refine) of the group: (the scalars of the
+    scene's reference, asked before any solve; the resolution's names, pi and the scene's numeric parameters)."""
+    spec, given, out = get_spec(g["scene"]), g.get("scene_params", {}), {}
+    for n, refine in resolutions(g):
+        scene, values, _ = scene_at(g["scene"], given, n, refine)
+        ref = spec.reference.scalars(scene, {}) if spec.reference and spec.reference.scalars else {}
+        params = {p.name: p.default for p in spec.parameters} | values
+        out[n, refine] = ({k: float(v) for k, v in ref.items() if is_real(v)},
+                          {k: float(v) for k, v in params.items() if is_real(v)} | {"pi": math.pi}
+                          | resolution_names(g["scene"], given, n, refine))
+    return out
 
 
 def solver_params_at(solver: str, params: dict[str, Any], names: dict[str, float]
