@@ -45,8 +45,10 @@ from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
+from skfem import Basis, ElementHex1, LinearForm, MeshHex
 
 from pcverify.scene import (
+    Conduction,
     FaceTemperature,
     Param,
     PatchTemperature,
@@ -61,7 +63,7 @@ from pcverify.solvers.continuum.linear_solver import SpdSolver, smoothed_aggrega
 from pcverify.solvers.continuum.work import heat_estimate, transient_steps
 from pcverify.solvers.protocol import Solution, WorkEstimate, effective_params, heat_summary
 
-PHYSICS = frozenset({"conduction", "heat-source", "interface-flux"})  # what this solver implements
+PHYSICS = frozenset({"conduction", "heat-source", "heat-source-field", "interface-flux"})  # implemented
 
 PARAMETERS: tuple[Param, ...] = (
     Param("scheme", "crank-nicolson", "", "time integration of transient scenes",
@@ -110,6 +112,20 @@ def _linear_solver(a: sp.spmatrix, method: str, rtol: float, graph: sp.spmatrix 
         return smoothed_aggregation(mat, **amg_options(graph))
 
     return SpdSolver(a, method, rtol, amg, error=ArithmeticError)
+
+
+def _field_load(heat: Conduction, grid: StructuredGrid) -> np.ndarray:
+    """Nodal load f_i = integral of s(x) phi_i of a varying source (uniform part included): scikit-fem's linear
+    form with the source evaluated at the (possibly warped) cells' 2x2x2 Gauss points."""
+    basis = Basis(MeshHex(np.ascontiguousarray(grid.points.T), grid.cells.astype(np.int32)), ElementHex1(),
+                  intorder=2)
+
+    @LinearForm
+    def form(v, w):
+        x = np.stack([np.asarray(c) for c in w.x], axis=-1)
+        return heat.source_at(x.reshape(-1, 3)).reshape(x.shape[:-1]) * v
+
+    return form.assemble(basis)
 
 
 class SkfemHeat:
@@ -290,7 +306,7 @@ class SkfemHeat:
     def _load(scene: Scene, grid: StructuredGrid, weights: np.ndarray) -> np.ndarray:
         """Nodal heat load (W): the volumetric source and the interface flux (see the module docstring)."""
         heat = scene.conduction
-        load = heat.source * weights
+        load = heat.source * weights if not heat.source_field else _field_load(heat, grid)
         plane = heat.interface
         if plane is not None and plane.flux != 0.0:
             ax = plane.axis_index
