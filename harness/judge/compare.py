@@ -19,25 +19,36 @@ from typing import Any
 import numpy as np
 
 from pcverify.harness.judge.metrics import field_errors
+from pcverify.harness.spec.catalogue import get_spec
 from pcverify.references import analytic, stick_slip
-from pcverify.scene import Scene
+from pcverify.scene import Scene, SceneError
 
 
 def errors(scene: Scene, samples: dict[str, Any] | None) -> dict[str, dict[str, Any]]:
     """{set: {"l2": ..., "linf": ..., "reference": kind}} for each non-empty sample set the scene has a
     reference for; a non-finite error (values of a run that is not ok) is None, as in the JSON of a result."""
     out: dict[str, dict[str, Any]] = {}
+    field = _reference_field(scene)
     for name, entry in (samples or {}).items():
         values = np.asarray(entry["values"], dtype=float)
         if values.size == 0 or values.ndim != 1:
             continue
-        exact = analytic(scene, np.asarray(entry["points"], dtype=float))
+        exact = (field or analytic)(scene, np.asarray(entry["points"], dtype=float))
         if exact is None:
             continue
         found = field_errors(values, exact)
         out[name] = {k: v if math.isfinite(v) else None for k, v in found.items()} | {"reference": "analytic"}
     return out
 
+
+
+def _reference_field(scene: Scene) -> Any:
+    """The field of the scene's spec's reference (None: none, or a scene no catalogue entry names)."""
+    try:
+        reference = get_spec(scene.name).reference
+    except SceneError:
+        return None
+    return reference.field if reference is not None else None
 
 
 def scalar_errors(scene: Scene, summary: dict[str, Any] | None) -> dict[str, dict[str, Any]]:

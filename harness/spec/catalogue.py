@@ -14,6 +14,7 @@ import math
 from typing import Any
 
 from pcverify.harness.spec.schema import SCENE, check
+from pcverify.references.manufactured import SPEC as MANUFACTURED
 from pcverify.scene import (
     ALUMINIUM,
     DURALUMIN,
@@ -346,6 +347,7 @@ CATALOGUE: dict[str, SceneSpec] = {
             ),
             _frictional_heating,
         ),
+        MANUFACTURED,
     )
 }
 
