@@ -146,9 +146,10 @@ def steady(aut: Automata, conductivity: float, values: np.ndarray, held: np.ndar
 
 def sources(scene: Scene, aut: Automata) -> np.ndarray | None:
     """Heat sources P_i (W) of the scene's Conduction part on the automata, or None: the volumetric source
-    s Omega_i (a source field: s(x_i) Omega_i, x_i the automaton's lattice position), and the interface flux q shared between the two node planes around its plane by hat weights
-    max(0, 1 - |x_i - x_p| / a) times the cell's face A_i normal to the axis (all of it on a node plane; half
-    to each side at mid-plane, which is the finite-volume split of a source on a cell face)."""
+    s Omega_i (a source field: s(x_i) Omega_i, x_i the automaton's lattice position), and the interface flux q
+    shared between the two node planes around its plane by hat weights max(0, 1 - |x_i - x_p| / a) times the
+    cell's face A_i normal to the axis (all of it on a node plane; half to each side at mid-plane, which is the
+    finite-volume split of a source on a cell face)."""
     heat = scene.conduction
     plane = heat.interface if heat.interface is not None and heat.interface.flux != 0.0 else None
     if heat.source == 0.0 and plane is None and not heat.source_field:
