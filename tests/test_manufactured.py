@@ -93,8 +93,9 @@ def _constant_field_scene(uniform: bool) -> Scene:
     s = 1e6
     heat = Conduction(t_max=1.0, source=s) if uniform else \
         Conduction(t_max=1.0, source_field=(SineSource(s, phases=(math.pi / 2,) * 3),))
-    return Scene("s", "s", Box(), ALUMINIUM, frozenset({"conduction", "heat-source" if uniform else "heat-source-field"}),
-                 (FaceTemperature("z0", 0.0), FaceTemperature("zL", 0.0)), conduction=heat)
+    word = "heat-source" if uniform else "heat-source-field"
+    held = (FaceTemperature("z0", 0.0), FaceTemperature("zL", 0.0))
+    return Scene("s", "s", Box(), ALUMINIUM, frozenset({"conduction", word}), held, conduction=heat)
 
 
 @pytest.mark.parametrize("name", SOLVERS)

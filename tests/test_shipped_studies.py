@@ -177,8 +177,8 @@ def _check_manufactured(results, verdicts) -> None:
     assert len(v) == 7 and set(v.values()) == {"pass"}, v
 
 
-CHECKS = {"continuum-heat": _check_continuum_heat, "manufactured": _check_manufactured, "heat-particles": _check_heat_particles,
-          "macromolecule": _check_macromolecule, "elasticity": _check_elasticity,
+CHECKS = {"continuum-heat": _check_continuum_heat, "heat-particles": _check_heat_particles,
+          "manufactured": _check_manufactured, "macromolecule": _check_macromolecule, "elasticity": _check_elasticity,
           "contact-friction": _check_contact_friction, "stability": _check_stability, "stick-slip": _check_stick_slip}
 
 
