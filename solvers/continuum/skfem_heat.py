@@ -15,8 +15,9 @@ Discretisation (docs/physics.md, "Continuum references"):
   the sphere, then fixes the nodes on and inside it.  The warp is checked: every warped cell must have a
   positive Jacobian at its corners and centre.
 - Loads: a volumetric source s (W/m^3) enters as s w (w_i = integral of phi_i, the same weights as the
-  volume mean); an interface flux q on the plane {x_axis = p} as q times `assembly.plane_load` (the 1-D
-  hat at p times the 1-D loads across; exact for Q1).  The plane is a surface load inside one continuous
+  volume mean), a source field s(x) as the linear form's integral of s phi_i (`_field_load`); an interface
+  flux q on the plane {x_axis = p} as q times `assembly.plane_load` (the 1-D hat at p times the 1-D loads
+  across; exact for Q1).  The plane is a surface load inside one continuous
   body: temperature stays continuous across it and conduction divides the flux between the two sides
   (`InterfaceFlux`).  A plane that crosses a warped patch band is refused.  Both loads are constant in
   time: the theta-method adds dt f per step; with no temperature held, 1^T K = 0 and the heat content
