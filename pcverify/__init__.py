@@ -3,9 +3,10 @@
 This package is the public API a solver or scene plugin is written against (API_VERSION; what is
 stable is listed in docs/plugins.md, "What is stable"):
 
-- the scene model: `Scene` and its parts (`Box`, `Material`, `Conduction` with a volumetric `source` and
-  an `InterfaceFlux`, `Elasticity`, the constraints `FaceTemperature`, `PointTemperature`,
-  `PatchTemperature`, `FaceSupport`, `FaceClamp`), `Resolution`, `Param` and `SceneError`, and
+- the scene model: `Scene` and its parts (`Box`, `Material`, `Conduction` with a volumetric
+  `source`, a `source_field` of `SineSource` terms and an `InterfaceFlux`, `Elasticity`, the constraints
+  `FaceTemperature`, `PointTemperature`, `PatchTemperature`, `FaceSupport`, `FaceClamp`), `Resolution`,
+  `Param` and `SceneError`, and
   `SceneSpec` (a named, parameterised scene with its `Reference` and the `Scalar`s of its family's contract);
 - the solver contract: the `Solver` protocol (name, kind in KINDS, parameters, supports, solve),
   `Solution`, `skipped`, `effective_params`, and the optional stability probe (`StabilityProbe`,
@@ -50,6 +51,7 @@ from pcverify.scene import (  # noqa: E402
     Scene,
     SceneError,
     SceneSpec,
+    SineSource,
 )
 from pcverify.solvers.protocol import (  # noqa: E402
     KINDS,
@@ -75,5 +77,6 @@ __all__ = [
     "Elasticity", "FaceClamp", "FaceSupport", "FaceTemperature", "InterfaceFlux", "Material", "Param",
     "PatchTemperature", "PointTemperature", "ProbeRun", "ProbeSetup", "Reference", "Resolution", "Response", "Scalar",
     "Scene",
-    "SceneError", "SceneSpec", "Solution", "Solver", "StabilityProbe", "__version__", "effective_params", "skipped",
+    "SceneError", "SceneSpec", "SineSource", "Solution", "Solver", "StabilityProbe", "__version__", "effective_params",
+    "skipped",
 ]

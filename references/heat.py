@@ -1,6 +1,7 @@
-"""The heat family: the three bar-heating scenes (docs/physics.md, "The heating scenes"), their references and
-the summary scalars a heat solver reports.  Its field reference (`analytic`, exact T / t_max) is the slab below,
-for every heat scene that reduces to one (bar-heat-faces, a study file's scenes, frictional-heating's flux).
+"""The heat family: the three bar-heating scenes (docs/physics.md, "The heating scenes") and the manufactured
+solution heat-manufactured, their references and the summary scalars a heat solver reports.  Its field
+reference (`analytic`, exact T / t_max) is the slab below, for every heat scene that reduces to one
+(bar-heat-faces, a study file's scenes, frictional-heating's flux).
 
 Heat flowing along one axis of the bar (a slab 0 <= z <= L):
 
@@ -50,6 +51,7 @@ import numpy as np
 from pcverify.references.shared import DIMENSIONS, T_MAX, box_of
 from pcverify.scene import (
     ALUMINIUM,
+    FACES as BOX_FACES,
     Box,
     Conduction,
     FaceTemperature,
@@ -61,6 +63,7 @@ from pcverify.scene import (
     Scene,
     SceneError,
     SceneSpec,
+    SineSource,
     TemperatureConstraint,
 )
 
@@ -291,4 +294,47 @@ FACES = SceneSpec(
         Param("dt", 0.01, "s", "continuum time step of the transient", low=0.0, high=1e4, low_open=True),
     ),
     _faces, FIELD, SCALARS)
-SCENES = (PAPER, PATCH, FACES)
+
+# heat-manufactured (the method of MOOSE's mms module): pick a smooth exact temperature, derive the source it
+# implies and hold the boundary at its values; every heat solver must then converge to it at its order.
+#     T = t_max sin(mx pi x / W) sin(my pi y / H) sin(mz pi z / L)                 (0 on all six faces)
+#     S = -k laplacian(T) = k pi^2 (mx^2 / W^2 + my^2 / H^2 + mz^2 / L^2) T          (W/m^3)
+# one SineSource term with the same wave numbers; the integer half-wave counts make it non-symmetric (mx != my
+# tells x from y on the square cross-section).
+
+def wavenumbers(scene: Scene) -> tuple[float, float, float]:
+    """k_a = m_a pi / extent_a (rad/m) of heat-manufactured's exact temperature."""
+    p = scene.param_dict
+    return tuple(p[f"m{a}"] * math.pi / float(e) for a, e in zip("xyz", scene.box.extent, strict=True))
+
+
+def manufactured(scene: Scene, points: np.ndarray) -> np.ndarray:
+    """heat-manufactured's exact T / t_max at points of shape (k, 3)."""
+    pts = np.asarray(points, dtype=float).reshape(-1, 3)
+    return np.prod(np.sin(pts * np.asarray(wavenumbers(scene))), axis=1)
+
+
+def source_amplitude(k: float, t_max: float, wave: tuple[float, float, float]) -> float:
+    """Amplitude (W/m^3) of S = -k laplacian(T) for T = t_max prod_a sin(k_a x_a): k t_max sum_a k_a^2."""
+    return k * t_max * sum(w * w for w in wave)
+
+
+def _manufactured(p: dict[str, Any]) -> Scene:
+    box = box_of(p)
+    wave = tuple(p[f"m{a}"] * math.pi / float(e) for a, e in zip("xyz", box.extent, strict=True))
+    term = SineSource(source_amplitude(ALUMINIUM.conductivity, p["t_max"], wave), wave)
+    return Scene("heat-manufactured", MANUFACTURED.description, box, ALUMINIUM,
+                 frozenset({"conduction", "heat-source-field"}), tuple(FaceTemperature(f, 0.0) for f in BOX_FACES),
+                 conduction=Conduction(t_max=p["t_max"], source_field=(term,)), params=tuple(sorted(p.items())))
+
+
+MANUFACTURED = SceneSpec(
+    "heat-manufactured",
+    "Steady conduction with the manufactured solution T = t_max sin(mx pi x/W) sin(my pi y/H) sin(mz pi z/L): the "
+    "source S = -k laplacian(T) it implies, all six faces at 0 K (analytic reference)",
+    (*DIMENSIONS, Param("t_max", 500.0, "K", "amplitude of the exact temperature (relative results are T/t_max)",
+                        low=1e-3, high=1e5),
+     *(Param(f"m{a}", 1, "", f"half waves of the exact temperature along {a}", low=1, high=8, kind=int)
+       for a in "xyz")),
+    _manufactured, Reference(field=manufactured, kind="analytic"), SCALARS)
+SCENES = (PAPER, PATCH, FACES, MANUFACTURED)

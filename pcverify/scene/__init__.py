@@ -19,7 +19,7 @@ from .constraints import (
 )
 from .contact import Contact
 from .geometry import EXTENT_RANGE, Box, Resolution
-from .loads import InterfaceFlux
+from .loads import InterfaceFlux, SineSource
 from .material import ALUMINIUM, DURALUMIN, MATERIALS, RESPONSES, Material, Response
 from .model import MODES, PHYSICS, Conduction, Elasticity, Scene
 from .params import Param, SceneError, is_real, resolve_params, shown
@@ -30,6 +30,6 @@ __all__ = [
     "Conduction", "Constraint", "Contact", "Elasticity", "FaceClamp", "FaceSupport", "FaceTemperature",
     "InterfaceFlux", "Material", "Param",
     "PatchTemperature", "PointTemperature", "Reference", "Resolution", "Response", "Scalar", "Scene", "SceneError",
-    "SceneSpec", "Support",
+    "SceneSpec", "SineSource", "Support",
     "TemperatureConstraint", "is_real", "point_patch_note", "resolve_params", "shown",
 ]

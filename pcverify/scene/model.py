@@ -20,13 +20,14 @@ import numpy as np
 from .constraints import Constraint, FaceClamp, FaceSupport, PatchTemperature, PointTemperature, TemperatureConstraint
 from .contact import Contact
 from .geometry import Box
-from .loads import InterfaceFlux
+from .loads import InterfaceFlux, SineSource
 from .material import Material, Response
 from .params import SceneError, is_real, shown
 
 PHYSICS = {
     "conduction": "heat conduction (a Conduction part)",
     "heat-source": "a volumetric heat source (Conduction.source != 0)",
+    "heat-source-field": "a spatially varying volumetric heat source (Conduction.source_field not empty)",
     "interface-flux": "a planar heat source on an internal plane (Conduction.interface with flux != 0)",
     "elasticity": "linear elasticity (an Elasticity part)",
     "modes": "eigenfrequencies (Elasticity.modes >= 1)",
@@ -37,6 +38,7 @@ PHYSICS = {
     "incline": "body 2 under its own tilted weight on body 1, static and kinetic friction (Contact.incline_angle)",
 }
 MODES = ("steady", "transient")
+MAX_SOURCE_TERMS = 8
 
 
 def _finite(name: str, v: Any, low: float, high: float, unit: str, low_open: bool = False) -> None:
@@ -51,7 +53,8 @@ def _finite(name: str, v: Any, low: float, high: float, unit: str, low_open: boo
 class Conduction:
     """Heat conduction: temperatures are reported as T / t_max; a transient starts from
     `initial_temperature` and is reported at `t_end` (continuum solvers step with `dt`); `source` is a
-    uniform volumetric heat source in W/m^3; `interface` a planar source on an internal plane (W/m^2)."""
+    uniform volumetric heat source in W/m^3, `source_field` a varying one added to it (a sum of at most
+    MAX_SOURCE_TERMS `SineSource` terms); `interface` a planar source on an internal plane (W/m^2)."""
 
     t_max: float = 500.0
     mode: str = "steady"
@@ -60,9 +63,15 @@ class Conduction:
     initial_temperature: float = 0.0
     source: float = 0.0
     interface: InterfaceFlux | None = None
+    source_field: tuple[SineSource, ...] = ()
 
     def __post_init__(self) -> None:
         _finite("t_max", self.t_max, 0.0, 1e6, "K", low_open=True)
+        terms = self.source_field
+        if not (isinstance(terms, tuple) and len(terms) <= MAX_SOURCE_TERMS
+                and all(isinstance(t, SineSource) for t in terms)):
+            raise SceneError(f"source_field={shown(terms)} is not valid; allowed: a tuple of at most "
+                             f"{MAX_SOURCE_TERMS} SineSource terms")
         if self.interface is not None and not isinstance(self.interface, InterfaceFlux):
             raise SceneError(f"interface={shown(self.interface)} is not valid; allowed: an InterfaceFlux or none")
         if self.mode not in MODES:
@@ -73,6 +82,11 @@ class Conduction:
             _finite("t_end", self.t_end, 0.0, 1e6, "s", low_open=True)
             if not (is_real(self.dt) and 0 < self.dt <= self.t_end):
                 raise SceneError(f"dt={shown(self.dt)} is out of range; allowed: number in (0, t_end={self.t_end:g}] s")
+
+    def source_at(self, points: np.ndarray) -> np.ndarray:
+        """The volumetric heat source (W/m^3) at points of shape (k, 3): the uniform `source` plus the field."""
+        pts = np.asarray(points, dtype=float).reshape(-1, 3)
+        return sum((t.at(pts) for t in self.source_field), np.full(len(pts), float(self.source)))
 
 
 @dataclass(frozen=True)
@@ -118,6 +132,7 @@ class Scene:
         self._check_part("contact", self.contact, Contact)
         cond, el = self.conduction, self.elasticity
         derived = {"heat-source": cond is not None and cond.source != 0.0,
+                   "heat-source-field": cond is not None and bool(cond.source_field),
                    "interface-flux": cond is not None and cond.interface is not None and cond.interface.flux != 0.0,
                    "modes": el is not None and el.modes > 0,
                    "fracture": el is not None and el.response is not None and el.strain_rate > 0,

@@ -47,7 +47,8 @@ How constraints reach the equations (all of it FiPy's discretisation):
   diagonal, S_P V_P T_fix on the right); a test checks this against FiPy's own combined build.
 
 Loads: a volumetric source s (W/m^3) adds s V_c to every cell's right-hand side (FiPy's
-explicit source term, a cell-centred constant); an interface flux q on the plane {x_axis = p} adds
+explicit source term, a cell-centred value: a source field is taken at the cell centre, the midpoint
+rule, second order as the scheme); an interface flux q on the plane {x_axis = p} adds
 q A_c w_c, A_c the cell's cross-section across the axis and w_c the 1-D hat weights of p between the
 two neighbouring cell centres along the axis (all of it to the cell whose centre lies on the plane, as
 for a plane on a lattice node plane; to the boundary cell when p lies between a face and its centre).
@@ -104,7 +105,7 @@ _FACE_AXIS = {"x0": (0, 0), "xW": (0, 1), "y0": (1, 0), "yH": (1, 1), "z0": (2, 
 _FIPY_FACES = {"x0": "facesLeft", "xW": "facesRight", "y0": "facesBottom", "yH": "facesTop",
                "z0": "facesFront", "zL": "facesBack"}
 SUBSAMPLES = 8  # per axis and cell, for patch volume fractions
-PHYSICS = frozenset({"conduction", "heat-source", "interface-flux"})  # what this solver implements
+PHYSICS = frozenset({"conduction", "heat-source", "heat-source-field", "interface-flux"})  # implemented
 
 
 def grid_axes(scene: Scene, resolution: Resolution) -> tuple[list[np.ndarray], list[float]]:
@@ -157,7 +158,12 @@ def cell_load(scene: Scene, edges: list[np.ndarray]) -> np.ndarray:
     """Heat load per cell (W), shape (mx, my, mz): the volumetric source and the interface flux."""
     heat = scene.conduction
     widths = [np.diff(e) for e in edges]
-    load = heat.source * np.einsum("i,j,k->ijk", *widths)
+    volumes = np.einsum("i,j,k->ijk", *widths)
+    if heat.source_field:  # a varying source: its value at the cell centre times the volume (midpoint rule)
+        centres = np.stack(np.meshgrid(*[_centres(e) for e in edges], indexing="ij"), axis=-1)
+        load = heat.source_at(centres.reshape(-1, 3)).reshape(volumes.shape) * volumes
+    else:
+        load = heat.source * volumes
     plane = heat.interface
     if plane is None or plane.flux == 0.0:
         return load

@@ -15,8 +15,9 @@ Discretisation (docs/physics.md, "Continuum references"):
   the sphere, then fixes the nodes on and inside it.  The warp is checked: every warped cell must have a
   positive Jacobian at its corners and centre.
 - Loads: a volumetric source s (W/m^3) enters as s w (w_i = integral of phi_i, the same weights as the
-  volume mean); an interface flux q on the plane {x_axis = p} as q times `assembly.plane_load` (the 1-D
-  hat at p times the 1-D loads across; exact for Q1).  The plane is a surface load inside one continuous
+  volume mean), a source field s(x) as the linear form's integral of s phi_i (`_field_load`); an interface
+  flux q on the plane {x_axis = p} as q times `assembly.plane_load` (the 1-D hat at p times the 1-D loads
+  across; exact for Q1).  The plane is a surface load inside one continuous
   body: temperature stays continuous across it and conduction divides the flux between the two sides
   (`InterfaceFlux`).  A plane that crosses a warped patch band is refused.  Both loads are constant in
   time: the theta-method adds dt f per step; with no temperature held, 1^T K = 0 and the heat content
@@ -45,8 +46,10 @@ from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
+from skfem import Basis, ElementHex1, LinearForm, MeshHex
 
 from pcverify.scene import (
+    Conduction,
     FaceTemperature,
     Param,
     PatchTemperature,
@@ -61,7 +64,7 @@ from pcverify.solvers.continuum.linear_solver import SpdSolver, smoothed_aggrega
 from pcverify.solvers.continuum.work import heat_estimate, transient_steps
 from pcverify.solvers.protocol import Solution, WorkEstimate, effective_params, heat_summary
 
-PHYSICS = frozenset({"conduction", "heat-source", "interface-flux"})  # what this solver implements
+PHYSICS = frozenset({"conduction", "heat-source", "heat-source-field", "interface-flux"})  # implemented
 
 PARAMETERS: tuple[Param, ...] = (
     Param("scheme", "crank-nicolson", "", "time integration of transient scenes",
@@ -110,6 +113,20 @@ def _linear_solver(a: sp.spmatrix, method: str, rtol: float, graph: sp.spmatrix 
         return smoothed_aggregation(mat, **amg_options(graph))
 
     return SpdSolver(a, method, rtol, amg, error=ArithmeticError)
+
+
+def _field_load(heat: Conduction, grid: StructuredGrid) -> np.ndarray:
+    """Nodal load f_i = integral of s(x) phi_i of a varying source (uniform part included): scikit-fem's linear
+    form with the source evaluated at the (possibly warped) cells' 2x2x2 Gauss points."""
+    basis = Basis(MeshHex(np.ascontiguousarray(grid.points.T), grid.cells.astype(np.int32)), ElementHex1(),
+                  intorder=2)
+
+    @LinearForm
+    def form(v, w):
+        x = np.stack([np.asarray(c) for c in w.x], axis=-1)
+        return heat.source_at(x.reshape(-1, 3)).reshape(x.shape[:-1]) * v
+
+    return form.assemble(basis)
 
 
 class SkfemHeat:
@@ -290,7 +307,7 @@ class SkfemHeat:
     def _load(scene: Scene, grid: StructuredGrid, weights: np.ndarray) -> np.ndarray:
         """Nodal heat load (W): the volumetric source and the interface flux (see the module docstring)."""
         heat = scene.conduction
-        load = heat.source * weights
+        load = heat.source * weights if not heat.source_field else _field_load(heat, grid)
         plane = heat.interface
         if plane is not None and plane.flux != 0.0:
             ax = plane.axis_index

@@ -8,8 +8,8 @@ the Gershgorin bound: forward Euler is stable for dt <= 2 / rho(C^-1 L) and rho 
 times `cfl` <= 1; the step count is rounded up so that the last step lands on t_end.
 Steady: the same operator's steady state, solved directly (sparse LU) instead of stepping to it.
 Held automata (temperature constraints) keep their value from t = 0+.  Sources (`sources`): the volumetric
-source s Omega_i and an interface flux shared between the node planes around its plane; the frictional
-heating of contact scenes brings its own per-automaton power.
+source s Omega_i (a varying one s(x_i) Omega_i) and an interface flux shared between the node planes around its
+plane; the frictional heating of contact scenes brings its own per-automaton power.
 """
 
 from __future__ import annotations
@@ -146,14 +146,15 @@ def steady(aut: Automata, conductivity: float, values: np.ndarray, held: np.ndar
 
 def sources(scene: Scene, aut: Automata) -> np.ndarray | None:
     """Heat sources P_i (W) of the scene's Conduction part on the automata, or None: the volumetric source
-    s Omega_i, and the interface flux q shared between the two node planes around its plane by hat weights
-    max(0, 1 - |x_i - x_p| / a) times the cell's face A_i normal to the axis (all of it on a node plane; half
-    to each side at mid-plane, which is the finite-volume split of a source on a cell face)."""
+    s Omega_i (a source field: s(x_i) Omega_i, x_i the automaton's lattice position), and the interface flux q
+    shared between the two node planes around its plane by hat weights max(0, 1 - |x_i - x_p| / a) times the
+    cell's face A_i normal to the axis (all of it on a node plane; half to each side at mid-plane, which is the
+    finite-volume split of a source on a cell face)."""
     heat = scene.conduction
     plane = heat.interface if heat.interface is not None and heat.interface.flux != 0.0 else None
-    if heat.source == 0.0 and plane is None:
+    if heat.source == 0.0 and plane is None and not heat.source_field:
         return None
-    power = heat.source * aut.volume
+    power = heat.source_at(aut.positions) * aut.volume if heat.source_field else heat.source * aut.volume
     if plane is not None:
         ax = plane.axis_index
         a = float(aut.spacing[ax])

@@ -755,7 +755,7 @@ def _held_bar(scene: Scene) -> str:
 
 
 HEAT = frozenset({"conduction"})
-HEAT_LOADS = frozenset({"heat-source", "interface-flux"})
+HEAT_LOADS = frozenset({"heat-source", "heat-source-field", "interface-flux"})
 ELASTIC = frozenset({"elasticity"})
 CONTACT = frozenset({"elasticity", "contact"})
 
