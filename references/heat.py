@@ -51,7 +51,6 @@ import numpy as np
 from pcverify.references.shared import DIMENSIONS, T_MAX, box_of
 from pcverify.scene import (
     ALUMINIUM,
-    FACES as BOX_FACES,
     Box,
     Conduction,
     FaceTemperature,
@@ -65,6 +64,9 @@ from pcverify.scene import (
     SceneSpec,
     SineSource,
     TemperatureConstraint,
+)
+from pcverify.scene import (
+    FACES as BOX_FACES,
 )
 
 ERFC = np.vectorize(math.erfc, otypes=[float])  # numpy only: the scene catalogue imports no scipy
