@@ -1,57 +1,24 @@
 """The MCA solver's contact scenes: two bodies pressed together, pressed and slid, or slid and heated by
 friction (contact.py holds the segment method and the friction law; this module maps a scene's Contact part
-onto the model and summarises the run).
+onto the model and summarises the run; the physics is in docs/physics.md, "The movable cellular automaton
+(MCA) model").
 
-- Pressed (no sliding speed): the scene's supports compress the stack across the interface, ramped in and
-  relaxed dynamically as bar-compression is (damping at Model.relaxation_rate, residual below relax_tol
-  E |strain| a^2).  Each body's far face carries the force-free "3-2-1" set against rigid motion (the
-  friction law has no static part).  Summary: the contact pressure (area-weighted mean and uniformity
-  (max - min) / mean over the closed contacts) against the analytic uniaxial stress E |strain| of the
-  bonded stack, E_eff and nu_eff as for the bar.
-- Sliding: body 2's far face is pressed by normal_stress (a load) and held tangentially; a first run
-  relaxes the preload with damping (to preload_tol normal_stress a^2); then the far face is driven along
-  the direction at `speed`, ramped in smoothly over `slide_ramp`, and kept at speed for the scene's
-  duration, the window every average is taken over.  While sliding, damping (slide_damping, default the
-  relaxation rate; 0 = none) acts on each automaton's velocity relative to its body's drive (body 1 at
-  rest, body 2 at the drive's velocity), so it damps vibrations and not the sliding itself.  Undamped,
-  the slider on its elastic base develops a friction-induced vibration (measured at n = 4, V = 1 m/s,
-  1 MPa: after ~0.4 ms the contacts open and close and mu_dr(t) swings by +-0.2 about 0.3; 87 of the window's
-  1900 history rows have no closed contact (12 while the friction acted at the centres), so the run is failed,
-  its numbers kept).
-  mu_dr(t) = F_dr / F_N (eq. 17): F_dr the friction resistance of the contacts on body 2 along the
-  direction, F_N = normal_stress x the far face's area.  The expected value follows the law as implemented
-  (`mu_dr_expected`: mu0 V / sigma + mu1 (1 + K_av) min(1, sigma0 / sigma) min(1, V / v_reg), every contact
-  sliding at V under sigma = F_N / A); its uncertainty from the run length: mu1 (sum_k w_k^2
-  var_k)^(1/2), w_k the contacts' shares of the normal force (at the end of the run) and var_k the
-  variance of one contact's mean of K over the distance slid in the window (roughness.variance_of_mean).
-  Energy balance over the window: work of the drive and of the load against kinetic + elastic energy +
-  friction and damping dissipation (the largest imbalance over the window relative to the drive's work).
-  Measured outside the friction law's bookkeeping (mu_dr sums the law's own forces): the reactions of the
-  held automata, time-averaged over the window and over each half of it (contact.py records them every
-  step): mu at the drive (its tangential reaction over the normal force its far face transmits) and at the
-  clamp (the base's held automata), against the law's mu_dr for the normal force each measures, with the
-  drift between the halves (`mu_drive_drift`: how stationary the window is); Newton's third law, the drive's,
-  the clamp's, the load's and the damping's forces less the momentum change (`newton_error`, relative to the
-  applied normal force); the balance of angular momentum, the held automata's reaction moments, the loads' and
-  the damping's, less the change of sum m x x v + J w (`angular_momentum_error`, relative to F_N h0: the
-  couple h0 F_R that contact forces at the automata's centres would leave is mu1 in these units); the power
-  the drive delivers to friction, its and the load's work less the change of
-  kinetic and elastic energy and the damping's dissipation (`drive_power_W`, its halves' drift).
-  With a platen (Contact.platen) the far face is held at its preloaded height while it slides, and F_N is
-  the normal force the contacts carry.  The run is ok only if the bodies stayed in contact over the whole
-  window: body 2 not driven beyond body 1's surface (`footprint_room`) and a closed contact in every history
-  row (`contact_lost`; else failed, its numbers kept); and only if the ramp and the whole window fit in
-  max_steps (else failed before any step: a cut window is never averaged).
-- Frictional heating: sliding as above, then MCA heat on the bonded automata (the contact conducts as the
-  interface pairs of the rest geometry) from the initial temperature to t_end, each contact's mean friction
-  power over the window held constant, split by the bodies' conductivities (`thermal_split`: one half each
-  for one material) between the slave and its rest partners (one-way, quasi-steady coupling: the mechanics'
-  time scale is ~1e-7 s, the heat's ~1e-2 s; no thermal expansion).  Dissimilar blocks (Contact's
-  base_conductivity, base_heat_capacity): body 1's automata carry its own k and rho c, a pair across the
-  interface conducts as the two half cells in series.  Summary: the law's mean flux and the drive's against
-  the scene's declared interface flux (flux_ratio, flux_drive_ratio), the flux's uniformity over the
-  interface, the share of the heat body 1 holds at t_end, and the rise of the automata next to the plane on
-  each side against two semi-infinite solids in contact (each taking e_i / (e1 + e2) of the flux) at a/2.
+- Pressed (`pressed`): the supports compress the stack across the interface, relaxed dynamically as
+  bar-compression is; each body's far face carries the force-free "3-2-1" set against rigid motion (the
+  friction law has no static part).  The contact pressure is held against E |strain| of the bonded stack.
+- Sliding (`sliding`): body 2's far face is pressed by normal_stress, the preload relaxed, then the face is
+  driven along the direction, ramped in over `slide_ramp`, for the scene's duration: the window every average
+  is taken over.  Damping (slide_damping) acts relative to each body's drive, so it damps vibrations and not
+  the sliding: undamped, the slider on its elastic base develops a friction-induced vibration (measured at
+  n = 4, V = 1 m/s, 1 MPa: contacts open and close, mu_dr(t) swings by +-0.2 about 0.3).  mu_dr = F_dr / F_N
+  (eq. 17) against the law as implemented (`mu_dr_expected`), and, outside the law's bookkeeping, mu at the
+  drive and at the clamp, Newton's third law, the angular momentum balance and the drive's power
+  (`_reaction_summary`, `_drive_power`).  The run is ok only if the bodies stayed in contact over the whole
+  window (`contact_lost`) and the ramp and window fit in max_steps (a cut window is never averaged).
+- Frictional heating (`heating`): sliding, then MCA heat on the bonded automata fed by each contact's mean
+  friction power over the window, split by the bodies' conductivities (`thermal_split`; one-way, quasi-steady
+  coupling: the mechanics' time scale is ~1e-7 s, the heat's ~1e-2 s; no thermal expansion), against two
+  semi-infinite solids in contact.
 """
 
 from __future__ import annotations
@@ -669,19 +636,23 @@ def on_bodies(run: Callable[..., dict[str, Any]]) -> Callable[[Scene, int, dict[
     def on_two_bodies(scene: Scene, n: int, p: dict[str, Any]) -> tuple[dict[str, Any], Automata]:
         contact = scene.contact
         aut, bonded = body_automata(scene.box, n, scene.material.density, contact)
-        mat = scene.material
-        el = Elastic(mat.youngs_modulus, mat.poisson_ratio, many_body=p["many_body"], coefficient=p["coefficient"])
+        el = Elastic.of(scene, p)
         law = law_of(aut, contact, p, el.shear)
         out = run(scene, aut, bonded, el, law, p)
         out.pop("power", None)
-        model, st = out.pop("model"), out.pop("state")
+        model = with_work(out)
         out["summary"]["friction_step_ratio"] = friction_step_ratio(model, law, contact)
-        out["work"] = {"pair_steps": int(st.counters[mk.C_PAIRSTEPS]), "time_steps": int(st.counters[mk.C_STEPS]),
-                       "kernel_s": model.kernel_s, "unknowns": model.free_dofs}
-        out["unknowns"] = model.free_dofs
         return out, aut
 
     return on_two_bodies
+
+
+def with_work(out: dict[str, Any]) -> Model:
+    """Move a run's model and state out of `out`, putting the run's work and unknowns in their place; the model."""
+    model, st = out.pop("model"), out.pop("state")
+    out["work"] = model.work(st)
+    out["unknowns"] = model.free_dofs
+    return model
 
 
 def friction_step_ratio(model: Model, law: ct.ContactLaw, contact: Contact) -> float:

@@ -20,19 +20,12 @@ term, kn = E and lam = 0 without it (pair-only).  d = x_j - x_i is the pair's se
 taking m = R n_old to n_new, applied as v - (n.v)(m + n)/(1 + m.n): exact for v tangent to m, as R tau_old
 is, and with no component along n by construction (no drift off the plane).  To first order the increment
 is the relative displacement of the contact points at the pair's midpoint, dx_j - dx_i - (r/2)(dphi_i +
-dphi_j) x n: the MCA pair law, unchanged in the linearised model (stiffness.py); in a deforming body the
-update differs from the one it replaces at second order in the step and in strain times rotation.
+dphi_j) x n: the MCA pair law, unchanged in the linearised model (stiffness.py).
 Why it is objective: under a rigid motion every automaton turns by the same R (dphi_i = dphi_j = w) and
 d_new = R d_old exactly, so the increment is zero and tau_new = R tau_old (Q = I), for any axis and any
 step, to round-off; the moments use the same arm r/2, so the pair forces do work only on the increment
-(energy) and their net couple is zero (angular momentum).  The update it replaces (tau projected on the new
-plane with its magnitude kept, increment dx_j - dx_i - (r0/2)(dphi_i + dphi_j) x n_new) left, for a 90°
-turn about (0.3, 0.5, 0.8), a spurious shear first order in the step (3.16e5 / 3.16e6 / 3.16e7 Pa at
-0.001° / 0.01° / 0.1° increments), and, in a pre-strained body (strain 1e-3), about 2 G eps times the angle
-(58-83 MPa) at any step size: the r0/2 arms counted the turn of the pair's elastic gap r - r0 as shear.
-Without rotations (`rotations = false`) the automata are held unturned, so a rigid turn of the body is not a
-rigid motion of the automata and the pair law reads it as shear (about 2 G per radian: 78-83 GPa after a 90°
-turn, measured, before and after this update); that model is for small rotations only.
+(energy) and their net couple is zero (angular momentum).  The update it replaced, and the shear a rigid turn
+is without rotations (`rotations = false`), are measured in docs/physics.md.
 Automaton state (the inelastic part): average stress (from the pair stresses, sigma = (1/Omega) sum q S
 (sig n n + sym(n tau))), equivalent plastic strain alpha (radial return), kappa (largest effective stress
 intensity) and damage d.
@@ -41,9 +34,8 @@ The kernel family (kernels.py): a kernel takes (state, params, nsteps).  `State`
 automata, their pairs and fixes, and what a step advances) and `Params` the run's scalars, both
 typing.NamedTuple values that numba compiles as structures.  The parts a scene may not need -- rotations,
 the inelastic state (response functions, fracture), loads, contact of two bodies (contact.py), a moving
-damping frame -- are None in the state; numba prunes the
-branches on a None argument, so a scene without rotation compiles and runs no rotation terms.  Each
-combination of parts is compiled (and cached) once.
+damping frame -- are None in the state; numba prunes the branches on a None argument, so a scene without
+rotation compiles and runs no rotation terms.  Each combination of parts is compiled (and cached) once.
 """
 
 from __future__ import annotations

@@ -24,11 +24,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 from scipy.spatial import cKDTree
 
-from pcverify.scene import Response, SceneError
+from pcverify.scene import Response, Scene, SceneError
 
 from . import contact as ct
 from . import kernel as mk
@@ -56,6 +57,12 @@ class Elastic:
             raise SceneError(f"poisson_ratio={self.poisson!r} is out of range; allowed: number in (-1, 0.5)")
         if self.coefficient not in COEFFICIENTS:
             raise SceneError(f"coefficient={self.coefficient!r} is not allowed; allowed: {', '.join(COEFFICIENTS)}")
+
+    @classmethod
+    def of(cls, scene: Scene, p: dict[str, Any]) -> Elastic:
+        """The constants of the scene's material with the solver parameters' many-body term and coefficient."""
+        mat = scene.material
+        return cls(mat.youngs_modulus, mat.poisson_ratio, many_body=p["many_body"], coefficient=p["coefficient"])
 
     @property
     def shear(self) -> float:
@@ -145,6 +152,11 @@ class Model:
         """The degrees of freedom the run integrates freely (translations, and rotations where the automata
         rotate; not the held or prescribed ones): the solution's `unknowns`."""
         return int(np.count_nonzero(self.fixm == mk.FREE))
+
+    def work(self, st: mk.State) -> dict[str, Any]:
+        """The run's work counters (the solution's `work`): pair-steps, time steps, kernel seconds, unknowns."""
+        return {"pair_steps": int(st.counters[mk.C_PAIRSTEPS]), "time_steps": int(st.counters[mk.C_STEPS]),
+                "kernel_s": self.kernel_s, "unknowns": self.free_dofs}
 
     @property
     def inelastic(self) -> bool:
