@@ -1,12 +1,9 @@
-"""Reports: per-study CSV and Markdown tables, PNG/SVG plots, verdicts (CSV and JSON), and one
-self-contained index.html that opens with the summary and the findings.
+"""Reports: per-study CSV and Markdown tables, PNG/SVG plots, verdicts (CSV and JSON), and one self-contained
+index.html that opens with the summary and the findings; the report never runs a solver.
 
-The report reads study results (or the cache through them); it never runs a solver.  Every verdict
-carries the command that reproduces its number; `verdicts.json` beside index.html lists them all.
-
-Several studies may write into one output folder at once: every file is written atomically (files.atomic_write),
-index.html and verdicts.json are rebuilt under a lock, and what the index reads back from the folder is
-checked: a manifest that cannot be read is skipped with a warning, and only files inside the folder are embedded.
+Several studies may write into one output folder at once: every file is written atomically, index.html and
+verdicts.json are rebuilt under a lock, and what the index reads back is checked (a manifest that cannot be
+read is skipped with a warning, and only files inside the folder are embedded).
 """
 
 from __future__ import annotations

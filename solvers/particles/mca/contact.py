@@ -65,14 +65,9 @@ class ContactLaw(NamedTuple):
 
 
 class ContactState(NamedTuple):
-    """Slaves (automata of body 2 on its surface), master facets (triangles of body 1), the candidate list
-    (CSR: cand_ptr, cand), the cells' extents; per slave the current contact (facet or -1, weights, normal,
-    height, area, normal stress, friction force, tangential speed, power) and the energy its friction
-    dissipated; per automaton the heat received (J); the held degrees of freedom (N, 3: 0 free, 1 body 1's,
-    2 body 2's), their constraints' current reactions (2, 3) and the reactions' time integrals (2, 3; N s);
-    per automaton the held rotations, and the reactions' moments about the origin with their time integrals;
-    per slave the static law's spring stress, the normal it was carried with, and whether it slips; the
-    roughness process; and the law."""
+    """Slaves (automata of body 2 on its surface), master facets (triangles of body 1), the candidate list (CSR:
+    cand_ptr, cand); per slave (ns) its current contact (facet or -1, weights, normal, ...), per automaton (N)
+    its heat and held degrees of freedom, per body (2, 3) the held ones' reactions; the roughness and the law."""
 
     slave: np.ndarray
     faces: np.ndarray  # (ns, 6) open sides of each slave
