@@ -227,15 +227,10 @@ def bar_automata(box: Box, n: int, density: float) -> Automata:
 
 
 def body_automata(box: Box, n: int, density: float, contact: Contact) -> tuple[Automata, Automata]:
-    """The automata of the two bodies of a contact scene, and the same automata bonded across the interface.
-
-    The nodes are those of the box's lattice of resolution n; body 1 holds the nodes below the interface
-    plane, body 2 those above it (within `span` along the sliding direction, if given).  Each automaton is the
-    Voronoi cell of its node clipped by its body: half cells on the free faces, which pass through the nodes,
-    and full cells at the interface, which lies midway between two node planes, so the two bodies' cells
-    meet on it (automata of size d touching at the plane: rest height h0 = d across it).  Pairs link face
-    neighbours of the same body.  The bonded automata add the interface pairs (what the stack would be with
-    the interface welded): the reference geometry, and the stiffness that bounds the stable step."""
+    """The automata of the two bodies of a contact scene, and the same automata bonded across the interface
+    (the reference geometry, and the stiffness that bounds the stable step).  Body 1 holds the lattice's nodes
+    below the interface, body 2 those above it (within `span`, if given); each automaton is its node's Voronoi
+    cell clipped by its body, so the cells meet on the interface midway between two node planes (h0 = d)."""
     whole = bar_automata(box, n, density)
     a = float(whole.spacing[contact.axis_index])
     cells = contact.position / a - 0.5

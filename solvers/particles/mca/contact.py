@@ -45,11 +45,9 @@ EDGE = 0.5  # a foot point this far outside a facet (barycentric units) still co
 
 
 class ContactLaw(NamedTuple):
-    """Constants of the contact: rest height h0 (m), viscous coefficient mu0 (Pa s/m), dry coefficient mu1,
-    normal-stress cap sigma0 (Pa), regularisation width v_reg (m/s), the roughness process, and the axes
-    (indices) along which the record resolves the forces: the contact axis and the sliding direction.  The
-    dry law: regularised (static False, the default) or static friction (static True: Coulomb limit mu_s
-    while stuck, mu1 while slipping, tangential spring kt in Pa/m)."""
+    """Constants of the contact (SI units), the axes along which the record resolves the forces (the contact
+    axis, the sliding direction), and the dry law: regularised, or static (Coulomb limit mu_s while stuck, mu1
+    while slipping, tangential spring kt in Pa/m)."""
 
     h0: float
     mu0: float
@@ -311,22 +309,13 @@ def _sub_area(u0, u1, u2, v0, v1, v2, n0, n1, n2):
 
 @njit(cache=True)
 def forces(x, v, f, theta, mass, kn, lam, dt, con, rot):
-    """Pass 2 of the contact (after the volume strains are updated): normal stress, friction and the forces
-    on each slave and its facet's automata, so that a contact exerts no net force and no net couple:
-    - the friction F_R acts at the contact point c = x_k - (h / 2) n, midway between the slave and its foot
-      point (at rest the plane where the two cells touch, symmetric in the two bodies): on k F_R and the moment
-      (c - x_k) x F_R, on each facet automaton v -w_v F_R and (c - x_v) x (-w_v F_R);
-    - the normal force F_n n acts at the centres (k: F_n n; v: -w_v F_n n), as the gradient of the contact's
-      elastic energy, a function of the centres' height h: conservative, and like the bonded pair's normal
-      force central.  Applied at c, its moments on the facet's automata do work on their spins that the
-      elastic energy does not hold (measured: the sliding energy balance 2.5e-6 of the drive's work instead of
-      2.3e-7).  Its couple (x_k - sum_v w_v x_v) x F_n n is zero when the foot lies in the facet; a clipped
-      foot's (up to EDGE outside) is taken up by moments on the facet's automata by their weights.
-    The slip velocity is that of the two contact points, spins included: v_k + w_k x (c - x_k) minus
-    sum_v w_v (v_v + w_v x (c - x_v)), zero for bodies moving rigidly together.  rot None (a run without
-    rotations): forces at the centres, no moments, slip from the centres' velocities -- a contact carrying
-    friction F_R then leaves the couple h F_R (the sliding scenes refuse rotations=false, contact_scenes.py).
-    Each slave's friction power and tangential speed."""
+    """Pass 2 of the contact (after the volume strains are updated): normal stress, friction, each slave's
+    friction power and tangential speed, and the forces on each slave and its facet's automata (module
+    docstring).  The normal force acts at the centres, as the gradient of the contact's elastic energy: applied
+    at c, its moments on the facet's automata would do work on their spins that no energy holds (measured: the
+    sliding energy balance 2.5e-6 of the drive's work instead of 2.3e-7); its couple when a clipped foot lies
+    up to EDGE outside the facet is taken up by moments on the facet's automata by their weights.  rot None:
+    forces at the centres, no moments, slip from the centres' velocities."""
     law = con.law
     h0 = law.h0
     for s in range(con.slave.shape[0]):
@@ -451,17 +440,12 @@ def forces(x, v, f, theta, mass, kn, lam, dt, con, rot):
 
 @njit(cache=True)
 def _static(con, s, rot, n0, n1, n2, t0, t1, t2, speed, sig, rough, area, stop, dt, k, fct):
-    """Static friction of slave s (Cundall-Strack): its spring's stress, carried with the contact's frame
-    (rotated from the normal it was last carried with to n, then about n by the two sides' mean spin about n
-    over the step: objective, not just projected), plus kt V_t dt, is the trial stress.  Stuck, the limit is
-    mu_s (1 + K) sigma_N; beyond it the contact slips and the limit is the kinetic mu1 (1 + K) sigma_N (the
-    stress drops to it, along the trial stress).  A slipping contact sticks again (limit back to mu_s) when
-    its slip velocity stops or reverses against the stress it carries (V_t . tau <= 0): the end of a slip
-    phase, where the slider comes to rest; a drop of |tau| below the kinetic limit alone (the normal stress
-    rising while it slides) does not re-stick it.  Plus the viscous mu0 V_t (capped at what a step can stop).
-    Dissipated: the stress times the slip increment (tau_trial - tau) / kt, tau the step's mean (the
-    trapezoid rule of the work, so the spring's stored energy S |tau|^2 / (2 kt) and the dissipation add up to
-    the work done on the contact).  Returns the friction force on the slave and the dissipated power."""
+    """Static friction of slave s (Cundall-Strack): the trial stress is its spring's, carried with the contact's
+    frame (turned onto n, then about n by the two sides' mean spin: objective), plus kt V_t dt.  Stuck, the limit
+    is mu_s (1 + K) sigma_N; beyond it the contact slips at the kinetic mu1 (1 + K) sigma_N, until its slip
+    velocity stops or reverses against its stress (V_t . tau <= 0; a fall of |tau| alone does not re-stick it).
+    Plus the viscous mu0 V_t.  Dissipated: the stress times the slip increment, by the trapezoid rule, so the
+    spring's energy and the dissipation add up to the work done.  Returns the friction force and the power."""
     law = con.law
     a0 = con.tang[s, 0]
     a1 = con.tang[s, 1]
@@ -563,10 +547,8 @@ def _reactions(x, f, con, rot):
 
 @njit(cache=True)
 def after_step(con, dt):
-    """Time integration of the contacts over one step: friction heat into the automata (half to the slave,
-    half to the facet's automata by their weights), the roughness advanced by the sliding distance, the held
-    degrees of freedom's reactions into their impulses; returns the energy dissipated by friction in the step
-    (J)."""
+    """Time integration of the contacts over one step: friction heat into the automata (half to each body), the
+    roughness advanced, the reactions into their impulses; returns the energy friction dissipated (J)."""
     for g in range(2):
         for c in range(3):
             con.impulse[g, c] += con.reaction[g, c] * dt

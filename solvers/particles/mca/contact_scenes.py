@@ -46,10 +46,8 @@ FACE_AXES = "xyz"
 
 
 def law_of(aut: Automata, contact: Contact, p: dict[str, Any], shear: float) -> ct.ContactLaw:
-    """The contact law of the solver parameters: h0 = the spacing across the interface; the dry law
-    (`friction_law`), with static friction mu_s (default mu1; at least mu1) and the tangential stiffness
-    `contact_stiffness` (default the bonded pair's shear stiffness 2 G / h0, `shear` = G).  A sliding scene
-    needs the automata's rotations: the contact's moments have nowhere to go without them."""
+    """The contact law of the solver parameters (h0 = the spacing across the interface; `contact_stiffness` by
+    default 2 G / h0, `shear` = G).  A sliding scene needs the automata's rotations, for the contact's moments."""
     rough = rg.Roughness(on=bool(p["roughness_a1"] > 0 or p["roughness_a2"] > 0), a1=float(p["roughness_a1"]),
                          a2=float(p["roughness_a2"]), d1=float(p["roughness_d1"]), d2=float(p["roughness_d2"]),
                          spread=float(p["roughness_spread"]), seed=int(p["seed"]))
@@ -285,10 +283,8 @@ def sliding(scene: Scene, aut: Automata, bonded: Automata, el: Elastic, law: ct.
 
 
 class Mark(NamedTuple):
-    """The state at an instant of the sliding window: time (s), the held degrees of freedom's reaction impulses
-    (2, 3; N s), the momentum (3,; kg m/s), the positions (N, 3), the held degrees of freedom's angular impulses
-    about the origin (2, 3; N m s), the angular momentum about the origin (3,; sum m x x v + J w, kg m^2/s) and
-    the rotation angles (N, 3)."""
+    """The state at an instant of the sliding window (SI units; moments about the origin): the held degrees of
+    freedom's impulses and angular impulses (2, 3), the momentum and angular momentum (3,), positions, angles."""
 
     t: float
     impulse: np.ndarray
@@ -307,12 +303,9 @@ def _mark(st: mk.State) -> Mark:
 
 
 def angular_balance(a: Mark, b: Mark, st: mk.State, gamma: float) -> np.ndarray:
-    """Mean external moments about the origin over [a.t, b.t] less the change of angular momentum (3,; N m), which
-    the balance of angular momentum makes zero when the bodies' internal forces and moments (pairs, contacts)
-    exert no net couple.  External: the held degrees of freedom's reactions (their moments, recorded every step),
-    the loads on the free ones (at the mean of their positions: the drive moves them uniformly), the damping's
-    (-gamma m (v - v_ref) on the free translations, at the mean position of each automaton over the window,
-    -gamma J w on the free rotations)."""
+    """Mean external moments about the origin over [a.t, b.t] less the change of angular momentum (3,; N m): zero
+    when the bodies' internal forces and moments exert no net couple.  External: the held degrees of freedom's
+    reactions, the loads and the damping on the free ones (at their mean positions over the window)."""
     span = b.t - a.t
     mid = 0.5 * (a.x + b.x)
     free = st.fixm[:, :3] == mk.FREE
@@ -329,11 +322,9 @@ def angular_balance(a: Mark, b: Mark, st: mk.State, gamma: float) -> np.ndarray:
 
 
 def external_forces(a: Mark, b: Mark, st: mk.State, gamma: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Mean forces over [a.t, b.t] from outside the two bodies: the reactions (2, 3) of body 1's and body 2's held
-    degrees of freedom (what a clamp, a drive or a platen exerts: -f - load on them), the damping's (3,) and
-    the sum of every external force minus the momentum change (3,), which Newton's third law makes zero (the
-    bodies' internal forces, pairs and contacts, cancel).  The damping acts on the free degrees of freedom
-    relative to the frame's velocities: its mean is -gamma sum m (dx - v_ref span) / span."""
+    """Mean forces over [a.t, b.t] from outside the two bodies: the reactions (2, 3) of each body's held degrees of
+    freedom, the damping's (3,) and the sum of every external force less the momentum change (3,), which
+    Newton's third law makes zero."""
     span = b.t - a.t
     load = st.load.force if st.load is not None else np.zeros_like(st.x)
     held = st.contact.held
@@ -349,10 +340,9 @@ def external_forces(a: Mark, b: Mark, st: mk.State, gamma: float) -> tuple[np.nd
 
 def _reaction_summary(marks: list[Mark], st: mk.State, aut: Automata, law: ct.ContactLaw, contact: Contact,
                       f_applied: float, gamma: float) -> dict[str, Any]:
-    """mu measured at the drive and at the clamp (their mean tangential reaction over their normal one, over
-    the window and over each half of it), against the law's mu_dr for the normal force each measures; the
-    external forces' balance (Newton's third law) relative to the applied normal force, and the external moments'
-    (angular_balance) relative to the applied normal force times the spacing h0 across the interface."""
+    """mu measured at the drive and at the clamp (over the window and each half of it) against the law's mu_dr
+    for the normal force each measures; Newton's third law relative to the applied normal force F_N, and the
+    balance of angular momentum relative to F_N h0."""
     ax, dr = contact.axis_index, contact.direction_index
     load = st.load.force if st.load is not None else np.zeros_like(st.x)
     on_base, on_slider = (load[aut.body == g].sum(axis=0) for g in (0, 1))
@@ -446,10 +436,8 @@ def slid_distance(aut: Automata, st: mk.State, contact: Contact, extent: np.ndar
 
 
 def footprint_room(aut: Automata, contact: Contact) -> float:
-    """How far body 2 may slide along the direction before its leading automata leave body 1's surface: from
-    its leading automata to body 1's last ones, plus half a spacing (the contact search keeps a slave whose foot
-    lies up to EDGE = half a facet outside; beyond that its contact is lost).  A slider as long as its base
-    (no span) has half a spacing."""
+    """How far body 2 may slide along the direction before its leading automata leave body 1's surface: to body
+    1's last automata, plus the EDGE a foot may lie outside a facet (half a spacing)."""
     d = contact.direction_index
     along = aut.positions[:, d]
     lead = float(along[aut.body == 1].max())
@@ -459,9 +447,8 @@ def footprint_room(aut: Automata, contact: Contact) -> float:
 
 def contact_lost(window: np.ndarray, slid: float, room: float, contact: Contact) -> str:
     """Why the bodies did not stay in contact over the whole averaging window ("" if they did): body 2 slid
-    beyond body 1's surface (its footprint left the base), or a history row of the window has no closed
-    contact (the bodies separated).  mu_dr = F_dr / F_N and the energy balance then describe something other
-    than two bodies sliding on each other (a slider off its base ends with no contact at all)."""
+    beyond body 1's surface, or a history row of the window has no closed contact; mu_dr and the energy balance
+    then describe something other than two bodies sliding on each other."""
     if slid > room:
         return (f"the bodies did not stay in contact: body 2 slid {slid:.3g} m along {contact.direction} by the end "
                 f"of the averaging window, beyond body 1's surface ({room:.3g} m of room for its footprint); "
@@ -477,10 +464,8 @@ def contact_lost(window: np.ndarray, slid: float, room: float, contact: Contact)
 
 def heating(scene: Scene, aut: Automata, bonded: Automata, el: Elastic, law: ct.ContactLaw, p: dict[str, Any]
             ) -> dict[str, Any]:
-    """Sliding, then MCA heat of the bonded automata (the contact conducts as the interface pairs of the rest
-    geometry) from the scene's initial temperature to t_end, fed by the window's mean friction power of each
-    contact, split between the bodies by their conductivities (the slave's share to the slave, body 1's to its
-    rest partners by weight; `thermal_split`)."""
+    """Sliding, then MCA heat of the bonded automata from the initial temperature to t_end, fed by each contact's
+    mean friction power over the window, split by `thermal_split` (body 1's share to the rest partners)."""
     out = sliding(scene, aut, bonded, el, law, p)
     slave_power = out.pop("power", None)
     summary = out["summary"]
@@ -551,12 +536,8 @@ def body_thermal(scene: Scene, aut: Automata) -> tuple[np.ndarray, np.ndarray]:
 
 
 def thermal_split(k_base: float, k_slider: float) -> float:
-    """Body 1's share of the friction heat generated between the automata next to the interface: k1 / (k1 + k2).
-    The finite-volume split of a source on the face between two cells of conductivities k1 and k2: the face's
-    temperature eliminated (its flux balance), each cell receives the source in proportion to its conductance to
-    the face plus the harmonic-mean conduction between the cells, which is second order in a for the field of two
-    solids in contact (an effusivity or half split leaves an error of first order in a when k1 != k2).  Equal
-    materials: one half each."""
+    """Body 1's share of the friction heat generated between the automata next to the interface: k1 / (k1 + k2),
+    the finite-volume split of a source on a cell face, second order in a (docs/physics.md)."""
     return k_base / (k_base + k_slider)
 
 
@@ -571,16 +552,11 @@ def semi_infinite_rise(flux: float, conductivity: float, diffusivity: float, t: 
 
 def mu_dr_expected(law: ct.ContactLaw, speed: float, pressure: float) -> float:
     """mu_dr = F_dr / F_N that the friction law (contact.py, eq. 16) gives when every contact slides at the drive's
-    speed V under the same normal stress sigma = F_N / A (A the contact area, F_N the normal force mu_dr is
-    taken against):
-        tau = mu0 V + mu1 (1 + K_mu) min(sigma, sigma0) min(1, V / v_reg),   F_dr = tau A,
+    speed V under the same normal stress sigma = F_N / A:
         mu_dr = mu0 V / sigma + mu1 (1 + K_av) min(1, sigma0 / sigma) min(1, V / v_reg),
-    K_av the mean of the roughness process (K_mu enters linearly).  Below v_reg the dry part is the law's
-    viscous regularisation, above sigma0 the normal stress that counts is capped.  Exact for a uniform pressure,
-    or one wholly above sigma0; with a pressure that straddles sigma0 the cap bites less than this says.  Not in
-    it: the explicit step's own cap of the regularised slope (contact.py), which widens the regularisation to
-    tau S dt / m_red -- friction_step_ratio says how close a run comes to it.  With the static law every contact
-    slipping carries the kinetic mu1 (1 + K) min(sigma, sigma0) whatever its speed (no regularisation)."""
+    K_av the mean of the roughness process (the static law: no regularisation, the last factor 1).  Exact for a
+    uniform pressure, or one wholly above sigma0; not in it: the explicit step's cap of the regularised slope
+    (`friction_step_ratio` says how close a run comes to it)."""
     if not pressure > 0:
         return math.nan
     slope = 1.0 if law.static else min(1.0, speed / law.v_reg)  # a slipping static contact carries mu1 at any speed

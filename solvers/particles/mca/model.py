@@ -1,9 +1,5 @@
-"""MCA model: material constants, the automata's state and the two ways of running it.
-
-`Model` binds automata, elastic constants, fixes and loads and builds the kernel's parameters and its rest
-state (kernel.State, kernel.Params).  `Model.advance` integrates in time (dynamic loading, energy history);
-`relax` integrates with viscous damping until the residual force on the free degrees of freedom is below a
-tolerance (dynamic relaxation: the quasi-static approach for static scenes).
+"""MCA model: material constants, the automata's state, and two ways of running it: `Model.advance` in time,
+`relax` with viscous damping to a residual force (dynamic relaxation, for static scenes).
 
 Many-body coefficient (1 - 2G/K and 1 - 2G/(3K): docs/physics.md, "The movable cellular automaton (MCA)
 model").  The pair's normal stress is
@@ -241,14 +237,9 @@ def relax_status(code: int, res: float, tol: float, steps: int, max_steps: int) 
 
 
 def rebuild_pairs(model: Model, st: mk.State) -> tuple[mk.State, int]:
-    """Extend the pair list (and relist the contact candidates) after automata moved beyond the skin;
-    returns the new state and the number of pairs added.
-
-    Listed pairs keep their state (an unlinked pair stays listed: it may come back into contact).  Every
-    unlisted pair of automata closer than d (1 + 2 skin) -- d = the smallest spacing, the automata's
-    diameter -- is added unlinked (r0 = d, contact area the mean of the two cells' face areas), so a
-    contact is listed before it closes as long as no automaton moves more than `skin` d between rebuilds.
-    """
+    """Extend the pair list (and relist the contact candidates) after automata moved beyond the skin; the new
+    state and the number of pairs added.  Listed pairs keep their state; every unlisted pair closer than
+    d (1 + 2 skin), d the smallest spacing, is added unlinked (r0 = d), so a contact is listed before it closes."""
     aut = model.aut
     d = float(aut.spacing.min())
     cand = cKDTree(st.x).query_pairs(d * (1 + 2 * model.skin), output_type="ndarray").astype(np.int64)
