@@ -178,12 +178,10 @@ def _distinct(values: np.ndarray, tol: float) -> np.ndarray:
 
 @dataclass(frozen=True)
 class SelfConvergence:
-    """A solver's field sequence against itself: per level (coarse to fine) its difference from the finest
-    level (`to_finest`, nan at the finest) and from the next finer one (`to_next`, nan at the finest), the
-    order fitted on the successive differences (`order`, `order_se`: a difference d_k = C h_k^p (1 - r^-p) has
-    the order of the error itself, and needs no limit), and the grid convergence index of the finest level
-    (`gci_fine` = 1.25 d / (r^p - 1) with the last difference d and refinement ratio r: an error band of the
-    finest level, in the field's own units)."""
+    """A solver's field sequence against itself: per level (coarse to fine) its difference from the finest level
+    and from the next finer one (nan at the finest), the order fitted on the successive differences (which have
+    the order of the error itself: d_k = C h_k^p (1 - r^-p)), and the finest level's grid convergence index
+    1.25 d / (r^p - 1), an error band in the field's own units."""
 
     to_finest: np.ndarray
     to_next: np.ndarray

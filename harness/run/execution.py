@@ -243,10 +243,9 @@ def _world() -> tuple[Any, ...]:
 
 
 def run_cell(cell: Cell, raise_scene_errors: bool = False, time_limit: float | None = None) -> dict[str, Any]:
-    """Run one cell in a worker process and return its result (`compute_cell`): the first idle worker of this
-    process's pool, the same one call after call while it lives (the serial timed pass warms up and times
-    there).  A cell that runs past `time_limit` seconds (default: the `cell_time_limit` in force) is killed and
-    failed with that reason; one that ends its worker process is failed with its exit code or signal."""
+    """Run one cell in the first idle worker of this process's pool (the same one call after call while it
+    lives) and return its result (`compute_cell`); past `time_limit` seconds (default: the `cell_time_limit` in
+    force) it is killed, and a cell that ends its worker is failed with the exit code or signal."""
     limit = _TIME_LIMIT.get() if time_limit is None else time_limit
     return _result(cell, pool(_world()).run_one(_in_worker, (cell, raise_scene_errors), limit), limit)
 

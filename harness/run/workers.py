@@ -271,9 +271,8 @@ PR_SET_PDEATHSIG = 1  # prctl(2): the signal this process gets when the thread t
 
 
 def _die_with(parent: int) -> None:
-    """In a worker: be killed (SIGKILL) the moment the study's process ends, even by SIGKILL, so that no solve
-    goes on computing (and writing) for a study that is gone, even one in compiled code that holds the
-    interpreter lock.  Linux's prctl (libc's, through the process's own symbols: no library search per fork);
+    """In a worker: be killed the moment the study's process ends, even by SIGKILL and even in compiled code that
+    holds the interpreter lock: Linux's prctl (through the process's own symbols: no library search per fork);
     elsewhere the worker's watchdog thread (`interrupt.ignore_sigint_in_worker`) notices once it gets to run."""
     if sys.platform.startswith("linux"):
         with contextlib.suppress(Exception):

@@ -54,12 +54,9 @@ llvm.set_option("", "-vectorize-memory-check-threshold=4096")
 # frequency, whether the red pair's centre moves freely, the seed.  RunParams: force coefficients, damping, dt,
 # steps, hotness window [n_start, n_end), check interval, blow-up rule (kinetic energy above blowup_factor times
 # the energy supplied plus e_scale), the bar's box, the neighbourhood check (contact fraction of a, largest rest
-# distance listed, skin), the window's marks and the stationarity stop: the window [n_start, marks[k]) is split in
-# halves at marks[k - 1]; at each mark after the first the run ends if the halves' hotness agrees within stop_tol
-# (relative to the hottest free particle; 0: never), else the halves merge into the first and the window grows to
-# the next mark (marks [n_mid, n_end] with stop_tol 0: the plain window and its two halves).  RunOutputs: hot
-# (3, N) sums of KE dt over the window and its halves, energy (codes.E_*), counters (codes.K_*), history
-# (codes.H_*), ever (P,): 1 for pairs that ever hopped.
+# distance listed, skin), the window's marks and the stationarity stop (`simulate.window_marks`: at each mark the
+# window's halves are compared).  RunOutputs: hot (3, N) sums of KE dt over the window and its halves, energy
+# (codes.E_*), counters (codes.K_*), history (codes.H_*), ever (P,): 1 for pairs that ever hopped.
 RunState = namedtuple("RunState", "x v")
 LatticeArrays = namedtuple("LatticeArrays", "x_rest mass a pi pj g_off g_base g_lo g_hi g_r0 mask r0s slot")
 FixArrays = namedtuple("FixArrays", "kind amp phase gamma kt omega free_centre seed")
