@@ -96,6 +96,17 @@ class Automata:
             target += 0.5 * float(self.spacing[ax]) * (1.0 if face[1] == "0" else -1.0)
         return np.flatnonzero(np.abs(self.positions[:, ax] - target) <= 1e-9 * float(box_extent[ax]))
 
+    def face_strain(self, u: np.ndarray, ax: int, box_extent: np.ndarray) -> float:
+        """Mean normal strain along axis `ax`: the difference of the volume-weighted mean displacements `u` of the
+        automata on its two faces, over the distance between their centres."""
+
+        def mean(face: str) -> float:
+            idx = self.on_face(face, box_extent)
+            return float((u[idx, ax] * self.volume[idx]).sum() / self.volume[idx].sum())
+
+        span = box_extent[ax] if self.packing == "nodes" else box_extent[ax] - self.spacing[ax]
+        return (mean(f"{'xyz'[ax]}{'WHL'[ax]}") - mean(f"{'xyz'[ax]}0")) / span
+
     def sampler(self, points: np.ndarray) -> sp.csr_matrix:
         """Matrix (k, N) that takes a field at the automata to its values at `points` (k, 3).  "nodes": the
         automaton centred at each point (SceneError if a point is not a centre).  "cells": trilinear

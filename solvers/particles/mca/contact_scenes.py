@@ -160,23 +160,14 @@ def pressed(scene: Scene, aut: Automata, bonded: Automata, el: Elastic, law: ct.
         summary.update(axial_strain=axial, E_eff=react / area / axial, axial_stress_expected=expected)
         if "contact_pressure_mean" in summary:
             summary["contact_pressure_error"] = abs(summary["contact_pressure_mean"] / expected - 1)
-        lateral = [_face_strain(scene, aut, u, k) for k in range(3) if k != ax]
+        lateral = [aut.face_strain(u, k, scene.box.extent) for k in range(3) if k != ax]
         summary["nu_eff"] = -float(np.mean(lateral)) / axial
     kstat, reason = relax_status(status, res, p["relax_tol"], steps, p["max_steps"])
     return {"field": u, "quantity": "u (m)", "summary": summary, "status": kstat, "reason": reason,
             "model": model, "state": st}
 
 
-def _face_strain(scene: Scene, aut: Automata, u: np.ndarray, ax: int) -> float:
-    """Mean normal strain along axis ax from the volume-weighted displacements of its two faces."""
-    ext = scene.box.extent
 
-    def mean(face: str) -> float:
-        idx = aut.on_face(face, ext)
-        return float((u[idx, ax] * aut.volume[idx]).sum() / aut.volume[idx].sum())
-
-    a = FACE_AXES[ax]
-    return (mean(f"{a}{'WHL'[ax]}") - mean(f"{a}0")) / float(ext[ax])
 
 
 def sliding(scene: Scene, aut: Automata, bonded: Automata, el: Elastic, law: ct.ContactLaw, p: dict[str, Any]

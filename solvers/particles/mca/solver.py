@@ -303,19 +303,9 @@ def face_walls(scene: Scene, aut: Automata) -> tuple[np.ndarray, np.ndarray, np.
 
 
 def _strains(scene: Scene, aut: Automata, u: np.ndarray) -> tuple[float, float]:
-    """Axial strain from the zL face, lateral strain from the face-averaged x and y displacements."""
+    """Axial strain between the z faces, lateral strain the mean of those between the x and the y faces."""
     ext = scene.box.extent
-    on = {f: aut.on_face(f, ext) for f in ("x0", "xW", "y0", "yH", "z0", "zL")}
-
-    def mean(face: str, ax: int) -> float:
-        idx = on[face]
-        wgt = aut.volume[idx]
-        return float((u[idx, ax] * wgt).sum() / wgt.sum())
-
-    span = ext if aut.packing == "nodes" else ext - aut.spacing  # between the face layers' centres
-    axial = (mean("zL", 2) - mean("z0", 2)) / span[2]
-    lateral = 0.5 * ((mean("xW", 0) - mean("x0", 0)) / span[0] + (mean("yH", 1) - mean("y0", 1)) / span[1])
-    return axial, lateral
+    return aut.face_strain(u, 2, ext), 0.5 * (aut.face_strain(u, 0, ext) + aut.face_strain(u, 1, ext))
 
 
 def _static(scene: Scene, aut: Automata, p: dict[str, Any]) -> dict[str, Any]:
