@@ -1,15 +1,11 @@
 """Command line `pcverify`: the parser, and the table of the modules that run each command.
 
 This module parses and checks the arguments and imports nothing a command needs to run, so that help, `scenes`
-and a one-line input error answer at once, before the numerical libraries (pandas, scipy, matplotlib, numba,
-dask: seconds of CPU) would have loaded.  Each command lives in a module of `run` or `report` named for its
-role, which imports what it needs at its top; COMMANDS names it as "module:function", imported with importlib
-once the arguments are checked, as a console script's entry point is.  What a command's input needs no
-numerical library to check is checked here first (`check_input`): a scene, solver or study name, an option
-that needs one study.
-
-Every bad input ends in one line `pcverify: error: ...` naming the parameter and the allowed range, with
-exit code 2; never a traceback (unless --debug).
+and a one-line input error answer before the numerical libraries (seconds of CPU) would have loaded.  COMMANDS
+names each command's module of `run` or `report` as "module:function", imported once the arguments are checked
+(`check_input` first checks what needs no numerical library: a scene, solver or study name, an option that
+needs one study).  Every bad input ends in one line `pcverify: error: ...` naming the parameter and the
+allowed range, with exit code 2; never a traceback (unless --debug).
 """
 
 from __future__ import annotations

@@ -1,16 +1,13 @@
 """numba's on-disk cache guarded so that compiled code never outlives an edit of any source it came from, and
 compiled once when several processes need it at the same time.
 
-numba's `cache=True` checks only the file that defines a jitted function, not the modules it calls into,
-so after an edit of a helper module the old machine code was loaded and run.  Each of numba's cache
-locators is wrapped (same cache folder and file names) so that its source stamp also holds the source
-closure fingerprint of the function's module (pcverify.fingerprint); numba treats another stamp as a miss
-and recompiles.  `import pcverify` installs it without importing numba: when numba's caching module loads.
-
-A study's worker processes start alike, so on an empty cache each compiled the same kernels at the same time
-(a kernel of the MCA contact scenes takes 20 s).  A cached function's compilation of one signature therefore
-holds an exclusive file lock beside its cache entry: a second process waits, then loads what the first saved.
-Callees lock inside their callers, in the order of the call graph, so two processes never wait on each other.
+numba's `cache=True` checks only the file that defines a jitted function, not the modules it calls into.  Each
+of numba's cache locators is therefore wrapped so that its source stamp also holds the source closure
+fingerprint of the function's module (pcverify.fingerprint): another stamp is a miss, and numba recompiles.
+`import pcverify` installs it, without importing numba, when numba's caching module loads.  A compilation of
+one signature holds an exclusive file lock beside its cache entry, so a study's workers, started alike, do not
+all compile the same kernels (20 s for an MCA contact kernel): a second process waits, then loads what the
+first saved; callees lock inside their callers, in call-graph order, so no two processes wait on each other.
 """
 
 from __future__ import annotations

@@ -1,18 +1,12 @@
 """Kinds of the bar's vibration modes by their parities under the two mirror planes x = W/2 and y = H/2.
 
-One classifier for every solver that computes modes (skfem-elastic, the MCA): each hands over what it has --
-its nodes' positions, its mode vectors (node-interleaved dofs: u_x, u_y, u_z, then the rotations phi_x, phi_y,
-phi_z where a node rotates), its mass (the diagonal per dof, or the mass matrix) -- and gets the kind of each
-mode.  The clamp at z = 0 keeps both mirror symmetries of the bar, so every non-degenerate mode has a definite
-parity under each: (-, +) bending-x (u_x dominant), (+, -) bending-y, (-, -) torsion, (+, +) axial; "mixed" when
-a parity is unclear (|parity| <= 0.5).  Degenerate clusters (the two bending families of the square section)
-are first rotated to definite parities by a fixed rule (the solver's mirror weights: which of the pair comes
-first), and a solver classifies its modes only with the cluster at its cut complete (`cut_is_complete`): an
-eigensolver returns any basis of a degenerate pair, so these two rules make the kinds the same on every CPU and
-BLAS.  Then the kinds named by energy, the rules a solver asks for, in turn:
-a mode whose mass norm lies mostly in the nodes' rotations is "rotational" (`rotational`: the MCA's alternating
-rotations, which only its rotational pair spring resists, a kind the continuum does not have), and a (+, +) mode
-whose mass is mostly lateral is "symmetric-lateral", not axial (`symmetric_lateral`).
+One classifier for every solver that computes modes (skfem-elastic, the MCA): each hands over its nodes'
+positions, its mode vectors (node-interleaved dofs, rotations after the translations where a node rotates) and
+its mass, and gets the kind of each mode: (-, +) bending-x, (+, -) bending-y, (-, -) torsion, (+, +) axial,
+"mixed" when a parity is unclear.  Degenerate clusters are rotated to definite parities by a fixed rule, and a
+solver classifies its modes only with the cluster at its cut complete (`cut_is_complete`), so the kinds are the
+same on every CPU and BLAS.  Then the rules a solver asks for rename kinds by energy (`rotational`,
+`symmetric_lateral`).
 """
 
 from __future__ import annotations

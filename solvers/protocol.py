@@ -21,21 +21,15 @@ STATUSES = ("ok", "unstable", "skipped", "non-stationary", "defect", "failed")
 KINDS = ("particle", "continuum")  # a solver's `kind`: the figures draw particles as markers, continua as lines
 
 
-
-
 @dataclass
 class Solution:
     """What a solver returns: sample values, cost, diagnostics (JSON-ready via to_dict).
 
-    samples: per sample-set name, {"points": (k, 3) array, "values": (k,) array}; for heat
-    scenes the values are T / t_max (particle solvers: relative hotness).
-    unknowns (and work.unknowns): the scalar values the solver solves for or advances in time that no
-    constraint holds -- its free degrees of freedom (a held node, cell, particle or dof is not one): free
-    nodes (scikit-fem), free cells (FiPy), free dofs (elasticity), 3 per particle the macromolecule lattice
-    integrates freely (FREE, Langevin baths included), the MCA's free translations and rotations (mechanics)
-    or free temperatures (heat); the one count every cost table and figure uses.
-    work: counters (unknowns, time_steps, pair_steps, iterations, kernel_s, ...).
-    summary: scalar results (bulk_median, volume_mean, ... solvers may add keys, never rename).
+    samples: per sample-set name, {"points": (k, 3) array, "values": (k,) array}; for heat scenes the values
+    are T / t_max (particle solvers: relative hotness).  unknowns (and work.unknowns): the values the solver
+    solves for or advances in time that no constraint holds (free nodes, cells, dofs, particles' coordinates,
+    temperatures): the one count every cost table and figure uses.  work: counters (unknowns, time_steps,
+    pair_steps, iterations, kernel_s, ...).  summary: scalar results (solvers may add keys, never rename).
     """
 
     scene: str
@@ -57,24 +51,12 @@ class Solution:
             raise ValueError(f"status={self.status!r}; allowed: {', '.join(STATUSES)}")
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain JSON-serialisable dict (the public `--json` interface)."""
-        return _jsonable(
-            {
-                "scene": self.scene,
-                "solver": self.solver,
-                "params": self.params,
-                "resolution": self.resolution,
-                "unknowns": self.unknowns,
-                "wall_s": self.wall_s,
-                "status": self.status,
-                "reason": self.reason,
-                "quantity": self.quantity,
-                "samples": self.samples,
-                "summary": self.summary,
-                "work": self.work,
-                "diagnostics": self.diagnostics,
-            }
-        )
+        """Plain JSON-serialisable dict (the public `--json` interface), its keys in the order of DICT_KEYS."""
+        return _jsonable({key: getattr(self, key) for key in DICT_KEYS})
+
+
+DICT_KEYS = ("scene", "solver", "params", "resolution", "unknowns", "wall_s", "status", "reason", "quantity", "samples",
+             "summary", "work", "diagnostics")
 
 
 def _jsonable(obj: Any) -> Any:
@@ -95,20 +77,13 @@ def _jsonable(obj: Any) -> Any:
 
 
 class Solver(Protocol):
-    """The solver protocol (docs/plugins.md: what a solver declares and returns; docs/architecture.md).
+    """The solver protocol (docs/plugins.md: what a solver declares and returns).
 
-    name: the registry name.  kind: "particle" or "continuum".  parameters: every parameter `solve`
-    takes, with its default, unit and range (`pcverify solvers` lists them).  A solver may also offer
-    `stability_probe() -> StabilityProbe` (see below) and `estimate(scene, resolution, **params) ->
-    WorkEstimate` (the harness then refuses work beyond its limits before it starts); the cache key holds
-    a fingerprint of the code the solver reaches by import, so no version needs bumping when results change.
-    `uses_refine` (optional, a bool) says whether `resolution.refine` changes what it computes; without it a
-    continuum solver is taken to use it (h = a / refine) and a particle solver to ignore it (its particles are
-    the lattice of n): see `uses_refine`.
-    `notes` (optional, a tuple of sentences): the model notes, where the solver departs from its source (a
-    paper's equation replaced or left out) or makes a choice the source leaves open, each with its reason
-    and, where it matters, a measured number; `pcverify solvers` and every report that uses the solver show
-    them (see `model_notes`).
+    name: the registry name.  kind: "particle" or "continuum".  parameters: every parameter `solve` takes, with
+    its default, unit and range.  Optional: `stability_probe() -> StabilityProbe`, `estimate(scene, resolution,
+    **params) -> WorkEstimate` (work beyond the limits is refused before it starts), `uses_refine` (see
+    `uses_refine`) and `notes` (the model notes: see `model_notes`).  No version: the cache key holds a
+    fingerprint of the code the solver reaches by import.
     """
 
     name: str
@@ -144,12 +119,10 @@ class WorkEstimate:
 class ProbeSetup:
     """A stability probe's prepared case: everything before integration, and where ratio 1 sits.
 
-    dt_theory: the step of ratio 1 (s).  quantity: what the limit is expressed in (e.g. "dt omega_max / 2");
-    theory_limit: the theory's limit in that quantity, so a limiting ratio r is the quantity r *
-    theory_limit; theory_label: the theory's short legend; x_axis: the context key (or "n") the report
-    plots the limit against.  solver_dt_limit: the step the solver's own input guard allows (s; nan if
-    none).  context: scalars that describe the case (damping_ratio, drive_amplitude, omega_max, ...),
-    reported beside the measurement.  state: the model's prepared run (private to the probe).
+    dt_theory: the step of ratio 1 (s); a limiting ratio r is r * theory_limit in `quantity` (e.g. "dt
+    omega_max / 2"); x_axis: the context key (or "n") the report plots the limit against; solver_dt_limit:
+    what the solver's own input guard allows (s; nan if none); context: scalars reported beside the
+    measurement; state: the model's prepared run (private to the probe).
     """
 
     dt_theory: float

@@ -102,10 +102,6 @@ def entries() -> dict[str, Entry]:
     return SOLVERS.entries()
 
 
-def solver_names() -> list[str]:
-    return sorted(entries())
-
-
 def register_solver(cls: type, origin: str) -> None:
     """Make a solver class known under its `name` (e.g. from a plugin module); SceneError on a clash."""
     check_solver_class(cls, origin)

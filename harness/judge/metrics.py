@@ -1,9 +1,8 @@
 """Metrics: field errors, observed order, Richardson extrapolation and the GCI.
 
-The lattice family is refined non-uniformly (ratios 1.58, 1.36, ...), so orders are
-fitted against h by least squares and the Richardson/GCI step uses the general
-three-grid procedure of Celik et al., J. Fluids Eng. 130 (2008) 078001, which
-solves for p with unequal ratios r21 != r32.
+The lattice family is refined non-uniformly (ratios 1.58, 1.36, ...), so orders are fitted against h by least
+squares and the Richardson/GCI step uses the general three-grid procedure of Celik et al., J. Fluids Eng. 130
+(2008) 078001, which solves for p with unequal ratios r21 != r32.
 """
 
 from __future__ import annotations
@@ -63,12 +62,9 @@ def observed_order(h: np.ndarray, err: np.ndarray, finest: int | None = None) ->
 
 
 def classify(values: np.ndarray) -> str:
-    """Classify a sequence ordered coarse -> fine: monotonic, oscillatory or divergent.
-
-    Uses the ratio R = (f_k - f_{k+1}) / (f_{k-1} - f_k) of successive changes over the three finest
-    values (Stern et al. 2001): 0 < R < 1 monotonic, -1 < R < 0 oscillatory, |R| >= 1 divergent.
-    A sequence with an exactly zero change is called monotonic (converged to round-off).
-    """
+    """Classify a sequence ordered coarse -> fine by the ratio R = (f_k - f_{k+1}) / (f_{k-1} - f_k) of its three
+    finest values (Stern et al. 2001): 0 < R < 1 monotonic (also an exactly zero change: converged to round-off),
+    -1 < R < 0 oscillatory, |R| >= 1 divergent."""
     f = np.asarray(values, dtype=float)
     if f.size < 3:
         raise ValueError("classify needs at least three values")
@@ -88,8 +84,6 @@ class Richardson:
     order: float  # apparent order p
     extrapolated: float  # phi_ext^21
     gci_fine: float  # relative GCI on the finest grid (factor of safety 1.25)
-    approx_rel_error: float  # e_a^21
-    extrap_rel_error: float  # e_ext^21
     kind: str  # monotonic / oscillatory / divergent
 
     @property
@@ -99,10 +93,8 @@ class Richardson:
 
 
 def richardson(h: np.ndarray, phi: np.ndarray, safety: float = 1.25, max_iter: int = 200) -> Richardson:
-    """Celik et al. (2008) on the three finest grids; h and phi in any order.
-
-    Raises ValueError when the apparent order cannot be defined (e.g. identical values).
-    """
+    """Celik et al. (2008) on the three finest grids, h and phi in any order; ValueError when the apparent order
+    cannot be defined (e.g. identical values)."""
     h = np.asarray(h, dtype=float)
     phi = np.asarray(phi, dtype=float)
     idx = np.argsort(h)[:3]
@@ -122,10 +114,9 @@ def richardson(h: np.ndarray, phi: np.ndarray, safety: float = 1.25, max_iter: i
             break
         p = p_new
     ext = (r21**p * f1 - f2) / (r21**p - 1.0)
-    ea = abs((f1 - f2) / f1) if f1 != 0 else abs(f1 - f2)
-    eext = abs((ext - f1) / ext) if ext != 0 else abs(ext - f1)
+    ea = abs((f1 - f2) / f1) if f1 != 0 else abs(f1 - f2)  # e_a^21
     gci = safety * ea / (r21**p - 1.0)
-    return Richardson(float(p), float(ext), float(gci), float(ea), float(eext), kind)
+    return Richardson(float(p), float(ext), float(gci), kind)
 
 
 def on_points(points: np.ndarray, values: np.ndarray, at: np.ndarray) -> np.ndarray:
@@ -187,12 +178,10 @@ def _distinct(values: np.ndarray, tol: float) -> np.ndarray:
 
 @dataclass(frozen=True)
 class SelfConvergence:
-    """A solver's field sequence against itself: per level (coarse to fine) its difference from the finest
-    level (`to_finest`, nan at the finest) and from the next finer one (`to_next`, nan at the finest), the
-    order fitted on the successive differences (`order`, `order_se`: a difference d_k = C h_k^p (1 - r^-p) has
-    the order of the error itself, and needs no limit), and the grid convergence index of the finest level
-    (`gci_fine` = 1.25 d / (r^p - 1) with the last difference d and refinement ratio r: an error band of the
-    finest level, in the field's own units)."""
+    """A solver's field sequence against itself: per level (coarse to fine) its difference from the finest level
+    and from the next finer one (nan at the finest), the order fitted on the successive differences (which have
+    the order of the error itself: d_k = C h_k^p (1 - r^-p)), and the finest level's grid convergence index
+    1.25 d / (r^p - 1), an error band in the field's own units."""
 
     to_finest: np.ndarray
     to_next: np.ndarray

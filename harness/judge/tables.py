@@ -95,17 +95,13 @@ def convergence(results: list[dict[str, Any]], quantities: list[str],
                 ) -> tuple[pd.DataFrame, pd.DataFrame]:
     """(levels, fits): per sequence (solver + params) the values by h, and the fitted orders / GCI.
 
-    Every cell is a level row with its status; only ok levels enter a fit, and a fit names the levels it
-    used (`used`) and the cells of its sequence that were not ok (`missing`), so a claim on a fit that lost
-    a cell cannot pass.  With an analytic reference the fit is of the error (L2 and Linf per sample set)
-    against h, with the standard error of the fitted order (`order_unc`; `monotone` says whether the
-    fitted errors decrease with every refinement; if not, the order is pre-asymptotic); with a `reference`
-    per quantity (value, uncertainty, Richardson class of an extrapolated continuum result) of the relative
-    error err.<quantity>, whose uncertainty (`err.<quantity>_unc`) and class (`reference_class`) come with it;
-    without either, three-grid Richardson extrapolation with the GCI on each summary quantity
-    (`extrapolated_unc`: the GCI band of the extrapolated value).  With `self_reference` each sample set's field
-    is also compared with the sequence's own finest level (`self_fits`): columns self.<set>.l2 / .linf in the
-    levels, fits of reference "self".
+    Every cell is a level row with its status; only ok levels enter a fit, which names the levels it used
+    (`used`) and the cells of its sequence that were not ok (`missing`), so a claim on a fit that lost a cell
+    cannot pass.  The fit is of the stored errors against h (an analytic reference; `monotone`: whether they
+    decrease with every refinement), of the relative error err.<quantity> against a `reference` per quantity
+    (value, uncertainty, Richardson class), or else a three-grid Richardson extrapolation with the GCI of each
+    quantity.  With `self_reference` each sample set is also compared with the sequence's own finest level
+    (`self_fits`).
     """
     rows = []
     for r in results:

@@ -1,12 +1,9 @@
-"""Reports: per-study CSV and Markdown tables, PNG/SVG plots, verdicts (CSV and JSON), and one
-self-contained index.html that opens with the summary and the findings.
+"""Reports: per-study CSV and Markdown tables, PNG/SVG plots, verdicts (CSV and JSON), and one self-contained
+index.html that opens with the summary and the findings; the report never runs a solver.
 
-The report reads study results (or the cache through them); it never runs a solver.  Every verdict
-carries the command that reproduces its number; `verdicts.json` beside index.html lists them all.
-
-Several studies may write into one output folder at once: every file is written atomically (files.atomic_write),
-index.html and verdicts.json are rebuilt under a lock, and what the index reads back from the folder is
-checked: a manifest that cannot be read is skipped with a warning, and only files inside the folder are embedded.
+Several studies may write into one output folder at once: every file is written atomically, index.html and
+verdicts.json are rebuilt under a lock, and what the index reads back is checked (a manifest that cannot be
+read is skipped with a warning, and only files inside the folder are embedded).
 """
 
 from __future__ import annotations
@@ -109,11 +106,9 @@ def solver_notes(names: list[str]) -> dict[str, list[str]]:
 
 def write_study_report(study: Any, results: list[dict[str, Any]], out: Path, run_command: str | None = None,
                        extra: list[tuple[dict[str, Any], dict[str, pd.DataFrame]]] = ()) -> Path:
-    """Write tables, plots, VTU files and verdicts of one study into out/<study>/ and its manifest (with the
-    study file, its plugin modules and the command that ran it: this process's, unless `run_command`; and
-    `rerun`, the command that reruns it from the cache).  `extra`: sections made elsewhere (a calibration's:
-    id, title, figures already drawn) with their tables; their tables are written and available to the
-    claims like the groups' tables."""
+    """Write tables, plots, VTU files and verdicts of one study into out/<study>/ and its manifest (the command
+    that ran it: this process's, unless `run_command`).  `extra`: sections made elsewhere (a calibration's: id,
+    title, figures already drawn) with their tables, which the claims read like the groups' tables."""
     folder = out / study.name
     folder.mkdir(parents=True, exist_ok=True)
     manifest: dict[str, Any] = {"name": study.name, "title": study.title, "sections": [], "verdicts": None,
@@ -312,10 +307,9 @@ def _benchmarks(out: Path) -> list[str]:
 
 
 def manifests(out: Path, quiet: bool = False) -> list[tuple[Path, dict[str, Any]]]:
-    """The study manifests under `out` with their folders.  A manifest that cannot be read, is empty, is not
-    valid JSON or not of the form write_study_report writes is skipped with a warning; a file it names that
-    is not a file inside `out` (an absolute path, `..`, a symlink leading out, a missing file) is left out
-    with a warning (none if `quiet`): the report embeds only files inside `out`."""
+    """The study manifests under `out` with their folders.  A manifest that cannot be read or is not of the form
+    write_study_report writes is skipped, a file it names that is not a file inside `out` is left out, each with
+    a warning (none if `quiet`): the report embeds only files inside `out`."""
     root = out.resolve()
     found = []
     for path in sorted(out.glob("*/manifest.json")):

@@ -1,23 +1,16 @@
 """Result cache: one JSON file per study cell, keyed by a content hash, shared safely between processes.
 
-Writes are atomic (a temporary file named for its writer, fsync, rename), so an interrupted study never
-leaves a half-written entry, and temporary files whose writer has died are removed.  An entry that fails
-to parse (nested too deeply included), whose stored key or checksum does not match, or whose result lacks
-the fields every result has, is reported as corrupt and recomputed.  The cache folder must be a folder: a
-file in its place is a one-line error, not a study that waits forever.
+Writes are atomic (files.atomic_write), so an interrupted study never leaves a half-written entry.  An entry
+that fails to parse, whose stored key or checksum does not match, or whose result lacks the fields every result
+has, is reported as corrupt and recomputed.  A file in the cache folder's place is a one-line error.
 
-A cell being computed holds a lock file (`<key>.lock`: its holder's pid, host and `since`, the time it was
-taken): another process running the same cell waits for the entry instead of computing it twice, saying
-(after 10 s, then every minute) which lock it waits for, who holds it and for how long.  A lock is taken
-over when its holder has died on this host, and, with a warning, when it is stale: older than STALE_LOCK_S
-(two hours, twice the default cell time limit of one hour, so a cell still within its limit is never taken
-from its holder), whatever its pid (pids are reused: a week-old lock may name a live, unrelated process) or
-host (a process on another host cannot be asked whether it still runs).  Takeovers are decided one at a
-time under the folder's `.takeover.guard`, so two processes that both found a dead holder cannot both
-remove a lock (the second would remove the first's new one) and both compute the cell.
-
-Every caller follows one protocol, written here once: `claim` a cell (its lock, and the entry read again
-once the lock is taken), `release` it with its entry, or `wait` for the entry of the process that holds it.
+A cell being computed holds a lock file (`<key>.lock`: its holder's pid, host and `since`): another process
+running the same cell waits for the entry instead of computing it twice, saying which lock it waits for.  A
+lock is taken over when its holder has died on this host, and, with a warning, when it is older than
+STALE_LOCK_S (twice the default cell time limit, so a cell within its limit is never taken from its holder),
+whatever its pid (pids are reused) or host (another host cannot be asked).  Takeovers are decided one at a time
+under the folder's `.takeover.guard`, so two processes cannot both take over a lock and both compute the cell.
+Every caller follows one protocol: `claim` a cell, `release` it with its entry, or `wait` for its holder's.
 """
 
 from __future__ import annotations

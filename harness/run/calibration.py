@@ -1,20 +1,13 @@
 """Calibration: fit a solver's free parameters on calibration cells, then judge them on held-out cells.
 
-The search is a space-filling design (`scipy.stats.qmc`, Sobol or Latin hypercube) over the free
-parameters (log-scaled where asked), then bounded Nelder-Mead (`scipy.optimize.minimize`) in the unit
-cube from the best design points, until the `budget` of solver runs is spent or the simplex converges.
-Every evaluation is a study cell run through the harness's one execution path
-(`pcverify.harness.run.execution.execute`) and its cache: an interrupted calibration resumes from the
-cache, and a rerun takes the same path through the same cached values and computes nothing.  A run
-whose status is not ok (defect, unstable, non-stationary, failed) is a failure of that parameter set:
-it is shown in the trace and steers the search away (a penalty), never enters an objective, a range
-or a noise estimate.
-
-After the search: the objective's noise from replicas at the optimum (other seeds, run lengths), the
-evaluated parameter sets whose objective lies within that noise of the best (their ranges per
-parameter: where the data cannot tell the parameters apart), a one-at-a-time sensitivity, and the
-validation cells at the calibrated values beside the solver's defaults.  Every row says whether its
-number was "calibrated on" or "validated on".
+The search is a space-filling design (`scipy.stats.qmc`) over the free parameters, then bounded Nelder-Mead in
+the unit cube from the best design points, until the `budget` of solver runs is spent or the simplex
+converges.  Every evaluation is a study cell run through `execution.execute` and its cache, so an interrupted
+calibration resumes and a rerun computes nothing.  A run whose status is not ok is a failure of that parameter
+set: shown in the trace, penalised, never in an objective, a range or a noise estimate.  After the search: the
+objective's noise from replicas at the optimum, the parameter sets within that noise of the best (where the
+data cannot tell the parameters apart), a one-at-a-time sensitivity, and the validation cells at the
+calibrated values beside the defaults, each row saying whether it was "calibrated on" or "validated on".
 """
 
 from __future__ import annotations

@@ -1,15 +1,10 @@
 """Running a study's cells: one path for every cell, the cache in front of it, local or Dask workers.
 
-Every cell is identified by a content hash of its scene, solver, code fingerprint, resolution, task and
-parameters; a cached result is read back, not recomputed.  Every cell that is computed runs in a worker
-process (`workers`) that the study's process kills when the cell runs past its time limit, and a cell that
-ends its worker (os._exit, a signal) is that cell's failed status: one process per --jobs, or a Dask
-cluster (`--scheduler`).  Each finished cell is stored at once, so an interrupted study loses nothing.
-Cells whose wall times a report compares (timing, work-precision) run last, one at a time in one worker
-process, after a warm-up solve per solver in that same process.
-
-A cell's identity (group, scene, solver, resolution, parameters) comes from the cell, never from what the
-solver returns, and each solve gets its own copy of the scene: a solver that changes it fails its cell.
+A cell is identified by a content hash (`cell_identity`); a cached result is read back, not recomputed.  A
+computed cell runs in a worker process (`workers`) that is killed past the cell's time limit, one per --jobs,
+or on a Dask cluster; each finished cell is stored at once, so an interrupted study loses nothing.  Timed
+cells run last, one at a time in one worker, after a warm-up solve per solver there.  A cell's identity comes
+from the cell, never from what the solver returns, and each solve gets its own copy of the scene.
 """
 
 from __future__ import annotations
@@ -75,10 +70,8 @@ def cell_time_limit(seconds: float | None) -> Iterator[None]:
 def cell_identity(cell: Cell) -> tuple[dict[str, Any], str | None]:
     """(key payload, reason the cell will not be solved or None) of a cell.  The payload holds the scene's
     content hash, the solver's name and code fingerprint (and the task's), the resolution, the task, the
-    parameters and the fingerprint of the compare step (its errors are part of the result).  A cell is not
-    solved when it is skipped (the solver is unavailable, or does not support the scene) or when the solver's
-    own `supports` or parameter check raised (the cell then fails with that reason); a SceneError of the
-    parameter check (a bad value) propagates.  The solver sees a copy of the scene."""
+    parameters and the compare step's fingerprint.  A cell is not solved when it is skipped, or when the
+    solver's `supports` or parameter check raised; a SceneError of the parameter check propagates."""
     payload: dict[str, Any] = {"scene": cell.scene.content_hash(), "solver": cell.solver, "n": cell.n,
                                "refine": cell.refine, "task": cell.task.name}
     if cell.serial:
@@ -159,15 +152,10 @@ def _failed(cell: Cell, reason: str, **extra: Any) -> dict[str, Any]:
 
 def compute_cell(cell: Cell, raise_scene_errors: bool = False) -> dict[str, Any]:
     """Compute one cell in this process through its task and return its JSON-ready result (skips and failures
-    are results too): the body of a worker's task (`run_cell`) and of a Dask task.
-
-    The solver works on its own copy of the scene, whose content hash is checked again after the solve (a
-    solver that changed it fails the cell).  BLAS runs on one thread (results must not depend on --jobs or
-    the machine); the solver's output passes the boundary checks (`boundary`), then is compared with the
-    scene's reference once (`compare`: the result's `errors`).  Whatever the solver raises (SystemExit
-    included), or an output the checks refuse, is the cell's failed status with the reason; with
-    `raise_scene_errors` a SceneError (the solver refusing its input) propagates instead, for the command line
-    to report as bad input.  The identity fields are the cell's own, never those the solver returned."""
+    are results too): the body of a worker's task (`run_cell`) and of a Dask task.  The solver works on its own
+    copy of the scene (one it changed fails the cell), BLAS on one thread; its output passes the boundary checks
+    and is compared with the scene's reference once.  Whatever the solver raises is the cell's failed status,
+    but with `raise_scene_errors` a SceneError propagates, for the command line to report as bad input."""
     base = _base(cell)
     scene = copy.deepcopy(cell.scene)
     before = scene.content_hash()
@@ -219,13 +207,10 @@ def compute_cell(cell: Cell, raise_scene_errors: bool = False) -> dict[str, Any]
 
 
 def solve_cost(cpu_s: float, wall_s: Any, work: dict[str, Any]) -> dict[str, float | None]:
-    """The CPU cost of one solve, one axis for every solver: `cpu_s`, the process's CPU seconds in the solver's
-    run (set-up, time loop and output; compare and checks excluded), split into `kernel_s`, the CPU seconds of
-    what the solver reports as its time loop or linear solve (`work.kernel_s`, else `work.solve_s`, timed on
-    the solver's own wall clock, `kernel_wall_s`: its share of the solve's wall time `wall_s` applied to the CPU
-    time, so a loaded machine's waiting counts in neither), and `setup_s`, the rest; None where the solver
-    reports no kernel.  `cold` (added by the caller): the process's first solve with this solver, whose time
-    includes imports and compilation (a timed cell is never cold: its worker warmed up)."""
+    """The CPU cost of one solve: `cpu_s`, the CPU seconds of the solver's run, split into `kernel_s`, the share
+    the solver reports as its time loop or linear solve (`work.kernel_s`, else `work.solve_s`, on its own wall
+    clock: `kernel_wall_s`) of the solve's wall time `wall_s` applied to the CPU time, so a loaded machine's
+    waiting counts in neither, and `setup_s`, the rest; None where the solver reports no kernel."""
     kernel = work.get("kernel_s", work.get("solve_s"))
     real = isinstance(kernel, (int, float)) and not isinstance(kernel, bool) and math.isfinite(kernel)
     wall = float(wall_s) if isinstance(wall_s, (int, float)) and not isinstance(wall_s, bool) else math.nan
@@ -258,10 +243,9 @@ def _world() -> tuple[Any, ...]:
 
 
 def run_cell(cell: Cell, raise_scene_errors: bool = False, time_limit: float | None = None) -> dict[str, Any]:
-    """Run one cell in a worker process and return its result (`compute_cell`): the first idle worker of this
-    process's pool, the same one call after call while it lives (the serial timed pass warms up and times
-    there).  A cell that runs past `time_limit` seconds (default: the `cell_time_limit` in force) is killed and
-    failed with that reason; one that ends its worker process is failed with its exit code or signal."""
+    """Run one cell in the first idle worker of this process's pool (the same one call after call while it
+    lives) and return its result (`compute_cell`); past `time_limit` seconds (default: the `cell_time_limit` in
+    force) it is killed, and a cell that ends its worker is failed with the exit code or signal."""
     limit = _TIME_LIMIT.get() if time_limit is None else time_limit
     return _result(cell, pool(_world()).run_one(_in_worker, (cell, raise_scene_errors), limit), limit)
 
@@ -370,15 +354,11 @@ def execute(study: Study, cache: Cache, jobs: int = 1, progress: bool = True, sc
             ) -> tuple[list[dict[str, Any]], dict[str, int]]:
     """Run every cell not yet cached; return all results in cell order and the counts.
 
-    `rerun` recomputes cached cells too: all of them (an empty set) or those of the named solvers.  A
-    cell beyond the work limits (`limits.check_work`) stops the study before anything runs, unless
-    `allow_large`; a cell whose solver's estimate raised fails with that reason, unsolved.
-    Every computed cell runs in a worker process and is killed after `time_limit` seconds (default: the
-    `cell_time_limit` in force); a cached cell that failed on a shorter limit is computed again.
-    Cells of timed groups run last, one at a time in one worker process, after a warm-up solve per solver
-    there; the others run on `jobs` worker processes, or a Dask cluster at `scheduler`.  A cell of another group
-    that a timed cell also solves (its untimed twin) takes the timed cell's result: each solution once.
-    Each finished cell is written to the cache at once, so an interrupted study loses nothing.
+    `rerun` recomputes cached cells too: all of them (an empty set) or those of the named solvers.  A cell
+    beyond the work limits stops the study before anything runs, unless `allow_large`.  A computed cell is
+    killed after `time_limit` seconds (default: the `cell_time_limit` in force); a cached cell that failed on a
+    shorter limit is computed again.  Timed cells run last (see the module docstring); an untimed twin of a
+    timed cell takes its result: each solution once.
     """
     limit = _TIME_LIMIT.get() if time_limit is None else float(time_limit)
     cache.stale_after = max(cache.stale_after, 2 * limit)  # a live cell's lock never looks stale

@@ -1,18 +1,11 @@
 """Files that several processes share: atomic writes, stray temporary files, and a lock between processes.
 
-Every file the harness writes (cache entries, tables, figures, VTU, manifests, index.html) goes through
-`atomic_write`: the bytes go to a temporary file in the same folder whose name is unique and names its
-writer (`.<name>.<pid>.<random>.tmp`), are flushed to disk, and the temporary file is renamed over the
-target.  Readers see the old file or the new one, never a half; two writers of one file never share a
-temporary file; a write that fails (a full disk, a read-only folder, an exception of the producer) removes
-its temporary file and leaves the target as it was.  `remove_stray_files` removes the temporary files of
-writers that died (SIGKILL, power loss) before they could.
-
-`parse_json` reads JSON that anyone may have written: a document nested too deeply for the parser (100 000
-nested lists) is invalid JSON like any other, never a RecursionError.
-
-`exclusive` serialises a short critical section (rebuilding index.html) between processes: a lock file
-held with flock(2), which the kernel releases when its holder dies, so a killed process cannot hold it.
+`atomic_write` writes to a temporary file in the same folder named for its writer (`.<name>.<pid>.<random>.tmp`),
+flushes it and renames it over the target: readers see the old file or the new one, never a half, and a write
+that fails leaves the target as it was.  `remove_stray_files` removes the temporary files of dead writers.
+`parse_json` treats a document nested too deeply for the parser as invalid JSON, never a RecursionError.
+`exclusive` serialises a short critical section between processes with flock(2), which the kernel releases
+when its holder dies.
 """
 
 from __future__ import annotations

@@ -1,17 +1,11 @@
 """Ctrl-C and SIGTERM during a study must stop it cleanly, and its workers must not outlive it.
 
-Python raises KeyboardInterrupt wherever the main thread happens to be; inside a library block with a
-bare `except:` (FiPy evaluates its variables under several) the exception is swallowed and the study
-would run on to the end.  While a study runs, SIGINT and SIGTERM therefore also set INTERRUPTED (and
-remember which signal came), and the runner checks it after every finished cell: it stores that cell,
-then stops with KeyboardInterrupt.  A worker process watches the study's process and exits when it is
-gone (killed with SIGKILL, say), instead of computing on for minutes.
-
-SIGTERM is handled for the whole life of the command, not only while cells run: from the first line of
-the command line module (`exit_on_sigterm_at_start_up`: nothing is written yet, so it says so and exits
-143 at once), then around every command (`sigterm_interrupts`: KeyboardInterrupt, so locks are released
-and every file is written whole or not at all).  A process started with SIGINT ignored (`cmd &` from sh)
-keeps ignoring Ctrl-C, but still stops cleanly on SIGTERM.
+A library block with a bare `except:` (FiPy has several) swallows KeyboardInterrupt, so while a study runs
+SIGINT and SIGTERM also set INTERRUPTED, and the runner checks it after every finished cell: it stores that
+cell, then stops.  A worker exits when the study's process is gone.  SIGTERM is handled for the whole life of
+the command: from the command line module's first line (`exit_on_sigterm_at_start_up`: exit 143 at once), then
+around every command (`sigterm_interrupts`: KeyboardInterrupt, so locks are released and files written whole or
+not at all).  A process started with SIGINT ignored keeps ignoring Ctrl-C, but stops cleanly on SIGTERM.
 """
 
 from __future__ import annotations

@@ -1,17 +1,12 @@
 """Bounded work: what one cell may cost before the harness refuses to start it without --allow-large, and
 how long it may run before it is stopped.
 
-A solver that offers `estimate(scene, resolution, **params)` says, before it starts, how many unknowns and
-time steps a solve takes and how much memory it needs.  A cell beyond MAX_WORK unknown-steps (about ten
-minutes of one core at ~5 ns per unknown-step) or beyond half of this machine's memory is refused in one
-line that names the resolution, the estimate and the limit.  An estimate that raises or answers something
-other than a WorkEstimate is an `EstimateError` naming the solver (its cell fails; `run` prints one line).
-
-Whatever the estimate said, a computed cell is killed after its time limit (`--time-limit`, default
-DEFAULT_TIME_LIMIT): one hour is six times the ten minutes that MAX_WORK allows a cell, room for a slow or
-busy machine and for the solvers that offer no estimate, while a solve that never returns costs at most an
-hour, not the study.  A mutant's whole run (`pcverify mutate`) is stopped after DEFAULT_MUTANT_TIME_LIMIT
-(`--mutant-time-limit`).
+A solver's `estimate(scene, resolution, **params)` says how many unknowns and time steps a solve takes and how
+much memory it needs.  A cell beyond MAX_WORK unknown-steps (about ten minutes of one core) or beyond half of
+this machine's memory is refused in one line; an estimate that raises or answers something other than a
+WorkEstimate is an `EstimateError` naming the solver.  Whatever the estimate said, a computed cell is killed
+after its time limit (DEFAULT_TIME_LIMIT: six times what MAX_WORK allows, room for a slow machine and for
+solvers without an estimate), and a mutant's whole run after DEFAULT_MUTANT_TIME_LIMIT.
 """
 
 from __future__ import annotations

@@ -1,20 +1,15 @@
 """Mutation testing of a study's claims: each mutant runs the study in a process of its own, and a claim that
 passes on the original code and not on a mutant has caught it.
 
-A mutant's process (`overlay`) sees the mutated module through a finder that maps its name to an edited copy
-kept in the mutant's folder, `<cache>/mutants/<study>/<name>-<identity>/`: the rest of every package is the
-original, read-only.  Nothing of a mutant reaches the real caches: its numba cache (NUMBA_CACHE_DIR) is a copy
-of the real one made for it, where the numba guard recompiles exactly the kernels whose closure holds the
-mutated module (the others load as compiled), and its result cache is its own folder, seeded with copies of
-the baseline's entries only where a cell key covers every code the mutant can change (`Mutant.seedable`).
-An interrupted run resumes: a mutant's folder, named by the hash of its definition and edited source, keeps
-its result cache, so only what the edit changed is computed again.
+A mutant's process (`overlay`) sees the mutated module as an edited copy in the mutant's folder,
+`<cache>/mutants/<study>/<name>-<identity>/`.  Nothing of a mutant reaches the real caches: its numba cache is a
+copy (the numba guard recompiles exactly the kernels whose closure holds the mutated module), and its result
+cache is its own folder, seeded from the baseline only where a cell key covers every code the mutant can change
+(`Mutant.seedable`); named by the hash of its definition and source, it lets an interrupted run resume.
 
-Outcomes: `killed` (a claim that passed on the baseline does not pass: fail, inconclusive, not applicable or
-gone), `survived`, `invalid` (the edit is not valid Python, changes no code, the module does not import, or a
-cell whose key it changed failed to compile or import: numba's typing or lowering errors, an import or syntax
-error; never counted as killed) and `crashed` (its study did not
-end with verdicts: a crash, an error line, the time limit; a crash is not a claim catching the defect).
+Outcomes: `killed` (a claim that passed on the baseline does not pass), `survived`, `invalid` (the edit is not
+valid Python, changes no code, or its module or a kernel it changes does not import or compile; never counted
+as killed) and `crashed` (its study did not end with verdicts: a crash is not a claim catching the defect).
 """
 
 from __future__ import annotations

@@ -1,15 +1,10 @@
 """A mutant's process: one module of a package replaced by an edited copy, the rest of the package as it is.
 
-The process that runs a study on a mutant loads this file by its path, before anything of pcverify is
-imported (so this module imports nothing of pcverify at its top: the mutated module may be any of them), and
-calls `main`.  It puts a finder first on `sys.meta_path` that maps the mutated module's name to the edited copy
-(a package's `__init__.py` keeps its folder as search path and resource folder), so that Python, forked workers
-and the code fingerprint (which resolves names through these finders) all see the mutant, and compiled numba
-code stamped with a closure fingerprint recompiles exactly where the mutated module is reached.  It imports the
-mutated module first (one that does not import is the mutant's `invalid` outcome), then runs command lines in
-this process (for a study: `study --dry-run --json`, each cell's key, then `study --json`, cells and verdicts);
-the outcome is a JSON file for the process that started this one.  The command line is imported by name once the
-finder is in place: the one point where the import order is the whole purpose.
+The process that runs a study on a mutant loads this file by its path, before anything of pcverify is imported
+(so it imports nothing of pcverify at its top), and calls `main`.  A finder first on `sys.meta_path` maps the
+mutated module's name to the edited copy, so that Python, forked workers, the code fingerprint and numba's
+guarded cache all see the mutant.  It imports the mutated module first (one that does not import is `invalid`),
+then runs command lines in this process; the outcome is a JSON file for the process that started this one.
 """
 
 from __future__ import annotations

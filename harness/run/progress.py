@@ -1,10 +1,6 @@
-"""Progress on stderr: a tqdm bar on a terminal, plain lines anywhere else.
-
-A bar redraws itself with carriage returns; a log or a CI job keeps every frame, megabytes of them around a
-few lines of text.  Where stderr is not a terminal, progress is therefore a line when the work starts, a line
-per tenth of the work to do ("k/N cells") and a line when it ends; a solve that runs in one call says every
-minute that it is still running.  Notes printed with `tqdm.write` (the cache's waiting messages, a corrupt
-entry recomputed) print above a bar, or as plain lines where there is none.
+"""Progress on stderr: a tqdm bar on a terminal, plain lines anywhere else (a log keeps every frame of a bar):
+a line when the work starts, one per tenth of it ("k/N cells") and one when it ends; a solve in one call says
+every minute that it still runs.  Notes printed with `tqdm.write` go above a bar, or as plain lines.
 """
 
 from __future__ import annotations

@@ -1,18 +1,13 @@
 """Worker processes that the study's process can kill: where every computed cell runs.
 
-A solver, shipped or a plugin, runs in a worker process, never in the process that holds the study: a solve
-that calls `os._exit`, is killed by a signal (the OOM killer, a segfault) or never returns ends that worker,
-not the study.  The parent waits on each worker's pipe and process with the cell's time limit; a worker that
-dies or runs past its limit is killed and replaced, and exactly its task gets the outcome that says so.
-
-The pool is this process's own (`pool`): workers are forked from it when first needed (they start with
-pcverify and the solvers already imported: a few milliseconds, no second import) and serve task after task,
-so a solver's compiled kernels stay warm from one cell to the next, and the serial timed pass warms up and
-times in the same process (`Pool.run_one` always takes the first idle worker).  Each worker runs one task at
-a time, so a dead worker names its task; only when other workers were busy beside it (the OOM killer picks
-the largest process, not the guilty one) is the task run again alone before it is called the culprit.
-A worker writes whatever it prints to stderr (file descriptor 1 is a copy of 2), ignores Ctrl-C (the
-study's process handles it and kills its workers) and exits when the study's process has gone.
+A solve that calls `os._exit`, is killed by a signal (the OOM killer, a segfault) or never returns ends its
+worker, not the study: the parent waits on each worker with the cell's time limit, and a worker that dies or
+runs past it is killed and replaced, its task getting the outcome that says so.  The pool (`pool`) is forked
+from this process when first needed and serves task after task, so compiled kernels stay warm and the serial
+timed pass warms up and times in one process (`Pool.run_one` takes the first idle worker).  A dead worker
+names its one task; only when other workers were busy beside it (the OOM killer picks the largest process) is
+the task run again alone before it is called the culprit.  A worker prints to stderr, ignores Ctrl-C and exits
+when the study's process has gone.
 """
 
 from __future__ import annotations
@@ -276,9 +271,8 @@ PR_SET_PDEATHSIG = 1  # prctl(2): the signal this process gets when the thread t
 
 
 def _die_with(parent: int) -> None:
-    """In a worker: be killed (SIGKILL) the moment the study's process ends, even by SIGKILL, so that no solve
-    goes on computing (and writing) for a study that is gone, even one in compiled code that holds the
-    interpreter lock.  Linux's prctl (libc's, through the process's own symbols: no library search per fork);
+    """In a worker: be killed the moment the study's process ends, even by SIGKILL and even in compiled code that
+    holds the interpreter lock: Linux's prctl (through the process's own symbols: no library search per fork);
     elsewhere the worker's watchdog thread (`interrupt.ignore_sigint_in_worker`) notices once it gets to run."""
     if sys.platform.startswith("linux"):
         with contextlib.suppress(Exception):

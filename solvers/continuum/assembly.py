@@ -1,34 +1,20 @@
 """Fast assembly of scikit-fem's Q1 operators on structured (possibly locally warped) hexahedral grids.
 
-Why: scikit-fem's general assembly (isoparametric mapping, quadrature, COO -> CSR) spends ~18 s on the
-~640 000 cells of a 673 000-node grid, although almost every cell of a `grid.StructuredGrid` is the same
-undistorted box.  On a tensor-product grid the Q1 operators with `intorder=2` (exact for Q1 on boxes) are
-Kronecker sums of the 1-D P1 operators:
+Why: scikit-fem's general assembly spends ~18 s on the ~640 000 cells of a 673 000-node grid, although almost
+every cell of a `grid.StructuredGrid` is the same undistorted box.  On a tensor-product grid the Q1 operators
+with `intorder=2` (exact on boxes) are Kronecker sums of the 1-D P1 operators, which scikit-fem itself
+assembles on the grid's axis coordinates (so the result is scikit-fem's matrix up to round-off; a test checks
+1e-12, plain and warped):
 
     stiffness  K = Kx (x) My (x) Mz + Mx (x) Ky (x) Mz + Mx (x) My (x) Kz
     mass       M = Mx (x) My (x) Mz
     load       w = wx (x) wy (x) wz           (w_i = integral of phi_i)
 
-(x slowest, z fastest: the node order of `StructuredGrid`).  The 1-D matrices are assembled by scikit-fem
-itself (MeshLine, ElementLineP1, intorder=2) on the grid's own axis coordinates, so the result is scikit-fem's
-matrix up to round-off (a test checks 1e-12 against scikit-fem's 3-D assembly, plain and warped).
-
-Warped cells (the conforming patch band) are not boxes: for them the box contribution is removed and
-scikit-fem's general assembly on a sub-mesh of just those cells is added:
-
-    K = K_tensor - K_box(warped cells) + K_skfem(warped cells)
-
-Entries that vanish in exact arithmetic (the Q1 Laplacian couples no two nodes joined by a cell edge on a
-box: -4/9 + 2/9 + 2/9 = 0) come out of the Kronecker sum as round-off; `tensor_csr` drops entries below
-`drop_rtol` times their row's diagonal, which cuts the 27-point stencil of K to 21 points (22 % fewer
-nonzeros for every later product: condensation, AMG set-up, CG).
-
-`tensor_csr` (numba) builds any sum of Kronecker products of 1-D tridiagonal matrices straight into a sorted
-CSR matrix, so other Q1 operators on the same grids (e.g. elasticity blocks) can reuse it.
-
-Two helpers for the linear algebra that follows: `grid_graph`, the 27-point node adjacency that the AMG
-set-up aggregates on (both continuum heat solvers), and `split_free`, which condenses Dirichlet nodes out of
-a matrix in one numba pass (scipy's A[free][:, free] copies the ~14-million-entry matrix twice).
+Warped cells (the conforming patch band) are not boxes: K = K_tensor - K_box(warped) + K_skfem(warped).
+`tensor_csr` (numba) builds a sum of Kronecker products straight into a sorted CSR matrix and drops the
+round-off of exact zeros (below `drop_rtol` times the row's diagonal), which cuts the 27-point stencil of K to
+21 points.  `grid_graph` is the 27-point node adjacency the AMG set-up aggregates on; `split_free` condenses
+Dirichlet nodes out of a matrix in one numba pass (scipy's A[free][:, free] copies the matrix twice).
 """
 
 from __future__ import annotations
@@ -96,12 +82,8 @@ def _tensor_csr_kernel(shape, bands, drop_rtol):
 
 def tensor_csr(factors: list[tuple[sp.spmatrix, sp.spmatrix, sp.spmatrix]],
                drop_rtol: float | None = DROP_RTOL) -> sp.csr_matrix:
-    """Sum over terms of Ax (x) Ay (x) Az for tridiagonal 1-D matrices, as a sorted CSR matrix.
-
-    Equals `sum(sp.kron(ax, sp.kron(ay, az)))` except that entries |a_ij| <= drop_rtol * |a_ii| are left out
-    (drop_rtol = 0 keeps every entry that is not exactly zero; None keeps the whole 27-point pattern, zeros
-    included, as scikit-fem's assembly does).
-    """
+    """Sum over terms of Ax (x) Ay (x) Az for tridiagonal 1-D matrices, as a sorted CSR matrix, without the
+    entries |a_ij| <= drop_rtol * |a_ii| (0 keeps every nonzero; None the whole 27-point pattern, zeros included)."""
     shape = tuple(int(a.shape[0]) for a in factors[0])
     nmax = max(shape)
     bands = np.zeros((len(factors), 3, nmax, 3))
@@ -126,11 +108,8 @@ def tensor_csr(factors: list[tuple[sp.spmatrix, sp.spmatrix, sp.spmatrix]],
 
 
 def grid_graph(shape: tuple[int, int, int]) -> sp.csr_matrix:
-    """Node adjacency of a structured hex grid (1 wherever two nodes share a cell, 27-point pattern).
-
-    Used as the AMG strength-of-connection graph: the Laplacian's own pattern lacks the edge neighbours
-    (exact zeros), and aggregating on it gives ragged aggregates and ~40 % more CG iterations (measured).
-    """
+    """Node adjacency of a structured hex grid (27-point pattern): the AMG strength-of-connection graph, because
+    the Laplacian's own pattern lacks the edge neighbours (~40 % more CG iterations, measured)."""
     ones = [sp.diags([np.ones(m - 1), np.ones(m), np.ones(m - 1)], [-1, 0, 1]) for m in shape]
     return tensor_csr([tuple(ones)], drop_rtol=None)
 
@@ -182,10 +161,8 @@ def _box_cell_local(lines: list[LineOperators], cells: np.ndarray, shape) -> tup
 
 def assemble_q1(grid: StructuredGrid, with_mass: bool = False, full_pattern: bool = False) -> Q1Operators:
     """Q1 stiffness, load (and mass) of a `StructuredGrid` with unit coefficients, = scikit-fem's intorder=2.
-
-    full_pattern keeps the stiffness's exact zeros (27-point pattern, as scikit-fem stores it): SuperLU's
-    MMD ordering on the 21-point pattern filled in far more (measured 6x slower at 19 855 nodes).
-    """
+    full_pattern keeps the stiffness's exact zeros: SuperLU's ordering on the 21-point pattern fills in far
+    more (6x slower at 19 855 nodes, measured)."""
     shape = grid.shape
     axes = [np.linspace(0.0, float(e), m) for e, m in zip(grid.extent, shape, strict=True)]
     lines = [line_operators(a) for a in axes]
@@ -228,13 +205,9 @@ def assemble_q1(grid: StructuredGrid, with_mass: bool = False, full_pattern: boo
 
 
 def plane_load(grid: StructuredGrid, axis: int, position: float) -> np.ndarray:
-    """Surface load f_i = integral of phi_i over the plane {x_axis = position}, exact for Q1 on box cells.
-
-    On a tensor grid phi_i = phi_a(x_a) phi_b(x_b) phi_c(x_axis), so f is the product of the 1-D loads
-    (scikit-fem's P1 `unit_load`) on the two other axes and the 1-D hat values at `position`: a plane on
-    a grid plane loads those nodes only, one between grid planes is shared linearly.  Warped cells are
-    not boxes: the caller makes sure the plane crosses none (ValueError if it lies outside the grid).
-    """
+    """Surface load f_i = integral of phi_i over the plane {x_axis = position}, exact for Q1 on box cells: the
+    product of the 1-D loads on the two other axes and the 1-D hat values at `position`.  The caller makes sure
+    the plane crosses no warped cell (ValueError if it lies outside the grid)."""
     coords = np.linspace(0.0, float(grid.extent[axis]), grid.shape[axis])
     if not coords[0] <= position <= coords[-1]:
         raise ValueError(f"plane position {position!r} lies outside the grid along axis {axis}")
@@ -248,7 +221,7 @@ def plane_load(grid: StructuredGrid, axis: int, position: float) -> np.ndarray:
 
 
 @numba.njit(cache=True)
-def _split_kernel(indptr, indices, data, new_index, is_free, n_free, n_fixed):
+def _split_kernel(indptr, indices, data, new_index, is_free, n_free):
     """Rows of free nodes, split into the free-free and free-fixed column blocks (order kept)."""
     nnz_ff = 0
     nnz_fb = 0
@@ -288,12 +261,8 @@ def _split_kernel(indptr, indices, data, new_index, is_free, n_free, n_fixed):
 
 
 def split_free(a: sp.csr_matrix, free: np.ndarray) -> tuple[sp.csr_matrix, sp.csr_matrix]:
-    """(A[free][:, free], A[free][:, ~free]) for a boolean mask `free`, in one O(nnz) pass.
-
-    Same matrices as scipy's fancy indexing (columns keep their order), without its two copies of the
-    matrix; used to condense Dirichlet nodes out of ~14-million-entry operators.  With every row free
-    the first is `a` itself (no copy) and the second has no columns.
-    """
+    """(A[free][:, free], A[free][:, ~free]) for a boolean mask `free`, in one O(nnz) pass (scipy's fancy
+    indexing, without its two copies); with every row free, `a` itself and a matrix of no columns."""
     a = sp.csr_matrix(a)
     free = np.asarray(free, dtype=bool)
     n_free = int(free.sum())
@@ -303,8 +272,7 @@ def split_free(a: sp.csr_matrix, free: np.ndarray) -> tuple[sp.csr_matrix, sp.cs
     new_index[free] = np.arange(n_free)
     new_index[~free] = np.arange(free.size - n_free)
     pf, jf, df, pb, jb, db = _split_kernel(a.indptr.astype(np.int64), a.indices.astype(np.int32, copy=False),
-                                           np.asarray(a.data, dtype=np.float64), new_index, free, n_free,
-                                           free.size - n_free)
+                                           np.asarray(a.data, dtype=np.float64), new_index, free, n_free)
     shape_b = (n_free, free.size - n_free)
     return (sp.csr_matrix((df, jf, pf.astype(np.int32)), shape=(n_free, n_free)),
             sp.csr_matrix((db, jb, pb.astype(np.int32)), shape=shape_b))

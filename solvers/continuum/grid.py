@@ -1,24 +1,16 @@
-"""Structured hexahedral grids on the bar, conforming corner-patch warps, point location.
+"""Structured hexahedral grids on the bar, conforming corner-patch warps, point location (for the continuum
+solvers).
 
-Solver-independent helpers for the continuum solvers (scikit-fem here; FiPy may reuse them).
+Grid.  The grid of resolution (n, refine) has the particle lattice of resolution n as a subset of its nodes:
+spacing h = a / refine on every axis, a = W / (n - 1).  Node (i, j, k) has the flat index (i * ny + j) * nz + k
+(x slowest, z fastest, the order of `Box.lattice_points`); cell (i, j, k) spans the nodes (i..i+1, j..j+1,
+k..k+1), listed in scikit-fem's MeshHex1 order (`hex_connectivity`).
 
-Grid.  The grid of resolution (n, refine) has the particle lattice of resolution n as a subset of its
-nodes: spacing h = a / refine on every axis, a = W / (n - 1), so (m - 1) * refine + 1 nodes along an
-axis that holds m lattice nodes (`Box.lattice_shape`; the standard bar: n, n and 3n - 2).
-(`StructuredGrid.for_box` builds it for any box whose sides are integer multiples of h.)  Node (i, j, k)
-has the flat index (i * ny + j) * nz + k: x slowest, z fastest, the same order as `Box.lattice_points`.
-Cell (i, j, k) spans the nodes (i..i+1, j..j+1, k..k+1); `hex_connectivity` lists its 8 nodes in
-scikit-fem's MeshHex1 order.
+Warp.  `SphereWarp` moves the nodes near a patch centre so that a cube shell of grid faces lands exactly on
+the patch's sphere; nodes far from it do not move.
 
-Warp.  `SphereWarp` moves the nodes near a patch centre c (a grid node, usually a box corner) so that
-the cube shell {max_i |x_i - c_i| = s1} of grid faces (s1 = m h) lands exactly on the sphere of radius
-rho about c; see its docstring.  Nodes far from c (max-norm distance >= s2) do not move.
-
-Location.  `StructuredGrid.locate` / `interpolation_matrix` give, for arbitrary physical points, the
-cell and the local trilinear coordinates on the (possibly warped) grid, hence exact Q1 interpolation:
-on unwarped cells directly (the trilinear map is affine there), in warped cells by inverting the warp
-(a 1-D monotone root along the ray from c) to find a candidate cell, then Newton on that cell's
-trilinear map, with a search of the neighbouring cells when the point lies just outside the candidate.
+Location.  `StructuredGrid.locate` / `interpolation_matrix`: exact Q1 interpolation at arbitrary points, by
+inverting the warp and then Newton on the candidate cell's trilinear map (searching its neighbours).
 """
 
 from __future__ import annotations
@@ -90,17 +82,10 @@ class SphereWarp:
         s1 < s < s2:    R = t + (rho - t1) * phi(xi),  t1 = s1 * t / s,  xi = (s - s1) / (s2 - s1)
         s >= s2:        R = t                                   (identity)
 
-    phi(xi) = (1 - xi)^2 (1 + 2 xi) falls smoothly from 1 to 0 with zero slope at both ends, so the warp
-    is continuous, C1 across s = s2 and a bijection of the cube {s < s2} onto itself as long as
-    R is increasing along every ray: dR/dt = 1 + (rho - t1) phi'(xi) / (t2 - t1) > 0 (`min_slope`).
-    Properties that the solvers rely on:
-    - the nodes with s <= s1 land in the closed ball of radius rho, those with s = s1 exactly on the
-      sphere, so the faceted inner boundary of the remaining mesh interpolates the sphere (O(h^2));
-    - the map is radial from c, so a point on any plane through c (a box face through a corner patch)
-      stays on that plane, and nothing with s >= s2 moves (faces not through c stay put if s2 <= their
-      distance from c);
-    - s1 and s2 are chosen from rho (and h only through s1 = m h with m = round(rho / (KAPPA h))), so the
-      warps of a refinement sequence differ by O(h) and the discretisation error keeps its h^2 form.
+    phi (`_smooth_fall`) makes the warp C1 across s = s2, a bijection of the cube {s < s2} while R increases
+    along every ray (`min_slope`).  The nodes with s = s1 land exactly on the sphere (the mesh's faceted inner
+    boundary interpolates it to O(h^2)); the map is radial from c, so a plane through c stays put; s1 and s2
+    depend on h only through s1 = m h, so the warps of a refinement sequence differ by O(h).
     """
 
     centre: tuple[float, float, float]
@@ -172,14 +157,9 @@ class SphereWarp:
 
 
 def plan_sphere_warp(centre, rho: float, h: float, limit: float) -> SphereWarp:
-    """Choose s1 = m h (m = max(1, round(rho / (KAPPA h)))) and s2 for a patch of radius rho.
-
-    `limit` is the largest allowed s2: half the max-norm distance to the nearest other patch centre and
-    at most the distance to any box face that does not pass through `centre`.  s2 is 5 rho if that fits,
-    and never less than what keeps dR/dt >= 0.25 (ValueError if even `limit` cannot).  A wide band matters:
-    with s2 = 3 rho the steeper grading made the values 3.3 rho from a patch converge at order ~1.4 (n=4,
-    refine 8/12/16); with s2 = 5 rho (= limit for the bar) the same points converge at order ~2.6.
-    """
+    """Choose s1 = m h (m = max(1, round(rho / (KAPPA h)))) and s2 <= `limit` (`StructuredGrid.patch_limit`) for
+    a patch of radius rho: 5 rho if that fits, never less than what keeps dR/dt >= 0.25 (else ValueError).  A
+    wide band matters: with s2 = 3 rho the values 3.3 rho from a patch converged at order ~1.4, with 5 rho ~2.6."""
     m = max(1, int(round(rho / (KAPPA * h))))
     s1 = m * h
     if s1 >= limit:
@@ -194,10 +174,8 @@ def plan_sphere_warp(centre, rho: float, h: float, limit: float) -> SphereWarp:
 
 
 def hex_connectivity(shape: tuple[int, int, int]) -> np.ndarray:
-    """Cell-to-node table (8, ncells) in MeshHex1 local order for a grid of `shape` nodes.
-
-    Cells are numbered like nodes: cell (i, j, k) -> (i * (ny - 1) + j) * (nz - 1) + k.
-    """
+    """Cell-to-node table (8, ncells) in MeshHex1 local order for a grid of `shape` nodes; cells are numbered
+    like nodes, cell (i, j, k) -> (i * (ny - 1) + j) * (nz - 1) + k."""
     nx, ny, nz = shape
     i, j, k = np.meshgrid(np.arange(nx - 1), np.arange(ny - 1), np.arange(nz - 1), indexing="ij")
     i, j, k = i.ravel(), j.ravel(), k.ravel()
@@ -208,11 +186,8 @@ def hex_connectivity(shape: tuple[int, int, int]) -> np.ndarray:
 
 
 def corner_jacobians(p: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """Jacobian determinants of trilinear cells at their 8 corners and their centre, shape (9, ncells).
-
-    p: (N, 3) node coordinates; t: (8, ncells) in MeshHex1 order.  On an undistorted cube of side h
-    every entry is h^3 (positive orientation: x, y, z edges are right-handed).
-    """
+    """Jacobian determinants (9, ncells) of the trilinear cells t (8, ncells) of nodes p at their 8 corners and
+    their centre: h^3 on an undistorted cube of side h."""
     offs = {tuple(o): c for c, o in enumerate(HEX_CORNERS)}
     x = p[t]  # (8, ncells, 3)
     out = np.empty((9, t.shape[1]))
@@ -320,9 +295,8 @@ class StructuredGrid:
         return lim
 
     def add_warp(self, warp: SphereWarp) -> np.ndarray:
-        """Apply a sphere warp to the nodes; returns the indices of the nodes inside the patch (s <= s1).
-
-        The warp's cube {s < s2} must not overlap another warp's cube (plan with `patch_limit`)."""
+        """Apply a sphere warp to the nodes (its cube must not overlap another's: `patch_limit`); returns the
+        indices of the nodes inside the patch (s <= s1)."""
         for w in self.warps:
             gap = np.abs(np.asarray(w.centre) - np.asarray(warp.centre)).max()
             if gap < w.s2 + warp.s2 - 1e-12 * self.h:
@@ -354,11 +328,8 @@ class StructuredGrid:
         return np.clip(ijk, 0, np.asarray(self.shape) - 2)
 
     def locate(self, x: np.ndarray, tol: float = 1e-9) -> tuple[np.ndarray, np.ndarray]:
-        """Cell (i, j, k) lower indices (k, 3) and local coordinates (k, 3) in [0, 1]^3 of points x.
-
-        Exact for the trilinear cells of the warped grid (Newton to ~1e-13).  ValueError for points
-        outside the box or not found.
-        """
+        """Cell (i, j, k) lower indices (k, 3) and local coordinates (k, 3) in [0, 1]^3 of points x (Newton to
+        ~1e-13 in warped cells); ValueError for points outside the box or not found."""
         x = np.atleast_2d(np.asarray(x, dtype=float))
         span = self.extent
         if np.any(x < -tol * self.h) or np.any(x > span + tol * self.h):

@@ -1,44 +1,18 @@
 """scikit-fem linear elasticity of the bar: static (supports, clamps) and modal analysis, Q1 or Q2 hexahedra.
 
-Discretisation (docs/physics.md, "Continuum references"):
-- Mesh: `grid.StructuredGrid.lattice(box, n, refine)`, the hexahedral grid whose nodes include the particle
-  lattice of resolution n, h = a / refine.  Vector Lagrange elements ElementHex1 (Q1, trilinear) or
-  ElementHex2 (Q2, triquadratic, 27 nodes), parameter `element`.  Quadrature: Gauss with 2 points per axis
-  for Q1 (`intorder=2`) and 3 for Q2 (`intorder=4`): on the undistorted boxes of this grid the integrands of
-  K (degree 2k per axis) and M (degree 2k) are then integrated exactly.  scikit-fem's default for Q2 is
-  intorder 12 (7^3 = 343 points per cell instead of 27).  All cells of the (unwarped) grid are the same
-  translated cube, so K and M are assembled by scikit-fem once on the unit cube, scaled (h, h^3) and
-  scattered (`unit_cell_matrices`, `scatter_uniform`; equal to cell-by-cell assembly to round-off).
-- Material: isotropic Hooke's law with the Lame constants of (E, nu); mass density rho.
-- Constraints, all nodal (Lagrange dofs are point values):
-  FaceSupport(face, d): the face-normal component of every dof on the face is d (frictionless support);
-  FaceClamp(face): every component on the face is 0.
-  A scene held only by supports normal to z keeps three rigid-body modes (x and y translation, rotation
-  about z).  They are removed by the statically determinate "3-2-1" set at the two corners of face z0 on
-  y = 0: u_x = u_y = 0 at (0, 0, 0) and u_y = 0 at (W, 0, 0).  The homogeneous uniaxial field
-  u = eps (-nu x, -nu y, z) satisfies these three conditions, so they carry no force and do not stress
-  the bar (the diagnostic `rigid_constraint_reactions_N` reports the three reactions); the lateral
-  expansion is centred on the corner (0, 0) rather than the section centre.
-- Static solve: Dirichlet values are lifted and the constrained rows/columns replaced by their diagonal,
-  so the matrix keeps its 3x3 nodal blocks.  "direct" = SuperLU; "amg" = CG preconditioned by a pyamg
-  smoothed-aggregation V-cycle on the 3x3-block matrix with the six rigid-body modes as near-nullspace
-  (without them SA-AMG for elasticity converges slowly); the true relative residual is checked after CG.
-  "auto" switches at `direct_max_unknowns` (static; SuperLU's 3-D fill makes AMG-CG cheaper between
-  ~6k and ~19k Q2 unknowns in tests/bench/test_bench_skfem_elastic.py) and at `modal_direct_max_unknowns`
-  (modal: shift-invert needs ~40 solves with one matrix, so one factorisation beats ~40 AMG-CG solves;
-  the limit only bounds the factor's memory, ~1 GB at 42k Q2 unknowns).
-- Modal: K phi = omega^2 M phi on the free dofs, ARPACK (scipy eigsh) in shift-invert mode about
-  sigma = 0 with the inverse of K applied by the same linear solver (direct or AMG-CG to cg_rtol), a
-  seeded start vector (deterministic).  The modes are classified by their parities under the two mirror
-  planes of the bar (`pcverify.solvers.modes`, shared with the MCA): bending-x, bending-y, torsion, axial,
-  symmetric-lateral or mixed; in a degenerate cluster bending-y comes before bending-x.
-- Output: displacement (m) at the sample points by exact interpolation of the FE field (`basis.probes`),
-  values shape (k, 3) (modal scenes: the lowest mode's shape scaled to max |u| = 1).  Static summary:
-  reaction_force = sum of (K u)_z over the dofs of face zL, the axial force the support applies to the bar
-  (N, negative in compression); E_eff = reaction_force / (W H) / axial_strain (positive for both signs of
-  the strain); nu_eff = -lateral_strain / axial_strain with the lateral strain from the area means of u_x
-  over x0, xW and u_y over y0, yH (facet quadrature).  Modal summary: frequencies_hz, mode_kinds and the
-  lowest frequency of each kind (f_bending_x_hz, f_bending_y_hz, f_torsion_hz, f_axial_hz).
+Discretisation (docs/physics.md, "Continuum references"): vector Lagrange hexahedra on
+`grid.StructuredGrid.lattice(box, n, refine)`, whose nodes include the particle lattice of resolution n.  Gauss
+quadrature with 2 (Q1) or 3 (Q2) points per axis integrates K and M exactly on the grid's boxes (scikit-fem's
+default for Q2, intorder 12, costs 343 points per cell instead of 27); every cell being the same translated
+cube, K and M are assembled once on the unit cube, scaled and scattered (`unit_cell_matrices`,
+`scatter_uniform`).  Constraints are nodal.  A scene held only by supports normal to z keeps three rigid-body
+modes, removed by the statically determinate "3-2-1" set at the corners of face z0 on y = 0, which carries no
+force in the uniaxial state (`rigid_constraint_reactions_N` reports it).  Static solves: SuperLU, or CG with a
+smoothed-aggregation AMG on the 3x3-block matrix with the rigid-body modes as near-nullspace; "auto" switches at
+`direct_max_unknowns` (SuperLU's 3-D fill makes AMG-CG cheaper between ~6k and ~19k Q2 unknowns,
+tests/bench/test_bench_skfem_elastic.py) and, for modes, at `modal_direct_max_unknowns` (shift-invert needs ~40
+solves with one matrix, so one factorisation beats ~40 AMG-CG solves; the limit bounds the factor's memory).
+Modes: ARPACK in shift-invert mode about 0 from a seeded start vector, classified by `pcverify.solvers.modes`.
 """
 
 from __future__ import annotations
@@ -93,11 +67,8 @@ def _linear_solver(a: sp.spmatrix, method: str, rtol: float, near_null: np.ndarr
 
 @functools.lru_cache(maxsize=16)
 def unit_cell_matrices(element_name: str, intorder: int, lam: float, mu: float, rho: float):
-    """Element stiffness and mass matrices (local dof order) of the unit cube, by scikit-fem.
-
-    On a cube of side h they scale exactly as K_e(h) = h K_e(1) and M_e(h) = h^3 M_e(1).  Cached: the
-    81 x 81 Q2 forms cost about a second of Python overhead per evaluation.
-    """
+    """Element stiffness and mass matrices (local dof order) of the unit cube, by scikit-fem: on a cube of side h
+    K_e(h) = h K_e(1) and M_e(h) = h^3 M_e(1).  Cached: the 81 x 81 Q2 forms cost about a second each."""
     @BilinearForm
     def vmass(u, v, _w):
         return rho * dot(u, v)
@@ -111,13 +82,8 @@ def unit_cell_matrices(element_name: str, intorder: int, lam: float, mu: float, 
 
 
 def scatter_uniform(ke: np.ndarray, element_dofs: np.ndarray, ndof: int) -> sp.csr_matrix:
-    """Global matrix of a grid of identical, translated cells: the element matrix `ke` scattered with the
-    dof map `element_dofs` (n_local, n_cells).
-
-    Every cell of `StructuredGrid` (unwarped) is the same cube with the same local node order
-    (HEX_CORNERS), so one element matrix serves all cells: the same numbers as scikit-fem's cell-by-cell
-    assembly (tests/test_skfem_elastic.py checks it) without the per-cell quadrature.
-    """
+    """Global matrix of a grid of identical, translated cells (every unwarped cell of `StructuredGrid`): the
+    element matrix `ke` scattered with the dof map `element_dofs` (n_local, n_cells)."""
     nloc = element_dofs.shape[0]
     rows = np.repeat(element_dofs, nloc, axis=0)  # entry (i, j) of cell c sits at row i * nloc + j
     cols = np.tile(element_dofs, (nloc, 1))

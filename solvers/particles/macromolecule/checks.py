@@ -1,22 +1,12 @@
 """Independent measurements of a macromolecule run against closed forms: what a verification study's claims read.
 
 Each number compares what the kernel measured (hotness sums, the energy ledger) with a value computed here from
-the scene and the parameters alone, never from the fixes or the kernel's own bookkeeping:
-
-- a run started at rest along the held lattice's top mode (`start = "top-mode"`, amplitude eps a): the kernel's
-  scheme on one mode of frequency omega and damping ratio zeta is the recurrence x_{n+1} = (2 - 2 zeta h - h^2) x_n
-  - (1 - 2 zeta h) x_{n-1} (h = omega dt; the first step undamped, the damping lagging from v_0 = 0), solved in
-  closed form.  `top_mode_kinetic_ratio`: the mean kinetic energy over the window against that sequence's, at the
-  f_top asked for (so A, the force, the hotness sums and the window are all measured); `top_mode_damping_ratio`:
-  the zeta whose sequence loses the energy the ledger lost (E_end / E_start);
-- `red_pair_kinetic_ratio` (point-held hot corner, symmetric drive): the driven pair's mean kinetic energy against
-  that of its prescribed relative stroke D a sin(2 pi f t) carried by the reduced mass m / 2;
-- `cold_kinetic_max`: the largest mean kinetic energy of the particles at the scene's 0 K points and patches,
-  relative to the hottest free particle (0: they are held);
-- `setup_check`: omega_max recomputed from the Hessian of the force model as built (`f_top_check_hz`) and
-  `dt_safety_check` = dt omega_max / 2, the safety the time step really has;
-- `stop_check`: `stop_deviation`, the largest change of a free particle's relative hotness between the run with
-  the stationarity stop and the same run over its whole window.
+the scene and the parameters alone, never from the fixes or the kernel's own bookkeeping: the top mode's
+kinetic energy and damping against the closed-form recurrence of the kernel's scheme on one mode
+(`top_mode_kinetic_ratio`, `top_mode_damping_ratio`), the driven red pair's kinetic energy against its
+prescribed stroke (`red_pair_kinetic_ratio`), the kinetic energy at the 0 K points (`cold_kinetic_max`),
+omega_max recomputed from the Hessian of the force model as built (`setup_check`) and the stationarity stop's
+effect on the hotness (`stop_check`).
 """
 
 from __future__ import annotations
@@ -52,8 +42,9 @@ def top_mode_start(s: Setup, amplitude: float) -> np.ndarray:
 
 
 def mode_sequence(omega: float, zeta: float, dt: float, steps: int) -> np.ndarray:
-    """x_0 .. x_steps of one mode started at rest at x_0 = 1 under the kernel's scheme (see the module docstring):
-    x_1 = 1 - h^2 / 2, then the recurrence, in closed form (its two roots)."""
+    """x_0 .. x_steps of one mode started at rest at x_0 = 1 under the kernel's scheme, in closed form (its two
+    roots): x_1 = 1 - h^2 / 2 (h = omega dt; the damping lags from v_0 = 0), then the recurrence
+    x_{n+1} = (2 - 2 zeta h - h^2) x_n - (1 - 2 zeta h) x_{n-1}."""
     h = omega * dt
     b, c = 2.0 - 2.0 * zeta * h - h * h, 1.0 - 2.0 * zeta * h
     z1, z2 = np.roots([1.0, -b, c]).astype(complex)

@@ -3,20 +3,15 @@
 Kick-drift velocity Verlet (v_n = (v_{n-1/2} + v_{n+1/2}) / 2; LAMMPS fix nve with pair damping at force time):
   v_{n+1/2} = v_{n-1/2} + dt (Fc(x_n) + Fd(x_n, v_{n-1/2}) + lambda_n) / m,   x_{n+1} = x_n + dt v_{n+1/2},
 Fd = delta rdot e the radial pair damping with the half-step velocity (DPD-VV's predictor): one force pass per
-step, stable for omega dt / 2 < sqrt(1 + zeta^2) - zeta for one mode (exact: `modal.discrete_stability_limit`);
-lambda_n = m (v_{n+1/2} - v_{n-1/2}) / dt - F_n is what a fix adds.  Energy ledger (exact algebra): E_n =
-sum 1/2 m v_{n-1/2} . v_{n+1/2} + U(x_n) changes by 1/2 dt v_{n+1/2} . (Fd_n + Fd_{n+1} + lambda_n +
-lambda_{n+1}) (dissipation, fixes' work) plus the trapezoid error of the conservative work, the balance error:
-nil for a harmonic lattice, velocity Verlet's O(dt^2) error on the anharmonic force otherwise (n = 5, D = 0.02
-a: 2.0e-3 of the drive work at safety 0.1, 5.0e-4 at 0.05, hence the default safety 0.05).
+step, stable for omega dt / 2 < sqrt(1 + zeta^2) - zeta for one mode (`modal.discrete_stability_limit`);
+lambda_n is what a fix adds.  The energy ledger E_n = sum 1/2 m v_{n-1/2} . v_{n+1/2} + U(x_n) is exact algebra
+but for the trapezoid error of the conservative work: nil for a harmonic lattice, O(dt^2) otherwise (n = 5,
+D = 0.02 a: 2.0e-3 of the drive work at safety 0.1, 5.0e-4 at 0.05, hence the default safety 0.05).
 
-Layout: x, y, z vectors; the fixed pair list as a lattice stencil (`stencil`: groups of equal index offset o
-and rest shell, each a contiguous loop over slots i -> (i, i + o), a 0/1 mask for non-pairs), so LLVM
-vectorises the pair loop; a slot's force added to i in one accumulator and subtracted from i + o in another;
-the pass inlined into the step loop.  Dissipation is exact and kept per slot: over n -> n+1 a slot
-dissipates 1/2 dt (G_n . dv_{n+1/2} + delta rdot_{n+1}^2), G_n = q d_n (q = g/r of the previous pass,
-d_n = d_{n+1} - dt dv_{n+1/2}), summed (8 fixed partial sums) only for the history and at the end.  Hop
-flags are exact every pass; NaN, box, energy-growth and neighbourhood checks run every `check_every` steps.
+Layout: the fixed pair list as a lattice stencil (`stencil`: groups of equal index offset and rest shell, each
+a contiguous loop over slots with a 0/1 mask for non-pairs), so LLVM vectorises the pair loop.  Dissipation is
+kept exactly per slot and summed (8 fixed partial sums) only for the history and at the end.  Hop flags are
+exact every pass; NaN, box, energy-growth and neighbourhood checks run every `check_every` steps.
 Compiled per envelope, when used: `run_p2` ((a/r)^2, vectorised) and `run_any` (x^-p through pow).
 """
 
@@ -59,12 +54,9 @@ llvm.set_option("", "-vectorize-memory-check-threshold=4096")
 # frequency, whether the red pair's centre moves freely, the seed.  RunParams: force coefficients, damping, dt,
 # steps, hotness window [n_start, n_end), check interval, blow-up rule (kinetic energy above blowup_factor times
 # the energy supplied plus e_scale), the bar's box, the neighbourhood check (contact fraction of a, largest rest
-# distance listed, skin), the window's marks and the stationarity stop: the window [n_start, marks[k]) is split in
-# halves at marks[k - 1]; at each mark after the first the run ends if the halves' hotness agrees within stop_tol
-# (relative to the hottest free particle; 0: never), else the halves merge into the first and the window grows to
-# the next mark (marks [n_mid, n_end] with stop_tol 0: the plain window and its two halves).  RunOutputs: hot
-# (3, N) sums of KE dt over the window and its halves, energy (codes.E_*), counters (codes.K_*), history
-# (codes.H_*), ever (P,): 1 for pairs that ever hopped.
+# distance listed, skin), the window's marks and the stationarity stop (`simulate.window_marks`: at each mark the
+# window's halves are compared).  RunOutputs: hot (3, N) sums of KE dt over the window and its halves, energy
+# (codes.E_*), counters (codes.K_*), history (codes.H_*), ever (P,): 1 for pairs that ever hopped.
 RunState = namedtuple("RunState", "x v")
 LatticeArrays = namedtuple("LatticeArrays", "x_rest mass a pi pj g_off g_base g_lo g_hi g_r0 mask r0s slot")
 FixArrays = namedtuple("FixArrays", "kind amp phase gamma kt omega free_centre seed")

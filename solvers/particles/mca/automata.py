@@ -1,33 +1,20 @@
-"""Automata of the movable cellular automaton (MCA) method on a rectangular simple-cubic lattice.
+"""Automata of the movable cellular automaton (MCA) method on a rectangular simple-cubic lattice
+(docs/physics.md, "The movable cellular automaton (MCA) model": packing).
 
-Two packings.  "nodes" (`build_automata`, `bar_automata`): each automaton is the Voronoi cell of its
-lattice node clipped by the body: a box of extent h along an axis inside, h/2 at a face (nodes lie on
-the faces, edges and corners, as in the bar's lattice family where d = a).  Pairs are the face
-neighbours (rest distance r0 = h along one axis); the contact area S of a pair is the area of the
-shared cell face and the distance from either centre to the contact point is q = r0/2.  With this
-geometry two sums hold exactly for every automaton, also on faces, edges and corners (the free faces pass
-through the centre, at distance 0):
+"nodes" (`build_automata`, `bar_automata`): each automaton is the Voronoi cell of its lattice node clipped by
+the body (a box of extent h inside, h/2 at a face).  Pairs are the face neighbours (r0 = h); S is the shared
+cell face and q = r0/2 the distance from either centre to the contact point.  Two sums then hold exactly for
+every automaton, on faces, edges and corners too:
     sum_j q_ij S_ij = 3 Omega_i,      sum_j q_ij S_ij n_ij (x) n_ij = Omega_i I,
-so a homogeneous strain of the lattice gives every automaton the same average stress and volume
-strain as the continuum; this is what lets the uniaxial tests return E and nu exactly.
-Mass m = rho Omega, moment of inertia J = m (ex^2 + ey^2 + ez^2) / 18 (the mean of the box's three
-principal moments; a scalar, the automaton being treated as a spherical top).
+so a homogeneous strain gives every automaton the continuum's average stress and volume strain: this is what
+lets the uniaxial tests return E and nu exactly.  Mass m = rho Omega, moment of inertia J = m (ex^2 + ey^2 +
+ez^2) / 18 (the mean of the box's principal moments: a spherical top).
 
-"cells" (`cell_automata`): equal cubes of edge a filling the body, as MCA codes pack it -- n automata across
-the width (a = W / n), centres a/2 inside the faces, total volume exactly the box's.  The sums above then
-hold inside only.  A constrained face (support or clamp) acts on the face through wall bonds (`walls`, in
-the linearised model of stiffness.py): the face layer's automata bonded to a wall point on the face by
-half-length pairs (rest length a/2, contact point on the face; a support's bond is normal only).  A free
-face has no pair across it (as in an MCA code); the outer half of its automaton is condensed: a half pair
-to a massless point on the face carrying no traction, kn e_f + lam theta_i = 0, which for m_i free faces
-leaves the energy lam Omega theta_b^2 / (2 (1 + m_i lam / (2 kn))) of the bonded pairs' volume strain
-theta_b, i.e. the many-body term divided by `many_body_volume` = Omega_i (1 + m_i lam / (2 kn)) instead of
-Omega_i.  With both, a homogeneous strain of the body with traction-free sides is an exact equilibrium, as
-for "nodes" (without the condensation the free faces' automata miss a sixth of their volume strain: E off
-by 6.2 / 4.6 / 3.2 % and nu by 11 / 7.3 / 4.3 % at n = 3 / 4 / 6, measured).
-Cross-section geometry (bending): the axial pairs of a packing integrate y^2 over the section by the
-trapezoid rule ("nodes", I_lattice / I = 1 + 2 (a/H)^2) or the midpoint rule ("cells", 1 - (a/H)^2);
-references/elasticity.py has the prediction.
+"cells" (`cell_automata`): equal cubes of edge a = W / n filling the body, centres a/2 inside the faces, as MCA
+codes pack it; the sums hold inside only.  A constrained face acts through wall bonds (`walls`, half-length
+pairs to a wall point on the face); a free face's outer half-cell is condensed (`many_body_volume` = Omega_i
+(1 + m_i lam / (2 kn)) for m_i free faces), so that a homogeneous strain with traction-free sides is an exact
+equilibrium.
 """
 
 from __future__ import annotations
@@ -108,6 +95,17 @@ class Automata:
         if self.packing == "cells":
             target += 0.5 * float(self.spacing[ax]) * (1.0 if face[1] == "0" else -1.0)
         return np.flatnonzero(np.abs(self.positions[:, ax] - target) <= 1e-9 * float(box_extent[ax]))
+
+    def face_strain(self, u: np.ndarray, ax: int, box_extent: np.ndarray) -> float:
+        """Mean normal strain along axis `ax`: the difference of the volume-weighted mean displacements `u` of the
+        automata on its two faces, over the distance between their centres."""
+
+        def mean(face: str) -> float:
+            idx = self.on_face(face, box_extent)
+            return float((u[idx, ax] * self.volume[idx]).sum() / self.volume[idx].sum())
+
+        span = box_extent[ax] if self.packing == "nodes" else box_extent[ax] - self.spacing[ax]
+        return (mean(f"{'xyz'[ax]}{'WHL'[ax]}") - mean(f"{'xyz'[ax]}0")) / span
 
     def sampler(self, points: np.ndarray) -> sp.csr_matrix:
         """Matrix (k, N) that takes a field at the automata to its values at `points` (k, 3).  "nodes": the
@@ -240,15 +238,10 @@ def bar_automata(box: Box, n: int, density: float) -> Automata:
 
 
 def body_automata(box: Box, n: int, density: float, contact: Contact) -> tuple[Automata, Automata]:
-    """The automata of the two bodies of a contact scene, and the same automata bonded across the interface.
-
-    The nodes are those of the box's lattice of resolution n; body 1 holds the nodes below the interface
-    plane, body 2 those above it (within `span` along the sliding direction, if given).  Each automaton is the
-    Voronoi cell of its node clipped by its body: half cells on the free faces, which pass through the nodes,
-    and full cells at the interface, which lies midway between two node planes, so the two bodies' cells
-    meet on it (automata of size d touching at the plane: rest height h0 = d across it).  Pairs link face
-    neighbours of the same body.  The bonded automata add the interface pairs (what the stack would be with
-    the interface welded): the reference geometry, and the stiffness that bounds the stable step."""
+    """The automata of the two bodies of a contact scene, and the same automata bonded across the interface
+    (the reference geometry, and the stiffness that bounds the stable step).  Body 1 holds the lattice's nodes
+    below the interface, body 2 those above it (within `span`, if given); each automaton is its node's Voronoi
+    cell clipped by its body, so the cells meet on the interface midway between two node planes (h0 = d)."""
     whole = bar_automata(box, n, density)
     a = float(whole.spacing[contact.axis_index])
     cells = contact.position / a - 0.5

@@ -1,59 +1,29 @@
-"""Contact of two MCA bodies by the segment method, in 3-D: surface facets, contact search, friction.
+"""Contact of two MCA bodies by the segment method, in 3-D: surface facets, contact search, friction
+(docs/physics.md, "The movable cellular automaton (MCA) model", states the physics).
 
 Surfaces (from the linked pairs): an automaton faces direction +-e_a when it has no linked pair on that
 side; four such automata joined by linked pairs around a lattice square form a facet square, split into two
 triangles (i, j1, j12) and (i, j12, j2), ordered so that their normal points out of the body.
 
-Segment method (eqs. 10-15 of the MCA paper; docs/physics.md, "The movable cellular automaton (MCA) model"), one
-pass: every surface automaton k of body 2 (a slave) interacts with one facet of body 1: the nearest listed facet
-that contains its foot point (the projection of k on the facet's plane), else the one whose foot lies least
-outside (largest smallest barycentric weight) if that is at most EDGE outside (barycentric units, about half a
-spacing: a slave whose own cell still overlaps the facet); k must be in front of the facet, at a height h < h0.
-The weights w_v of the foot point (clipped to >= 0) share every force on k among the facet's three automata:
-F_v = -w_v F_k.  On a segment (a foot on a facet edge, the third weight 0) these are the paper's l_j / r_ij
-and l_i / r_ij of eqs. 11-12 and 14-15.
-- Normal: h0 = d, the rest distance of face neighbours (automata of size d whose cells touch at the
-  interface; the paper's sqrt(3) R is the height of a disc resting in the hollow of two discs in 2-D close
-  packing).  The contact is the compressive half of a linked pair written for a foot point: its strain
-  (h - h0) / h0 enters the volume strains of k and of the facet's automata (by w_v), and its normal stress is
+Segment method (eqs. 10-15 of the MCA paper), one pass: every surface automaton k of body 2 (a slave)
+interacts with one facet of body 1: the nearest listed facet that contains its foot point, else the one whose
+foot lies least outside if that is at most EDGE outside (barycentric units, about half a spacing); k must be in
+front of the facet, at a height h < h0 = d.  The weights w_v of the foot point (clipped to >= 0) share every
+force on k among the facet's three automata: F_v = -w_v F_k.
+- Normal: the compressive half of a linked pair written for a foot point,
       sigma_c = min(0, kn (h - h0) / h0 + lam (theta_k + sum_v w_v theta_v) / 2),
-  the pair law of kernel.py.  In uniaxial stress it is eq. 10's E (h - h0) / h0 (2G eps + lam (1 - 2 nu)
-  eps = E eps), and a stack compressed across a flat interface is exactly its bonded lattice.
-  Force on k: -sigma_c S_k n, S_k the face of k's cell normal to the facet's dominant axis.
-- Forces at the contact point: the friction F_R acts at c = x_k - (h / 2) n, midway between the slave and its
-  foot point (at rest the plane where the two cells touch; symmetric in the two bodies), with its moment about
-  each automaton's centre: on k, F_R and (c - x_k) x F_R; on each facet automaton v, -w_v F_R and
-  (c - x_v) x (-w_v F_R) (eqs. 13-15's tangential force on the triangle k-i-j with the moment F_R h it
-  implies).  The normal force acts at the centres, as the gradient of the contact's elastic energy (central,
-  like the bonded pair's; see `forces` for why not at c).  The weights sum to 1, so a contact exerts no net
-  force and no net couple.  Without rotations (rotations=false) there is nowhere to put the moments: the
-  friction acts at the centres, and a contact carrying F_R leaves the couple h F_R; the sliding scenes refuse
-  rotations=false (contact_scenes.law_of), the pressed ones carry friction only while they settle.
-- Slip velocity: that of the two contact points, spins included, V = v_k + w_k x (c - x_k) - sum_v w_v (v_v +
-  w_v x (c - x_v)), its tangential part V_t: bodies moving rigidly together (turning too) do not slip.
-- Friction (eq. 16), the project's choice of the dry part f (friction_law):
-  regularised (the default):
-      tau = mu0 |V_t| + mu1 (1 + K_mu) min(sigma_N, sigma0) min(1, |V_t| / v_reg),   sigma_N = -sigma_c,
-  force on k -tau S_k V_t / |V_t|.  Below v_reg the dry part is a viscous regularisation (no static friction);
-  above it, it is Coulomb's mu1 (1 + K) sigma_N exactly.  The explicit step caps the regularised slope: the
-  friction force never exceeds what stops the relative velocity in one step, m_red |V_t| / dt (1/m_red = 1/m_k
-  + sum_v w_v/m_v, plus the rotations' share |c - x|^2 / J when the automata rotate), so a sticking contact
-  neither chatters nor grows; the width of the regularisation is then in effect max(v_reg, tau S dt / m_red).
-  Without the cap a pressed stack (70 MPa, n = 2 and 4) never relaxed: the stiff regularised damper chattered.
-  static (Cundall-Strack): a tangential spring per contact, stress tau (kt V_t dt per step, kt per unit area,
-  by default the bonded pair's shear stiffness 2 G / h0), carried with the contact's frame; Coulomb limit
-  mu_s (1 + K) min(sigma_N, sigma0) while it sticks, the kinetic mu1 (1 + K) min(sigma_N, sigma0) once it slips
-  until the slip velocity stops or reverses (`_static`); plus the viscous mu0 V_t.  Only the slip dissipates:
-  the spring's energy S |tau|^2 / (2 kt) is elastic (`energy`).
-- Heat: the dissipated power (friction force times slip velocity; static: the slip's share) enters k and the facet's
-  automata as heat, half to each body (the record of the mechanics; the frictional-heating analysis splits the
-  window's power by the bodies' conductivities, contact_scenes.py).
-- Reactions: the automata's degrees of freedom the scene holds (`held`: 1 body 1's, 2 body 2's) record the
-  force their constraint exerts, -sum f over them (pair and contact forces; the loads are the caller's), and
-  its time integral (`impulse`); with the held rotations (`held_rot`), the reactions' moment about the origin
-  (`moment`, -sum x x f over the held translations and -sum M over the held rotations) and its time integral
-  (`angular_impulse`).  A drive's and a clamp's reactions measure what the friction and the normal
-  force transmit through the bodies, outside the contact law's own bookkeeping.
+  so a stack compressed across a flat interface is exactly its bonded lattice; it acts at the centres.
+- Friction acts at the contact point c = x_k - (h / 2) n, with its moments about the automata's centres: a
+  contact exerts no net force and no net couple.  Without rotations it acts at the centres (the sliding
+  scenes refuse rotations=false).  The slip velocity is that of the two contact points, spins included.
+- Friction law (eq. 16, `friction_law`): regularised (viscous below v_reg, Coulomb above; the explicit step
+  caps the force at what stops the relative velocity in one step -- without the cap a pressed stack never
+  relaxed), or static (Cundall-Strack: a tangential spring per contact with a Coulomb limit, mu_s while it
+  sticks, mu1 once it slips; `_static`); plus the viscous mu0 V_t.
+- Heat: the dissipated power enters k and the facet's automata, half to each body.
+- Reactions: the held degrees of freedom (`held`, `held_rot`) record the force and moment their constraint
+  exerts and their time integrals, so a drive's and a clamp's reactions measure the friction outside the
+  law's own bookkeeping.
 
 The candidate list (facets whose centroid lies within h0 + 0.75 d + 2 skin of a slave that faces them,
 nearest first) is rebuilt with the pair list, whenever an automaton has moved further than the skin.
@@ -75,11 +45,9 @@ EDGE = 0.5  # a foot point this far outside a facet (barycentric units) still co
 
 
 class ContactLaw(NamedTuple):
-    """Constants of the contact: rest height h0 (m), viscous coefficient mu0 (Pa s/m), dry coefficient mu1,
-    normal-stress cap sigma0 (Pa), regularisation width v_reg (m/s), the roughness process, and the axes
-    (indices) along which the record resolves the forces: the contact axis and the sliding direction.  The
-    dry law: regularised (static False, the default) or static friction (static True: Coulomb limit mu_s
-    while stuck, mu1 while slipping, tangential spring kt in Pa/m)."""
+    """Constants of the contact (SI units), the axes along which the record resolves the forces (the contact
+    axis, the sliding direction), and the dry law: regularised, or static (Coulomb limit mu_s while stuck, mu1
+    while slipping, tangential spring kt in Pa/m)."""
 
     h0: float
     mu0: float
@@ -95,14 +63,9 @@ class ContactLaw(NamedTuple):
 
 
 class ContactState(NamedTuple):
-    """Slaves (automata of body 2 on its surface), master facets (triangles of body 1), the candidate list
-    (CSR: cand_ptr, cand), the cells' extents; per slave the current contact (facet or -1, weights, normal,
-    height, area, normal stress, friction force, tangential speed, power) and the energy its friction
-    dissipated; per automaton the heat received (J); the held degrees of freedom (N, 3: 0 free, 1 body 1's,
-    2 body 2's), their constraints' current reactions (2, 3) and the reactions' time integrals (2, 3; N s);
-    per automaton the held rotations, and the reactions' moments about the origin with their time integrals;
-    per slave the static law's spring stress, the normal it was carried with, and whether it slips; the
-    roughness process; and the law."""
+    """Slaves (automata of body 2 on its surface), master facets (triangles of body 1), the candidate list (CSR:
+    cand_ptr, cand); per slave (ns) its current contact (facet or -1, weights, normal, ...), per automaton (N)
+    its heat and held degrees of freedom, per body (2, 3) the held ones' reactions; the roughness and the law."""
 
     slave: np.ndarray
     faces: np.ndarray  # (ns, 6) open sides of each slave
@@ -133,12 +96,6 @@ class ContactState(NamedTuple):
     slipping: np.ndarray  # (ns,) int64 static law: 1 while the contact slips (kinetic limit), 0 stuck
     rough: rg.RoughState
     law: ContactLaw
-
-
-def lattice_index(aut: Automata) -> np.ndarray:
-    """Integer lattice coordinates (N, 3) of the automata."""
-    base = aut.positions.min(axis=0)
-    return np.rint((aut.positions - base) / aut.spacing).astype(np.int64)
 
 
 def neighbours(aut: Automata) -> np.ndarray:
@@ -352,22 +309,13 @@ def _sub_area(u0, u1, u2, v0, v1, v2, n0, n1, n2):
 
 @njit(cache=True)
 def forces(x, v, f, theta, mass, kn, lam, dt, con, rot):
-    """Pass 2 of the contact (after the volume strains are updated): normal stress, friction and the forces
-    on each slave and its facet's automata, so that a contact exerts no net force and no net couple:
-    - the friction F_R acts at the contact point c = x_k - (h / 2) n, midway between the slave and its foot
-      point (at rest the plane where the two cells touch, symmetric in the two bodies): on k F_R and the moment
-      (c - x_k) x F_R, on each facet automaton v -w_v F_R and (c - x_v) x (-w_v F_R);
-    - the normal force F_n n acts at the centres (k: F_n n; v: -w_v F_n n), as the gradient of the contact's
-      elastic energy, a function of the centres' height h: conservative, and like the bonded pair's normal
-      force central.  Applied at c, its moments on the facet's automata do work on their spins that the
-      elastic energy does not hold (measured: the sliding energy balance 2.5e-6 of the drive's work instead of
-      2.3e-7).  Its couple (x_k - sum_v w_v x_v) x F_n n is zero when the foot lies in the facet; a clipped
-      foot's (up to EDGE outside) is taken up by moments on the facet's automata by their weights.
-    The slip velocity is that of the two contact points, spins included: v_k + w_k x (c - x_k) minus
-    sum_v w_v (v_v + w_v x (c - x_v)), zero for bodies moving rigidly together.  rot None (a run without
-    rotations): forces at the centres, no moments, slip from the centres' velocities -- a contact carrying
-    friction F_R then leaves the couple h F_R (the sliding scenes refuse rotations=false, contact_scenes.py).
-    Each slave's friction power and tangential speed."""
+    """Pass 2 of the contact (after the volume strains are updated): normal stress, friction, each slave's
+    friction power and tangential speed, and the forces on each slave and its facet's automata (module
+    docstring).  The normal force acts at the centres, as the gradient of the contact's elastic energy: applied
+    at c, its moments on the facet's automata would do work on their spins that no energy holds (measured: the
+    sliding energy balance 2.5e-6 of the drive's work instead of 2.3e-7); its couple when a clipped foot lies
+    up to EDGE outside the facet is taken up by moments on the facet's automata by their weights.  rot None:
+    forces at the centres, no moments, slip from the centres' velocities."""
     law = con.law
     h0 = law.h0
     for s in range(con.slave.shape[0]):
@@ -492,17 +440,12 @@ def forces(x, v, f, theta, mass, kn, lam, dt, con, rot):
 
 @njit(cache=True)
 def _static(con, s, rot, n0, n1, n2, t0, t1, t2, speed, sig, rough, area, stop, dt, k, fct):
-    """Static friction of slave s (Cundall-Strack): its spring's stress, carried with the contact's frame
-    (rotated from the normal it was last carried with to n, then about n by the two sides' mean spin about n
-    over the step: objective, not just projected), plus kt V_t dt, is the trial stress.  Stuck, the limit is
-    mu_s (1 + K) sigma_N; beyond it the contact slips and the limit is the kinetic mu1 (1 + K) sigma_N (the
-    stress drops to it, along the trial stress).  A slipping contact sticks again (limit back to mu_s) when
-    its slip velocity stops or reverses against the stress it carries (V_t . tau <= 0): the end of a slip
-    phase, where the slider comes to rest; a drop of |tau| below the kinetic limit alone (the normal stress
-    rising while it slides) does not re-stick it.  Plus the viscous mu0 V_t (capped at what a step can stop).
-    Dissipated: the stress times the slip increment (tau_trial - tau) / kt, tau the step's mean (the
-    trapezoid rule of the work, so the spring's stored energy S |tau|^2 / (2 kt) and the dissipation add up to
-    the work done on the contact).  Returns the friction force on the slave and the dissipated power."""
+    """Static friction of slave s (Cundall-Strack): the trial stress is its spring's, carried with the contact's
+    frame (turned onto n, then about n by the two sides' mean spin: objective), plus kt V_t dt.  Stuck, the limit
+    is mu_s (1 + K) sigma_N; beyond it the contact slips at the kinetic mu1 (1 + K) sigma_N, until its slip
+    velocity stops or reverses against its stress (V_t . tau <= 0; a fall of |tau| alone does not re-stick it).
+    Plus the viscous mu0 V_t.  Dissipated: the stress times the slip increment, by the trapezoid rule, so the
+    spring's energy and the dissipation add up to the work done.  Returns the friction force and the power."""
     law = con.law
     a0 = con.tang[s, 0]
     a1 = con.tang[s, 1]
@@ -604,10 +547,8 @@ def _reactions(x, f, con, rot):
 
 @njit(cache=True)
 def after_step(con, dt):
-    """Time integration of the contacts over one step: friction heat into the automata (half to the slave,
-    half to the facet's automata by their weights), the roughness advanced by the sliding distance, the held
-    degrees of freedom's reactions into their impulses; returns the energy dissipated by friction in the step
-    (J)."""
+    """Time integration of the contacts over one step: friction heat into the automata (half to each body), the
+    roughness advanced, the reactions into their impulses; returns the energy friction dissipated (J)."""
     for g in range(2):
         for c in range(3):
             con.impulse[g, c] += con.reaction[g, c] * dt

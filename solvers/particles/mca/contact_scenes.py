@@ -1,57 +1,24 @@
 """The MCA solver's contact scenes: two bodies pressed together, pressed and slid, or slid and heated by
 friction (contact.py holds the segment method and the friction law; this module maps a scene's Contact part
-onto the model and summarises the run).
+onto the model and summarises the run; the physics is in docs/physics.md, "The movable cellular automaton
+(MCA) model").
 
-- Pressed (no sliding speed): the scene's supports compress the stack across the interface, ramped in and
-  relaxed dynamically as bar-compression is (damping at Model.relaxation_rate, residual below relax_tol
-  E |strain| a^2).  Each body's far face carries the force-free "3-2-1" set against rigid motion (the
-  friction law has no static part).  Summary: the contact pressure (area-weighted mean and uniformity
-  (max - min) / mean over the closed contacts) against the analytic uniaxial stress E |strain| of the
-  bonded stack, E_eff and nu_eff as for the bar.
-- Sliding: body 2's far face is pressed by normal_stress (a load) and held tangentially; a first run
-  relaxes the preload with damping (to preload_tol normal_stress a^2); then the far face is driven along
-  the direction at `speed`, ramped in smoothly over `slide_ramp`, and kept at speed for the scene's
-  duration, the window every average is taken over.  While sliding, damping (slide_damping, default the
-  relaxation rate; 0 = none) acts on each automaton's velocity relative to its body's drive (body 1 at
-  rest, body 2 at the drive's velocity), so it damps vibrations and not the sliding itself.  Undamped,
-  the slider on its elastic base develops a friction-induced vibration (measured at n = 4, V = 1 m/s,
-  1 MPa: after ~0.4 ms the contacts open and close and mu_dr(t) swings by +-0.2 about 0.3; 87 of the window's
-  1900 history rows have no closed contact (12 while the friction acted at the centres), so the run is failed,
-  its numbers kept).
-  mu_dr(t) = F_dr / F_N (eq. 17): F_dr the friction resistance of the contacts on body 2 along the
-  direction, F_N = normal_stress x the far face's area.  The expected value follows the law as implemented
-  (`mu_dr_expected`: mu0 V / sigma + mu1 (1 + K_av) min(1, sigma0 / sigma) min(1, V / v_reg), every contact
-  sliding at V under sigma = F_N / A); its uncertainty from the run length: mu1 (sum_k w_k^2
-  var_k)^(1/2), w_k the contacts' shares of the normal force (at the end of the run) and var_k the
-  variance of one contact's mean of K over the distance slid in the window (roughness.variance_of_mean).
-  Energy balance over the window: work of the drive and of the load against kinetic + elastic energy +
-  friction and damping dissipation (the largest imbalance over the window relative to the drive's work).
-  Measured outside the friction law's bookkeeping (mu_dr sums the law's own forces): the reactions of the
-  held automata, time-averaged over the window and over each half of it (contact.py records them every
-  step): mu at the drive (its tangential reaction over the normal force its far face transmits) and at the
-  clamp (the base's held automata), against the law's mu_dr for the normal force each measures, with the
-  drift between the halves (`mu_drive_drift`: how stationary the window is); Newton's third law, the drive's,
-  the clamp's, the load's and the damping's forces less the momentum change (`newton_error`, relative to the
-  applied normal force); the balance of angular momentum, the held automata's reaction moments, the loads' and
-  the damping's, less the change of sum m x x v + J w (`angular_momentum_error`, relative to F_N h0: the
-  couple h0 F_R that contact forces at the automata's centres would leave is mu1 in these units); the power
-  the drive delivers to friction, its and the load's work less the change of
-  kinetic and elastic energy and the damping's dissipation (`drive_power_W`, its halves' drift).
-  With a platen (Contact.platen) the far face is held at its preloaded height while it slides, and F_N is
-  the normal force the contacts carry.  The run is ok only if the bodies stayed in contact over the whole
-  window: body 2 not driven beyond body 1's surface (`footprint_room`) and a closed contact in every history
-  row (`contact_lost`; else failed, its numbers kept); and only if the ramp and the whole window fit in
-  max_steps (else failed before any step: a cut window is never averaged).
-- Frictional heating: sliding as above, then MCA heat on the bonded automata (the contact conducts as the
-  interface pairs of the rest geometry) from the initial temperature to t_end, each contact's mean friction
-  power over the window held constant, split by the bodies' conductivities (`thermal_split`: one half each
-  for one material) between the slave and its rest partners (one-way, quasi-steady coupling: the mechanics'
-  time scale is ~1e-7 s, the heat's ~1e-2 s; no thermal expansion).  Dissimilar blocks (Contact's
-  base_conductivity, base_heat_capacity): body 1's automata carry its own k and rho c, a pair across the
-  interface conducts as the two half cells in series.  Summary: the law's mean flux and the drive's against
-  the scene's declared interface flux (flux_ratio, flux_drive_ratio), the flux's uniformity over the
-  interface, the share of the heat body 1 holds at t_end, and the rise of the automata next to the plane on
-  each side against two semi-infinite solids in contact (each taking e_i / (e1 + e2) of the flux) at a/2.
+- Pressed (`pressed`): the supports compress the stack across the interface, relaxed dynamically as
+  bar-compression is; each body's far face carries the force-free "3-2-1" set against rigid motion (the
+  friction law has no static part).  The contact pressure is held against E |strain| of the bonded stack.
+- Sliding (`sliding`): body 2's far face is pressed by normal_stress, the preload relaxed, then the face is
+  driven along the direction, ramped in over `slide_ramp`, for the scene's duration: the window every average
+  is taken over.  Damping (slide_damping) acts relative to each body's drive, so it damps vibrations and not
+  the sliding: undamped, the slider on its elastic base develops a friction-induced vibration (measured at
+  n = 4, V = 1 m/s, 1 MPa: contacts open and close, mu_dr(t) swings by +-0.2 about 0.3).  mu_dr = F_dr / F_N
+  (eq. 17) against the law as implemented (`mu_dr_expected`), and, outside the law's bookkeeping, mu at the
+  drive and at the clamp, Newton's third law, the angular momentum balance and the drive's power
+  (`_reaction_summary`, `_drive_power`).  The run is ok only if the bodies stayed in contact over the whole
+  window (`contact_lost`) and the ramp and window fit in max_steps (a cut window is never averaged).
+- Frictional heating (`heating`): sliding, then MCA heat on the bonded automata fed by each contact's mean
+  friction power over the window, split by the bodies' conductivities (`thermal_split`; one-way, quasi-steady
+  coupling: the mechanics' time scale is ~1e-7 s, the heat's ~1e-2 s; no thermal expansion), against two
+  semi-infinite solids in contact.
 """
 
 from __future__ import annotations
@@ -79,10 +46,8 @@ FACE_AXES = "xyz"
 
 
 def law_of(aut: Automata, contact: Contact, p: dict[str, Any], shear: float) -> ct.ContactLaw:
-    """The contact law of the solver parameters: h0 = the spacing across the interface; the dry law
-    (`friction_law`), with static friction mu_s (default mu1; at least mu1) and the tangential stiffness
-    `contact_stiffness` (default the bonded pair's shear stiffness 2 G / h0, `shear` = G).  A sliding scene
-    needs the automata's rotations: the contact's moments have nowhere to go without them."""
+    """The contact law of the solver parameters (h0 = the spacing across the interface; `contact_stiffness` by
+    default 2 G / h0, `shear` = G).  A sliding scene needs the automata's rotations, for the contact's moments."""
     rough = rg.Roughness(on=bool(p["roughness_a1"] > 0 or p["roughness_a2"] > 0), a1=float(p["roughness_a1"]),
                          a2=float(p["roughness_a2"]), d1=float(p["roughness_d1"]), d2=float(p["roughness_d2"]),
                          spread=float(p["roughness_spread"]), seed=int(p["seed"]))
@@ -195,23 +160,14 @@ def pressed(scene: Scene, aut: Automata, bonded: Automata, el: Elastic, law: ct.
         summary.update(axial_strain=axial, E_eff=react / area / axial, axial_stress_expected=expected)
         if "contact_pressure_mean" in summary:
             summary["contact_pressure_error"] = abs(summary["contact_pressure_mean"] / expected - 1)
-        lateral = [_face_strain(scene, aut, u, k) for k in range(3) if k != ax]
+        lateral = [aut.face_strain(u, k, scene.box.extent) for k in range(3) if k != ax]
         summary["nu_eff"] = -float(np.mean(lateral)) / axial
     kstat, reason = relax_status(status, res, p["relax_tol"], steps, p["max_steps"])
     return {"field": u, "quantity": "u (m)", "summary": summary, "status": kstat, "reason": reason,
             "model": model, "state": st}
 
 
-def _face_strain(scene: Scene, aut: Automata, u: np.ndarray, ax: int) -> float:
-    """Mean normal strain along axis ax from the volume-weighted displacements of its two faces."""
-    ext = scene.box.extent
 
-    def mean(face: str) -> float:
-        idx = aut.on_face(face, ext)
-        return float((u[idx, ax] * aut.volume[idx]).sum() / aut.volume[idx].sum())
-
-    a = FACE_AXES[ax]
-    return (mean(f"{a}{'WHL'[ax]}") - mean(f"{a}0")) / float(ext[ax])
 
 
 def sliding(scene: Scene, aut: Automata, bonded: Automata, el: Elastic, law: ct.ContactLaw, p: dict[str, Any]
@@ -318,10 +274,8 @@ def sliding(scene: Scene, aut: Automata, bonded: Automata, el: Elastic, law: ct.
 
 
 class Mark(NamedTuple):
-    """The state at an instant of the sliding window: time (s), the held degrees of freedom's reaction impulses
-    (2, 3; N s), the momentum (3,; kg m/s), the positions (N, 3), the held degrees of freedom's angular impulses
-    about the origin (2, 3; N m s), the angular momentum about the origin (3,; sum m x x v + J w, kg m^2/s) and
-    the rotation angles (N, 3)."""
+    """The state at an instant of the sliding window (SI units; moments about the origin): the held degrees of
+    freedom's impulses and angular impulses (2, 3), the momentum and angular momentum (3,), positions, angles."""
 
     t: float
     impulse: np.ndarray
@@ -340,12 +294,9 @@ def _mark(st: mk.State) -> Mark:
 
 
 def angular_balance(a: Mark, b: Mark, st: mk.State, gamma: float) -> np.ndarray:
-    """Mean external moments about the origin over [a.t, b.t] less the change of angular momentum (3,; N m), which
-    the balance of angular momentum makes zero when the bodies' internal forces and moments (pairs, contacts)
-    exert no net couple.  External: the held degrees of freedom's reactions (their moments, recorded every step),
-    the loads on the free ones (at the mean of their positions: the drive moves them uniformly), the damping's
-    (-gamma m (v - v_ref) on the free translations, at the mean position of each automaton over the window,
-    -gamma J w on the free rotations)."""
+    """Mean external moments about the origin over [a.t, b.t] less the change of angular momentum (3,; N m): zero
+    when the bodies' internal forces and moments exert no net couple.  External: the held degrees of freedom's
+    reactions, the loads and the damping on the free ones (at their mean positions over the window)."""
     span = b.t - a.t
     mid = 0.5 * (a.x + b.x)
     free = st.fixm[:, :3] == mk.FREE
@@ -362,11 +313,9 @@ def angular_balance(a: Mark, b: Mark, st: mk.State, gamma: float) -> np.ndarray:
 
 
 def external_forces(a: Mark, b: Mark, st: mk.State, gamma: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Mean forces over [a.t, b.t] from outside the two bodies: the reactions (2, 3) of body 1's and body 2's held
-    degrees of freedom (what a clamp, a drive or a platen exerts: -f - load on them), the damping's (3,) and
-    the sum of every external force minus the momentum change (3,), which Newton's third law makes zero (the
-    bodies' internal forces, pairs and contacts, cancel).  The damping acts on the free degrees of freedom
-    relative to the frame's velocities: its mean is -gamma sum m (dx - v_ref span) / span."""
+    """Mean forces over [a.t, b.t] from outside the two bodies: the reactions (2, 3) of each body's held degrees of
+    freedom, the damping's (3,) and the sum of every external force less the momentum change (3,), which
+    Newton's third law makes zero."""
     span = b.t - a.t
     load = st.load.force if st.load is not None else np.zeros_like(st.x)
     held = st.contact.held
@@ -382,10 +331,9 @@ def external_forces(a: Mark, b: Mark, st: mk.State, gamma: float) -> tuple[np.nd
 
 def _reaction_summary(marks: list[Mark], st: mk.State, aut: Automata, law: ct.ContactLaw, contact: Contact,
                       f_applied: float, gamma: float) -> dict[str, Any]:
-    """mu measured at the drive and at the clamp (their mean tangential reaction over their normal one, over
-    the window and over each half of it), against the law's mu_dr for the normal force each measures; the
-    external forces' balance (Newton's third law) relative to the applied normal force, and the external moments'
-    (angular_balance) relative to the applied normal force times the spacing h0 across the interface."""
+    """mu measured at the drive and at the clamp (over the window and each half of it) against the law's mu_dr
+    for the normal force each measures; Newton's third law relative to the applied normal force F_N, and the
+    balance of angular momentum relative to F_N h0."""
     ax, dr = contact.axis_index, contact.direction_index
     load = st.load.force if st.load is not None else np.zeros_like(st.x)
     on_base, on_slider = (load[aut.body == g].sum(axis=0) for g in (0, 1))
@@ -479,10 +427,8 @@ def slid_distance(aut: Automata, st: mk.State, contact: Contact, extent: np.ndar
 
 
 def footprint_room(aut: Automata, contact: Contact) -> float:
-    """How far body 2 may slide along the direction before its leading automata leave body 1's surface: from
-    its leading automata to body 1's last ones, plus half a spacing (the contact search keeps a slave whose foot
-    lies up to EDGE = half a facet outside; beyond that its contact is lost).  A slider as long as its base
-    (no span) has half a spacing."""
+    """How far body 2 may slide along the direction before its leading automata leave body 1's surface: to body
+    1's last automata, plus the EDGE a foot may lie outside a facet (half a spacing)."""
     d = contact.direction_index
     along = aut.positions[:, d]
     lead = float(along[aut.body == 1].max())
@@ -492,9 +438,8 @@ def footprint_room(aut: Automata, contact: Contact) -> float:
 
 def contact_lost(window: np.ndarray, slid: float, room: float, contact: Contact) -> str:
     """Why the bodies did not stay in contact over the whole averaging window ("" if they did): body 2 slid
-    beyond body 1's surface (its footprint left the base), or a history row of the window has no closed
-    contact (the bodies separated).  mu_dr = F_dr / F_N and the energy balance then describe something other
-    than two bodies sliding on each other (a slider off its base ends with no contact at all)."""
+    beyond body 1's surface, or a history row of the window has no closed contact; mu_dr and the energy balance
+    then describe something other than two bodies sliding on each other."""
     if slid > room:
         return (f"the bodies did not stay in contact: body 2 slid {slid:.3g} m along {contact.direction} by the end "
                 f"of the averaging window, beyond body 1's surface ({room:.3g} m of room for its footprint); "
@@ -510,10 +455,8 @@ def contact_lost(window: np.ndarray, slid: float, room: float, contact: Contact)
 
 def heating(scene: Scene, aut: Automata, bonded: Automata, el: Elastic, law: ct.ContactLaw, p: dict[str, Any]
             ) -> dict[str, Any]:
-    """Sliding, then MCA heat of the bonded automata (the contact conducts as the interface pairs of the rest
-    geometry) from the scene's initial temperature to t_end, fed by the window's mean friction power of each
-    contact, split between the bodies by their conductivities (the slave's share to the slave, body 1's to its
-    rest partners by weight; `thermal_split`)."""
+    """Sliding, then MCA heat of the bonded automata from the initial temperature to t_end, fed by each contact's
+    mean friction power over the window, split by `thermal_split` (body 1's share to the rest partners)."""
     out = sliding(scene, aut, bonded, el, law, p)
     slave_power = out.pop("power", None)
     summary = out["summary"]
@@ -584,12 +527,8 @@ def body_thermal(scene: Scene, aut: Automata) -> tuple[np.ndarray, np.ndarray]:
 
 
 def thermal_split(k_base: float, k_slider: float) -> float:
-    """Body 1's share of the friction heat generated between the automata next to the interface: k1 / (k1 + k2).
-    The finite-volume split of a source on the face between two cells of conductivities k1 and k2: the face's
-    temperature eliminated (its flux balance), each cell receives the source in proportion to its conductance to
-    the face plus the harmonic-mean conduction between the cells, which is second order in a for the field of two
-    solids in contact (an effusivity or half split leaves an error of first order in a when k1 != k2).  Equal
-    materials: one half each."""
+    """Body 1's share of the friction heat generated between the automata next to the interface: k1 / (k1 + k2),
+    the finite-volume split of a source on a cell face, second order in a (docs/physics.md)."""
     return k_base / (k_base + k_slider)
 
 
@@ -604,16 +543,11 @@ def semi_infinite_rise(flux: float, conductivity: float, diffusivity: float, t: 
 
 def mu_dr_expected(law: ct.ContactLaw, speed: float, pressure: float) -> float:
     """mu_dr = F_dr / F_N that the friction law (contact.py, eq. 16) gives when every contact slides at the drive's
-    speed V under the same normal stress sigma = F_N / A (A the contact area, F_N the normal force mu_dr is
-    taken against):
-        tau = mu0 V + mu1 (1 + K_mu) min(sigma, sigma0) min(1, V / v_reg),   F_dr = tau A,
+    speed V under the same normal stress sigma = F_N / A:
         mu_dr = mu0 V / sigma + mu1 (1 + K_av) min(1, sigma0 / sigma) min(1, V / v_reg),
-    K_av the mean of the roughness process (K_mu enters linearly).  Below v_reg the dry part is the law's
-    viscous regularisation, above sigma0 the normal stress that counts is capped.  Exact for a uniform pressure,
-    or one wholly above sigma0; with a pressure that straddles sigma0 the cap bites less than this says.  Not in
-    it: the explicit step's own cap of the regularised slope (contact.py), which widens the regularisation to
-    tau S dt / m_red -- friction_step_ratio says how close a run comes to it.  With the static law every contact
-    slipping carries the kinetic mu1 (1 + K) min(sigma, sigma0) whatever its speed (no regularisation)."""
+    K_av the mean of the roughness process (the static law: no regularisation, the last factor 1).  Exact for a
+    uniform pressure, or one wholly above sigma0; not in it: the explicit step's cap of the regularised slope
+    (`friction_step_ratio` says how close a run comes to it)."""
     if not pressure > 0:
         return math.nan
     slope = 1.0 if law.static else min(1.0, speed / law.v_reg)  # a slipping static contact carries mu1 at any speed
@@ -669,19 +603,23 @@ def on_bodies(run: Callable[..., dict[str, Any]]) -> Callable[[Scene, int, dict[
     def on_two_bodies(scene: Scene, n: int, p: dict[str, Any]) -> tuple[dict[str, Any], Automata]:
         contact = scene.contact
         aut, bonded = body_automata(scene.box, n, scene.material.density, contact)
-        mat = scene.material
-        el = Elastic(mat.youngs_modulus, mat.poisson_ratio, many_body=p["many_body"], coefficient=p["coefficient"])
+        el = Elastic.of(scene, p)
         law = law_of(aut, contact, p, el.shear)
         out = run(scene, aut, bonded, el, law, p)
         out.pop("power", None)
-        model, st = out.pop("model"), out.pop("state")
+        model = with_work(out)
         out["summary"]["friction_step_ratio"] = friction_step_ratio(model, law, contact)
-        out["work"] = {"pair_steps": int(st.counters[mk.C_PAIRSTEPS]), "time_steps": int(st.counters[mk.C_STEPS]),
-                       "kernel_s": model.kernel_s, "unknowns": model.free_dofs}
-        out["unknowns"] = model.free_dofs
         return out, aut
 
     return on_two_bodies
+
+
+def with_work(out: dict[str, Any]) -> Model:
+    """Move a run's model and state out of `out`, putting the run's work and unknowns in their place; the model."""
+    model, st = out.pop("model"), out.pop("state")
+    out["work"] = model.work(st)
+    out["unknowns"] = model.free_dofs
+    return model
 
 
 def friction_step_ratio(model: Model, law: ct.ContactLaw, contact: Contact) -> float:

@@ -1,17 +1,12 @@
 """The MCA solver's incline run: the slider on its clamped base under its own weight, the body force `gravity`
-tilted by `incline_angle` from the contact's normal towards the sliding direction (Contact's incline fields).
+tilted by `incline_angle` from the contact's normal towards the sliding direction (docs/physics.md, the MCA
+model's incline).
 
-The friction pair is the scene's (stick_slip.law_params). The weight's normal part m_i g cos(theta) presses the
-slider first (relaxed with damping, as the stick-slip preload), then its tangential part m_i g sin(theta) rises
-smoothly over `slide_ramp` (default two periods of the relaxation rate, as the sliding analysis; in RAMP_PIECES
-pieces) and the run lasts the scene's duration, damped as the stick-slip run is (relative to the slider's
-centre-of-mass velocity: zero resultant). A kernel.Spring of zero stiffness records the slider's mean velocity and
-displacement along the direction; the acceleration is the least-squares fit u(t) = u0 + v0 t + a t^2 / 2 over the
-rows after the ramp (`slide_acceleration`), with the distance slid. Applied at once instead, the tangential part
-overshoots the contacts' static stress (an elastic body under a step load): measured at n = 4, the slider then slid
-at 18 degrees (tan / mu_s = 0.81) with the kinetic acceleration, 2354 against 2370 m/s^2. A rigid block sticks while
-tan(theta) <= mu_s and otherwise slides at g (sin(theta) - mu_k cos(theta))
-(references/stick_slip.incline_acceleration).
+The weight's normal part presses the slider first (relaxed as the stick-slip preload), then its tangential part
+rises smoothly over `slide_ramp` in RAMP_PIECES pieces (applied at once it overshoots the contacts' static
+stress, and the slider slid at 18 degrees) and the run lasts the scene's duration, damped as the stick-slip run
+is.  A kernel.Spring of zero stiffness records the slider's mean velocity and displacement; the acceleration is
+the least-squares fit u(t) = u0 + v0 t + a t^2 / 2 over the rows after the ramp (`slide_acceleration`).
 """
 
 from __future__ import annotations
@@ -36,18 +31,14 @@ def run(scene: Scene, n: int, p: dict[str, Any]) -> tuple[dict[str, Any], Automa
     """The incline run on the two bodies at resolution n (module docstring): the solver's out dict and the automata
     its field lives on."""
     out, aut = _run(scene, n, p)
-    model, st = out.pop("model"), out.pop("state")
-    out["work"] = {"pair_steps": int(st.counters[mk.C_PAIRSTEPS]), "time_steps": int(st.counters[mk.C_STEPS]),
-                   "kernel_s": model.kernel_s, "unknowns": model.free_dofs}
-    out["unknowns"] = model.free_dofs
+    cs.with_work(out)
     return out, aut
 
 
 def _run(scene: Scene, n: int, p: dict[str, Any]) -> tuple[dict[str, Any], Automata]:
     contact = scene.contact
     aut, bonded = body_automata(scene.box, n, scene.material.density, contact)
-    mat = scene.material
-    el = Elastic(mat.youngs_modulus, mat.poisson_ratio, many_body=p["many_body"], coefficient=p["coefficient"])
+    el = Elastic.of(scene, p)
     law = cs.law_of(aut, contact, law_params(scene, p), el.shear)
     fixm = np.zeros((aut.size, 6), dtype=np.uint8)
     for c in scene.constraints:

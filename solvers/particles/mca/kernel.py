@@ -20,19 +20,12 @@ term, kn = E and lam = 0 without it (pair-only).  d = x_j - x_i is the pair's se
 taking m = R n_old to n_new, applied as v - (n.v)(m + n)/(1 + m.n): exact for v tangent to m, as R tau_old
 is, and with no component along n by construction (no drift off the plane).  To first order the increment
 is the relative displacement of the contact points at the pair's midpoint, dx_j - dx_i - (r/2)(dphi_i +
-dphi_j) x n: the MCA pair law, unchanged in the linearised model (stiffness.py); in a deforming body the
-update differs from the one it replaces at second order in the step and in strain times rotation.
+dphi_j) x n: the MCA pair law, unchanged in the linearised model (stiffness.py).
 Why it is objective: under a rigid motion every automaton turns by the same R (dphi_i = dphi_j = w) and
 d_new = R d_old exactly, so the increment is zero and tau_new = R tau_old (Q = I), for any axis and any
 step, to round-off; the moments use the same arm r/2, so the pair forces do work only on the increment
-(energy) and their net couple is zero (angular momentum).  The update it replaces (tau projected on the new
-plane with its magnitude kept, increment dx_j - dx_i - (r0/2)(dphi_i + dphi_j) x n_new) left, for a 90°
-turn about (0.3, 0.5, 0.8), a spurious shear first order in the step (3.16e5 / 3.16e6 / 3.16e7 Pa at
-0.001° / 0.01° / 0.1° increments), and, in a pre-strained body (strain 1e-3), about 2 G eps times the angle
-(58-83 MPa) at any step size: the r0/2 arms counted the turn of the pair's elastic gap r - r0 as shear.
-Without rotations (`rotations = false`) the automata are held unturned, so a rigid turn of the body is not a
-rigid motion of the automata and the pair law reads it as shear (about 2 G per radian: 78-83 GPa after a 90°
-turn, measured, before and after this update); that model is for small rotations only.
+(energy) and their net couple is zero (angular momentum).  The update it replaced, and the shear a rigid turn
+is without rotations (`rotations = false`), are measured in docs/physics.md.
 Automaton state (the inelastic part): average stress (from the pair stresses, sigma = (1/Omega) sum q S
 (sig n n + sym(n tau))), equivalent plastic strain alpha (radial return), kappa (largest effective stress
 intensity) and damage d.
@@ -41,9 +34,8 @@ The kernel family (kernels.py): a kernel takes (state, params, nsteps).  `State`
 automata, their pairs and fixes, and what a step advances) and `Params` the run's scalars, both
 typing.NamedTuple values that numba compiles as structures.  The parts a scene may not need -- rotations,
 the inelastic state (response functions, fracture), loads, contact of two bodies (contact.py), a moving
-damping frame -- are None in the state; numba prunes the
-branches on a None argument, so a scene without rotation compiles and runs no rotation terms.  Each
-combination of parts is compiled (and cached) once.
+damping frame -- are None in the state; numba prunes the branches on a None argument, so a scene without
+rotation compiles and runs no rotation terms.  Each combination of parts is compiled (and cached) once.
 """
 
 from __future__ import annotations
@@ -113,11 +105,9 @@ class Frame(NamedTuple):
 
 
 class Spring(NamedTuple):
-    """A drive spring (stiffness N/m) whose far end moves along axis `axis` at `speed` from time `start`; it pulls
-    on the automata with weights `weight` (N,) (m_i / M on the driven body, 0 elsewhere: the force is shared as a
-    body force, so the body is pulled at its centre of mass).  Its extension is V (t - start)+ - (u - offset), u
-    the weighted mean displacement; `out` holds the current force (N), u (m) and the spring's work on the body
-    (J); every `every` steps a row (t, force, the weighted mean velocity, u) goes to `hist`, `rows` counting."""
+    """A drive spring (N/m) whose far end moves along `axis` at `speed` from `start`, pulling the automata by
+    `weight` (m_i / M on the driven body: at its centre of mass) with extension V (t - start)+ - (u - offset), u
+    the weighted mean displacement; `out`: force, u, work; every `every` steps a row (t, force, velocity, u)."""
 
     weight: np.ndarray  # (N,)
     axis: int
@@ -132,11 +122,8 @@ class Spring(NamedTuple):
 
 
 class State(NamedTuple):
-    """Every array of a mechanical run.  Fixed during a run: rest positions, masses, volumes, fixes (fixm: FREE
-    or PRESCRIBED per translation and rotation; fixv: the prescribed velocities), face groups of the record,
-    the pair list (pi, pj, r0, area).  Advanced: positions, velocities, forces, the step's displacement, the
-    positions at the last pair-list build, pair states, volume strains, the clock, counters, energy
-    accumulators and the history rows.  Optional parts: None when the run has none."""
+    """Every array of a mechanical run: fixed during it (rest positions, masses, volumes, fixes, face groups,
+    the pair list), then what a step advances; the optional parts are None when the run has none."""
 
     x0: np.ndarray
     mass: np.ndarray
@@ -531,17 +518,11 @@ def _second_half(u, load, damp, m, inv_m, dt):
 @njit(cache=True)
 def advance(st, par, nsteps):
     """Advance `nsteps` velocity-Verlet steps (st.f and the moments hold the forces of the current state on
-    entry); the status is left in st.counters[C_STATUS].
-
-    Prescribed degrees of freedom (fixm[i, c] = PRESCRIBED; c = 0..2 translation, 3..5 rotation) move with
-    fixv[i, c] (ramped in when par.ramp > 0) until time par.t_stop, then stay (the step across t_stop moves by
-    the remaining fraction, so the prescribed displacement is reached exactly).  Viscous damping gamma (1/s)
-    acts on the free ones (exact exponential decay per half step, of the velocity relative to st.frame's
-    reference velocities when there is a frame; the kinetic energy it removes is accumulated).  Work of
-    the prescribed motions: trapezoid of sum (-f) . v over each step; work of the loads: trapezoid of sum
-    f_load . v; friction dissipation of the contacts: their power times dt.  A history row every
-    par.record_every steps.  Returns when done or when the state is non-finite, blows up,
-    or moved beyond the skin."""
+    entry), leaving the status in st.counters[C_STATUS]: done, non-finite, blown up or moved beyond the skin.
+    Prescribed degrees of freedom move with fixv until par.t_stop (the step across it by the remaining
+    fraction, so the prescribed displacement is exact), then stay.  Viscous damping decays the free ones'
+    velocities (relative to st.frame's) exactly per half step.  The works of the prescribed motions and the
+    loads are trapezoids over each step; a history row every par.record_every steps."""
     _advance(st, par, st.rot, st.inel, st.load, st.contact, st.frame, st.peak, st.spring, nsteps)
 
 
@@ -669,10 +650,8 @@ def _spring_force(f, x, x0, t, spring):
 
 @njit(cache=True)
 def _spring_after(v, t, dt, step, spring, frame):
-    """The drive spring over the step just taken: its work on the body (force times the weighted mean velocity
-    times dt), every spring.every steps a history row (t, force, velocity, u), and with a damping frame the
-    driven body's reference velocity along the axis set to its weighted mean velocity (the damping then acts on
-    the body's motion relative to its centre of mass: its resultant on the body is zero)."""
+    """The drive spring over the step just taken: its work, its history row, and with a damping frame the driven
+    body's reference velocity set to its mean (the damping's resultant on the body is then zero)."""
     if spring is None:
         return
     d = spring.axis

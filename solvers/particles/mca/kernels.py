@@ -1,11 +1,6 @@
-"""The MCA kernel family: the time-stepping kernels by name, all with one signature.
-
-A kernel is `kernel(state, params, nsteps)`: `state` a typing.NamedTuple of arrays (advanced in place),
-`params` a typing.NamedTuple of scalars, `nsteps` the number of steps.  "mechanics" is velocity Verlet of
-the automata (kernel.py: pair and many-body forces, optional rotations, response functions, loads);
-"heat" is forward Euler of the automata's temperatures (heat.py).  `timed` runs a kernel and returns the
-seconds of its steps alone: a call of no steps first loads numba's dispatcher and cache, which a fresh
-process would otherwise count as kernel time.
+"""The MCA kernel family by name, one signature `kernel(state, params, nsteps)` (named tuples of arrays,
+advanced in place, and of scalars): "mechanics" (kernel.py) and "heat" (heat.py).  `timed` returns the seconds
+of a kernel's steps alone: a call of no steps first loads numba's dispatcher and cache.
 """
 
 from __future__ import annotations

@@ -1,9 +1,5 @@
-"""MCA model: material constants, the automata's state and the two ways of running it.
-
-`Model` binds automata, elastic constants, fixes and loads and builds the kernel's parameters and its rest
-state (kernel.State, kernel.Params).  `Model.advance` integrates in time (dynamic loading, energy history);
-`relax` integrates with viscous damping until the residual force on the free degrees of freedom is below a
-tolerance (dynamic relaxation: the quasi-static approach for static scenes).
+"""MCA model: material constants, the automata's state, and two ways of running it: `Model.advance` in time,
+`relax` with viscous damping to a residual force (dynamic relaxation, for static scenes).
 
 Many-body coefficient (1 - 2G/K and 1 - 2G/(3K): docs/physics.md, "The movable cellular automaton (MCA)
 model").  The pair's normal stress is
@@ -24,11 +20,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 from scipy.spatial import cKDTree
 
-from pcverify.scene import Response, SceneError
+from pcverify.scene import Response, Scene, SceneError
 
 from . import contact as ct
 from . import kernel as mk
@@ -56,6 +53,12 @@ class Elastic:
             raise SceneError(f"poisson_ratio={self.poisson!r} is out of range; allowed: number in (-1, 0.5)")
         if self.coefficient not in COEFFICIENTS:
             raise SceneError(f"coefficient={self.coefficient!r} is not allowed; allowed: {', '.join(COEFFICIENTS)}")
+
+    @classmethod
+    def of(cls, scene: Scene, p: dict[str, Any]) -> Elastic:
+        """The constants of the scene's material with the solver parameters' many-body term and coefficient."""
+        mat = scene.material
+        return cls(mat.youngs_modulus, mat.poisson_ratio, many_body=p["many_body"], coefficient=p["coefficient"])
 
     @property
     def shear(self) -> float:
@@ -146,6 +149,11 @@ class Model:
         rotate; not the held or prescribed ones): the solution's `unknowns`."""
         return int(np.count_nonzero(self.fixm == mk.FREE))
 
+    def work(self, st: mk.State) -> dict[str, Any]:
+        """The run's work counters (the solution's `work`): pair-steps, time steps, kernel seconds, unknowns."""
+        return {"pair_steps": int(st.counters[mk.C_PAIRSTEPS]), "time_steps": int(st.counters[mk.C_STEPS]),
+                "kernel_s": self.kernel_s, "unknowns": self.free_dofs}
+
     @property
     def inelastic(self) -> bool:
         """Whether the automata carry the inelastic state (a response function or fracture)."""
@@ -229,14 +237,9 @@ def relax_status(code: int, res: float, tol: float, steps: int, max_steps: int) 
 
 
 def rebuild_pairs(model: Model, st: mk.State) -> tuple[mk.State, int]:
-    """Extend the pair list (and relist the contact candidates) after automata moved beyond the skin;
-    returns the new state and the number of pairs added.
-
-    Listed pairs keep their state (an unlinked pair stays listed: it may come back into contact).  Every
-    unlisted pair of automata closer than d (1 + 2 skin) -- d = the smallest spacing, the automata's
-    diameter -- is added unlinked (r0 = d, contact area the mean of the two cells' face areas), so a
-    contact is listed before it closes as long as no automaton moves more than `skin` d between rebuilds.
-    """
+    """Extend the pair list (and relist the contact candidates) after automata moved beyond the skin; the new
+    state and the number of pairs added.  Listed pairs keep their state; every unlisted pair closer than
+    d (1 + 2 skin), d the smallest spacing, is added unlinked (r0 = d), so a contact is listed before it closes."""
     aut = model.aut
     d = float(aut.spacing.min())
     cand = cKDTree(st.x).query_pairs(d * (1 + 2 * model.skin), output_type="ndarray").astype(np.int64)

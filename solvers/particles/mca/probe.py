@@ -1,11 +1,8 @@
 """Stability probe of the MCA solver: explicit heat (forward Euler) and explicit mechanics (velocity Verlet).
 
-Mechanics: velocity Verlet, undamped, is stable for omega_max dt < 2.  MCA sets dt = cfl * 2 / omega_G
-with omega_G >= omega_max a Gershgorin bound, so every cfl <= 1 is stable (the guarantee) and the
-undamped limit lies at cfl = omega_G / omega_max >= 1; viscous damping lowers it (single mode:
-sqrt(1 + zeta^2) - zeta).  Probed through the solver's own `cfl`; ratio 1 is cfl = 1.
-Heat: forward Euler is stable iff dt <= 2 / lambda_max(C^-1 L); ratio 1 is the Gershgorin step
-min C_i / sum_j G_ij, which guarantees it; the exact limit is the linear-discrete limit.
+Mechanics: dt = cfl * 2 / omega_G with omega_G >= omega_max a Gershgorin bound, so every cfl <= 1 is stable and
+the undamped limit lies at cfl = omega_G / omega_max >= 1 (damping lowers it); ratio 1 is cfl = 1.  Heat:
+forward Euler is stable iff dt <= 2 / lambda_max(C^-1 L); ratio 1 is the Gershgorin step min C_i / sum_j G_ij.
 """
 
 from __future__ import annotations

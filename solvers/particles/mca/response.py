@@ -1,11 +1,7 @@
-"""Response functions sigma = f(eps) of the MCA automata (Fig. 3 of the MCA paper; docs/physics.md,
-"The movable cellular automaton (MCA) model").
+"""Response functions sigma = f(eps) of the MCA automata (Fig. 3 of the MCA paper): the kernel's numbers for
+the scene's `Response`, and the exact uniaxial curve the block test compares against.
 
-The scene's `Response` names the kind and its strengths; this module turns it into the numbers the
-kernel uses and gives the exact uniaxial reference curve the block test compares against.
-
-The four kinds, as the project defines them (the scene carries one post-linear modulus, `hardening`
-= H, used by every kind that needs one):
+The four kinds, as the project defines them (one post-linear modulus, `hardening` = H):
 - (a) elastic: sigma = E eps up to the strength sigma_c, then fracture.
 - (b) degradation: linear to sigma_d, then the tangent modulus H up to sigma_c.  The loss of stiffness is
   damage: the transmitted stress is (1 - d) times the elastic ("effective") stress, with

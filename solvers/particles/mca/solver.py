@@ -1,42 +1,24 @@
 """The movable cellular automaton (MCA) solver: elasticity, fracture, eigenfrequencies, heat and contact.
 
-Pieces: `automata` (Voronoi cells of the bar's simple-cubic lattice, d = a), `kernel` (numba: incremental
-pair and many-body stresses, rotations, response functions, unlinking, velocity Verlet), `kernels` (the
-kernel family by name, one signature), `model` (constants, rest state, dynamic relaxation; the derivation of
-the many-body coefficient is in its docstring), `stiffness` (the linearised model: modes, stable step),
-`heat` (conduction between linked automata), `response` (sigma = f(eps) and its exact uniaxial curve),
-`contact_scenes` (two bodies pressed, slid, heated by friction).  This module holds the table of analyses
-(`ANALYSES`): each kind of MCA run is one entry, chosen by what the scene declares (its physics words, its
-conduction mode, whether its contact slides; never its name), with its refusal check, its work estimate and
-its run; `Mca` looks the scene's analysis up and turns the run's results into a Solution.
+Pieces: `automata` (the automata of the bar: "nodes" or "cells" packing), `kernel` (numba: incremental pair and
+many-body stresses, rotations, response functions, unlinking, velocity Verlet), `kernels` (the kernel family by
+name, one signature), `model` (constants, rest state, dynamic relaxation), `stiffness` (the linearised model:
+modes, stable step), `heat` (conduction between linked automata), `response` (sigma = f(eps) and its exact
+uniaxial curve), `contact_scenes`, `stick_slip` and `incline` (two bodies in contact).  This module holds the
+table of analyses (`ANALYSES`): each kind of MCA run is one entry, chosen by what the scene declares (its
+physics words, its conduction mode, whether its contact slides; never its name), with its refusal check, its
+work estimate and its run; `Mca` looks the scene's analysis up and turns the run's results into a Solution.
 
-Analyses on the bar lattice:
-- heat, steady and transient (bar-heat-*): steady by a direct solve of the automata's heat balance, transient
-  by explicit steps at the stable step; samples T / t_max at the automata.
-- static elasticity (bar-compression): the supports' displacements are ramped in over `ramp_periods`
-  periods 2 pi / gamma with viscous damping gamma (`Model.relaxation_rate`; dynamic relaxation), until the largest
-  residual force on a free degree of freedom is below relax_tol * E |strain| a^2.  Supports on z faces only
-  leave rigid x/y translation and rotation about z free: held by the same "3-2-1" set as skfem-elastic
-  (u_x = u_y = 0 at (0, 0, 0), u_y = 0 at (W, 0, 0)), which carries no force in the uniaxial state.
-  Samples: displacement (m), shape (k, 3).
-- fracture (bar-tension-fracture): face zL pulled along +z at strain_rate * L from t = 0 (undamped unless
-  `damping` is given), until the reaction has fallen below 5 % of its peak after unlinking, or the strain
-  reaches 1.5 times the response function's failure strain.  failure_stress = peak reaction / (W H);
-  energy_error = max |KE + U - KE0 - W_supports| / max U over the elastic phase (before the first unlink).
-- modes (bar-modes): eigenfrequencies of the linearised automata (translations and rotations, the clamped
-  face's automata held), K phi = omega^2 M phi by shift-invert Lanczos about 0; kinds by energy, then mirror
-  parity (`pcverify.solvers.modes`, shared with skfem-elastic): a mode mostly in the rotations is rotational
-  (neighbours turning in opposite senses: only krot resists them, so at small krot they crowd the low end of
-  the spectrum).  The summary lists the lowest modes up to the `modes`-th one of a continuum kind, with the
-  rotational ones below it, so that f_<kind> stands on the same modes as the continuum's; f_rotational_hz is
-  the lowest rotational one found there.
-Contact analyses (two bodies of the bar lattice): compression, sliding, frictional heating (`contact_scenes`);
-stick-slip, the slider pulled by a spring (`stick_slip`); the slider on an incline (`incline`).
-
-Packing (`packing`, automata.py): "nodes" (the lattice above, every analysis) or "cells" (equal cubes filling the
-bar, centres a/2 inside the faces; static elasticity and modes only, both on the linearised model of stiffness.py:
-the faces' constraints as wall bonds, the free faces condensed; the static state by a direct sparse solve).  The
-other analyses return a skipped Solution naming the packing.  Samples of "cells" are interpolated (`_at`).
+Analyses on the bar lattice (the physics: docs/physics.md, "The movable cellular automaton (MCA) model"):
+- heat, steady (a direct solve of the automata's heat balance) and transient (explicit steps at the stable step);
+- static elasticity: the supports' displacements ramped in and relaxed dynamically (`Model.relaxation_rate`) to
+  relax_tol E |strain| a^2, rigid motions held by the same force-free "3-2-1" set as skfem-elastic;
+- fracture: face zL pulled at strain_rate until the reaction falls below 5 % of its peak after unlinking, or the
+  strain reaches 1.5 times the response function's failure strain;
+- modes: eigenfrequencies of the linearised automata, kinds by `pcverify.solvers.modes`, shared with
+  skfem-elastic; a mode mostly in the rotations is rotational (only krot resists it), listed below the
+  `modes`-th one of a continuum kind so that f_<kind> stands on the same modes as the continuum's.
+"cells" packing runs static elasticity and modes only (the linearised model); the others skip it.
 """
 
 from __future__ import annotations
@@ -320,31 +302,16 @@ def face_walls(scene: Scene, aut: Automata) -> tuple[np.ndarray, np.ndarray, np.
     return aut.walls([c.face for c in held], [isinstance(c, FaceSupport) for c in held], scene.box.extent)
 
 
-def _elastic(scene: Scene, p: dict[str, Any]) -> Elastic:
-    mat = scene.material
-    return Elastic(mat.youngs_modulus, mat.poisson_ratio, many_body=p["many_body"], coefficient=p["coefficient"])
-
-
 def _strains(scene: Scene, aut: Automata, u: np.ndarray) -> tuple[float, float]:
-    """Axial strain from the zL face, lateral strain from the face-averaged x and y displacements."""
+    """Axial strain between the z faces, lateral strain the mean of those between the x and the y faces."""
     ext = scene.box.extent
-    on = {f: aut.on_face(f, ext) for f in ("x0", "xW", "y0", "yH", "z0", "zL")}
-
-    def mean(face: str, ax: int) -> float:
-        idx = on[face]
-        wgt = aut.volume[idx]
-        return float((u[idx, ax] * wgt).sum() / wgt.sum())
-
-    span = ext if aut.packing == "nodes" else ext - aut.spacing  # between the face layers' centres
-    axial = (mean("zL", 2) - mean("z0", 2)) / span[2]
-    lateral = 0.5 * ((mean("xW", 0) - mean("x0", 0)) / span[0] + (mean("yH", 1) - mean("y0", 1)) / span[1])
-    return axial, lateral
+    return aut.face_strain(u, 2, ext), 0.5 * (aut.face_strain(u, 0, ext) + aut.face_strain(u, 1, ext))
 
 
 def _static(scene: Scene, aut: Automata, p: dict[str, Any]) -> dict[str, Any]:
     if aut.packing == "cells":
         return _static_linear(scene, aut, p)
-    el = _elastic(scene, p)
+    el = Elastic.of(scene, p)
     probe = Model(aut, el)
     rate = probe.relaxation_rate()
     t_ramp = p["ramp_periods"] * 2 * math.pi / rate
@@ -371,14 +338,14 @@ def _static(scene: Scene, aut: Automata, p: dict[str, Any]) -> dict[str, Any]:
                        nu_eff=-lateral / axial)
     kstat, reason = relax_status(status, res, p["relax_tol"], steps, p["max_steps"])
     return {"field": u, "unknowns": model.free_dofs, "quantity": "u (m)", "summary": summary, "status": kstat,
-            "reason": reason, "work": _work(model, st), "diagnostics": {"notes": notes}}
+            "reason": reason, "work": model.work(st), "diagnostics": {"notes": notes}}
 
 
 def _static_linear(scene: Scene, aut: Automata, p: dict[str, Any]) -> dict[str, Any]:
     """Static elasticity of the "cells" packing: the linearised automata (stiffness.py, the kernel's potential
     to first order) with the faces' wall bonds, solved directly.  The wall points move with their support's
     displacement (a clamp's stay); the rigid-body set of `_fixes` holds the rest."""
-    el = _elastic(scene, p)
+    el = Elastic.of(scene, p)
     rot = p["rotations"]
     nd = 6 if rot else 3
     walls = face_walls(scene, aut)
@@ -424,15 +391,10 @@ def _wall_starts(scene: Scene, aut: Automata) -> list[tuple[tuple[int, int], Fac
     return out
 
 
-def _work(model: Model, st: mk.State) -> dict[str, Any]:
-    return {"pair_steps": int(st.counters[mk.C_PAIRSTEPS]), "time_steps": int(st.counters[mk.C_STEPS]),
-            "kernel_s": model.kernel_s, "unknowns": model.free_dofs}
-
-
 # -- fracture ------------------------------------------------------------------------------------
 
 def _fracture(scene: Scene, aut: Automata, p: dict[str, Any]) -> dict[str, Any]:
-    el = _elastic(scene, p)
+    el = Elastic.of(scene, p)
     resp = scene.elasticity.response
     length = scene.box.length
     speed = scene.elasticity.strain_rate * length
@@ -522,13 +484,13 @@ def _fracture(scene: Scene, aut: Automata, p: dict[str, Any]) -> dict[str, Any]:
     aut = model.aut
     diag = {"notes": notes, "history": {"columns": list(mk.HISTORY_COLUMNS[:mk.H_LOAD]), "rows": h}}
     return {"field": st.x - aut.positions, "unknowns": model.free_dofs, "quantity": "u (m)", "summary": summary,
-            "status": status, "reason": reason, "work": _work(model, st), "diagnostics": diag}
+            "status": status, "reason": reason, "work": model.work(st), "diagnostics": diag}
 
 
 # -- modes ---------------------------------------------------------------------------------------
 
 def _modes(scene: Scene, aut: Automata, p: dict[str, Any]) -> dict[str, Any]:
-    el = _elastic(scene, p)
+    el = Elastic.of(scene, p)
     rot = p["rotations"]
     t0 = time.perf_counter()
     nd = 6 if rot else 3

@@ -1,34 +1,20 @@
 """The MCA solver's stick-slip run: a slider pressed on its clamped base and pulled by a spring (Contact's
-spring_stiffness) whose far end moves at the contact's speed.
+spring_stiffness) whose far end moves at the contact's speed (docs/physics.md, the MCA model's stick-slip).
 
-The friction pair is the scene's (Contact.mu_static, mu_kinetic: the surfaces' property the reference takes), so the
-contact law's kinetic coefficient mu1 is the scene's mu_kinetic and its static one mu_s the scene's mu_static; the
-solver's `friction_law` chooses the law (the regularised law has no static friction, so it cannot stick). The run:
-the preload relaxed with damping as the sliding analysis does (contact_scenes.sliding), then the spring
-(kernel.Spring: its force shared over body 2's automata by mass, i.e. pulling at the centre of mass) is attached
-unstretched and its far end moves for the scene's duration. Damping (`slide_damping`, default the relaxation rate as
-in the sliding analysis; 0 = none) acts on body 2's automata relative to body 2's mean velocity along the direction
-(updated every step: kernel.Spring with a Frame), and on body 1's relative to rest: its resultant on the slider is
-zero, so the slider's centre of mass moves under the spring and the contacts alone, and only the bodies' elastic
-vibrations are damped. Undamped (measured at n = 4 with the static law) the slider chatters after its first slip:
-the contacts open and close (0 to 16 closed, the normal force 0 to 300 N about its 100 N) and the kinetic energy
-grows to 0.06 J, so the mean friction while sliding falls far below mu_k N and no second stick follows
-(friction-induced vibration, as contact_scenes.py reports for undamped sliding). Every `records`-th of the run a row
-of the spring force (what a load cell on the spring reads), the slider's mean velocity and displacement.
+The contact law's coefficients are the scene's friction pair (`law_params`); the solver's `friction_law`
+chooses the law (the regularised law has no static friction, so it cannot stick).  The preload is relaxed as
+the sliding analysis does (contact_scenes.sliding), then the spring (kernel.Spring, pulling at the centre of
+mass) is attached unstretched and its far end moves for the scene's duration.  Damping (`slide_damping`) acts
+relative to each body's mean velocity, so its resultant on the slider is zero: undamped, the slider chatters
+after its first slip (measured at n = 4) and no second stick follows.
 
-Measured from those rows alone (not from the friction law's bookkeeping): slip phases are the rows where the mean
-velocity exceeds a tenth of the drive speed (SLIP_SPEED), phases shorter than three rows merged into their
-neighbours; each slip starts and ends at the nearest rows outside it where the velocity is below REST_SPEED of
-the drive speed.  Each slip after the first (the first starts from the unstretched spring) gives its peak (the
-spring force where it starts: the static limit), trough (where it ends), force drop (their difference), largest
-force (reached while slipping, as the force still rises at k (V - x') first), slip time, largest velocity, the
-stick before it and the period from its start to the next; the summary holds their means over the cycles
-and their spreads (standard deviation over the cycles, `<name>_spread`), `stick_slip_cycles` the number of slips
-after the first (whole ones: a slip cut by the run's end is not counted). The rest threshold biases the ends inward
-by REST_SPEED V m / (mu_s - mu_k) N (1.4 us at the scene's defaults, measured on the integrated rigid block,
-tests/test_stick_slip.py): slip time -0.4 %, stick +0.35 %, force drop +0.35 %; the period and the largest force and
-velocity are unbiased. A run with fewer than two of them has no stick-slip cycle to measure: failed, with the first
-peak and the rows kept.
+Measured from the rows of the spring force and the slider's mean velocity and displacement alone (not from the
+friction law's bookkeeping): slip phases are the rows where the mean velocity exceeds SLIP_SPEED of the drive
+speed, ending at the nearest rows below REST_SPEED.  Each slip after the first gives its peak, trough, force
+drop, largest force, slip time, largest velocity, the stick before it and the period; the summary holds their
+means and spreads over the whole cycles (`stick_slip_cycles`).  The rest threshold biases the ends inward by
+REST_SPEED V m / (mu_s - mu_k) N (1.4 us at the scene's defaults: slip time -0.4 %, stick +0.35 %, force drop
++0.35 %; the period and the largest force and velocity are unbiased).  Fewer than two slips: failed.
 """
 
 from __future__ import annotations
@@ -62,10 +48,7 @@ def run(scene: Scene, n: int, p: dict[str, Any]) -> tuple[dict[str, Any], Automa
     """The stick-slip run on the two bodies at resolution n (module docstring): the solver's out dict (field,
     summary, status, work, ...) and the automata its field lives on."""
     out, aut = _run(scene, n, p)
-    model, st = out.pop("model"), out.pop("state")
-    out["work"] = {"pair_steps": int(st.counters[mk.C_PAIRSTEPS]), "time_steps": int(st.counters[mk.C_STEPS]),
-                   "kernel_s": model.kernel_s, "unknowns": model.free_dofs}
-    out["unknowns"] = model.free_dofs
+    cs.with_work(out)
     return out, aut
 
 
@@ -78,8 +61,7 @@ def steps(scene: Scene, h: float, p: dict[str, Any], relax_steps: int, dt: float
 def _run(scene: Scene, n: int, p: dict[str, Any]) -> tuple[dict[str, Any], Automata]:
     contact = scene.contact
     aut, bonded = body_automata(scene.box, n, scene.material.density, contact)
-    mat = scene.material
-    el = Elastic(mat.youngs_modulus, mat.poisson_ratio, many_body=p["many_body"], coefficient=p["coefficient"])
+    el = Elastic.of(scene, p)
     law = cs.law_of(aut, contact, law_params(scene, p), el.shear)
     ext = scene.box.extent
     fixm = np.zeros((aut.size, 6), dtype=np.uint8)
