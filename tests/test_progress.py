@@ -96,3 +96,21 @@ def test_a_long_solve_off_a_terminal_says_it_is_still_running(monkeypatch, capsy
     assert "\r" not in err and "elapsed" not in err, err
     assert lines[:2] == ["skfem on bar-heat-faces n=4 refine=1: still running after 0.5 s",
                          "skfem on bar-heat-faces n=4 refine=1: still running after 1 s"], err
+
+
+def test_the_plain_lines_take_the_counts_as_tqdm_takes_them(capsys) -> None:
+    """Off a terminal the bar is ProgressLines, on one tqdm: a caller may give the counts as a mapping, as
+    keywords or both, and both must take them (a mapping once crashed `pcverify mutate` into a pipe)."""
+    tqdm = pytest.importorskip("tqdm")
+    lines = progress.ProgressLines(4, "mutants", "mutant")
+    with open(os.devnull, "w") as sink:
+        bar = tqdm.tqdm(total=4, file=sink)
+        for call in (lambda b: b.set_postfix({"killed": 1}), lambda b: b.set_postfix(killed=2),
+                     lambda b: b.set_postfix({"killed": 3}, survived=1)):
+            call(lines)
+            call(bar)
+            lines.update(1)
+        bar.close()
+    lines.close()
+    err = capsys.readouterr().err
+    assert "(killed 3, survived 1)" in err.splitlines()[-1] and "(killed 1)" in err

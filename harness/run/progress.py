@@ -49,8 +49,9 @@ class ProgressLines:
             self.step = step
             self._line("")
 
-    def set_postfix(self, **values: Any) -> None:
-        self.postfix = values
+    def set_postfix(self, ordered_dict: dict[str, Any] | None = None, refresh: bool = True, **values: Any) -> None:
+        """The counts the next line shows, given as tqdm takes them (a mapping, keywords or both)."""
+        self.postfix = {**(ordered_dict or {}), **values}
 
     def set_description(self, text: str) -> None:
         """Ignored: the item in hand, which a bar shows, is no line of its own."""
