@@ -32,9 +32,10 @@ from pcverify.harness.run.interrupt import TERMINATED, received, sigterm_interru
 from pcverify.harness.run.limits import DEFAULT_MUTANT_TIME_LIMIT, DEFAULT_TIME_LIMIT, MAX_TIME_LIMIT
 from pcverify.harness.spec.catalogue import get_spec
 from pcverify.harness.spec.schema import MAX_CELLS
+from pcverify.harness.spec.settings import split_settings
 from pcverify.harness.spec.shipped import study_path
 from pcverify.scene import SceneError, shown
-from pcverify.solvers.registry import SolverUnavailable, check_solver_name
+from pcverify.solvers.registry import SolverUnavailable, check_solver_name, shipped_parameters
 
 COMMANDS = {  # command -> "module:function" that runs it, given the parsed arguments; returns the exit code
     "scenes": "pcverify.harness.report.listings:list_scenes",
@@ -248,8 +249,11 @@ def check_input(args: argparse.Namespace) -> None:
     raises the one-line error the command would give later (a scene, solver or study name that is unknown, an
     option that needs one study given with `default`, a benchmark folder that is not there)."""
     if args.command == "run":
-        get_spec(args.scene)
+        spec = get_spec(args.scene)
         check_solver_name(args.solver)
+        solver_params = shipped_parameters(args.solver)
+        if solver_params is not None:  # a plugin's parameters are checked when its module is imported
+            split_settings(args.set or [], spec.parameters, solver_params)
     elif args.command == "verdict":
         study_path(args.study)
     elif args.command in ("study", "mutate") and args.name != "default":

@@ -32,6 +32,16 @@ SHIPPED: dict[str, str] = {
     "mca": "pcverify.solvers.particles.mca.solver:Mca",
 }
 
+# the shipped solvers' parameters, declared apart from them: the command line checks them without importing
+# FiPy, scikit-fem or numba
+SHIPPED_PARAMETERS: dict[str, str] = {
+    "skfem": "pcverify.solvers.continuum.parameters:SKFEM_HEAT",
+    "fipy": "pcverify.solvers.continuum.parameters:FIPY_HEAT",
+    "macromolecule": "pcverify.solvers.particles.macromolecule.parameters:PARAMETERS",
+    "skfem-elastic": "pcverify.solvers.continuum.parameters:SKFEM_ELASTIC",
+    "mca": "pcverify.solvers.particles.mca.parameters:PARAMETERS",
+}
+
 
 class SolverUnavailable(RuntimeError):
     """A registered solver whose module or dependency cannot be imported (one line, names it)."""
@@ -216,6 +226,16 @@ def check_solver_name(name: str) -> None:
         return
     raise SceneError(f"solver={shown(name)} is unknown; allowed: one of {', '.join(sorted(entries()))}, or "
                      "module:Class")
+
+
+def shipped_parameters(name: str) -> tuple[Param, ...] | None:
+    """The parameters of `name` when it is a shipped solver (not one a plugin registered under the name),
+    read without importing the solver; None for any other solver."""
+    entry = entries().get(name) if isinstance(name, str) else None
+    if entry is None or entry.target != SHIPPED.get(name):
+        return None
+    module_name, _, attr = SHIPPED_PARAMETERS[name].partition(":")
+    return getattr(importlib.import_module(module_name), attr)
 
 
 def get_solver(name: str) -> Solver:

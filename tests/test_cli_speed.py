@@ -23,6 +23,7 @@ import tempfile
 import pytest
 
 from pcverify.harness.cli import COMMANDS, build_parser, command
+from pcverify.solvers.registry import SHIPPED, get_solver, shipped_parameters
 
 LIMIT_S = 0.3  # CPU seconds of a command that answers at once
 ADDED_S = 0.1  # what the command line may add to `import pcverify` (a machine too loaded for LIMIT_S)
@@ -78,6 +79,10 @@ def test_help_and_scenes_answer_at_once(args: list[str], check) -> None:
     (["study", "no-such-study"], "study='no-such-study' is unknown"),
     (["verdict", "no-such-study", "claim"], "study='no-such-study' is unknown"),
     (["study", "default", "--group", "g"], "--group needs one study"),
+    (["run", "bar-heat-faces", "--solver", "fipy", "--set", "bogus=1"], "--set 'bogus': unknown parameter"),
+    (["run", "bar-heat-faces", "--solver", "mca", "--set", "many_body=maybe"], "many_body='maybe' is not valid"),
+    (["run", "bar-heat-faces", "--solver", "macromolecule", "--set", "solver.t_max=1"],
+     "--set solver.'t_max': unknown solver parameter"),
 ])
 def test_a_one_line_input_error_answers_at_once(args: list[str], word: str) -> None:
     seconds, floor, code, out, err = _least_cpu(args)
@@ -94,11 +99,18 @@ def test_the_light_path_imports_no_numerical_library_but_numpy() -> None:
             "from pcverify.harness.cli import main\n"
             "with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):\n"
             "    codes = [main(['scenes']), main(['scenes', '--json']), main(['run', 'nope', '--solver', 'skfem']),\n"
-            "             main(['study', 'nope'])]\n"
+            "             main(['study', 'nope']), main(['run', 'bar-heat-faces', '--solver', 'skfem', '--set', 'x=1'])]\n"
             f"print(codes, sorted(m for m in {HEAVY!r} if m in sys.modules))\n")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=False)
     assert done.returncode == 0, done.stderr[-1500:]
-    assert done.stdout.split() == ["[0,", "0,", "2,", "2]", "[]"], done.stdout
+    assert done.stdout.split() == ["[0,", "0,", "2,", "2,", "2]", "[]"], done.stdout
+
+
+def test_a_shipped_solver_declares_its_parameters_where_the_command_line_reads_them() -> None:
+    """The command line checks --set against the declarations it imports without the solver: they must be the
+    very tuple the solver runs with (a solver that declared its own copy could accept what the check refused)."""
+    for name in SHIPPED:
+        assert shipped_parameters(name) is get_solver(name).parameters, name
 
 
 def test_every_command_names_the_function_that_runs_it() -> None:

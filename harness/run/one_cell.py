@@ -18,45 +18,11 @@ from pcverify.harness.run.limits import check_work
 from pcverify.harness.run.progress import working
 from pcverify.harness.run.workers import describe_exception, output_to_stderr
 from pcverify.harness.spec.catalogue import get_spec, make_scene
+from pcverify.harness.spec.settings import split_settings
 from pcverify.harness.spec.study import Cell
-from pcverify.scene import Param, Resolution, SceneError, shown
+from pcverify.scene import Resolution, SceneError
 from pcverify.solvers.protocol import skipped
 from pcverify.solvers.registry import get_solver
-
-
-def split_settings(settings: list[str], scene_params: tuple[Param, ...], solver_params: tuple[Param, ...]
-                   ) -> tuple[dict[str, Any], dict[str, Any]]:
-    """Route --set KEY=VALUE to the scene or the solver, parsing each value with its Param spec."""
-    scene_spec = {p.name: p for p in scene_params}
-    solver_spec = {p.name: p for p in solver_params}
-    scene_vals: dict[str, Any] = {}
-    solver_vals: dict[str, Any] = {}
-    for item in settings:
-        if "=" not in item:
-            raise SceneError(f"--set {shown(item)}: expected KEY=VALUE")
-        key, text = item.split("=", 1)
-        key = key.strip()
-        target = None
-        if key.startswith("scene."):
-            key, target = key[6:], "scene"
-        elif key.startswith("solver."):
-            key, target = key[7:], "solver"
-        elif key in scene_spec and key in solver_spec:
-            raise SceneError(f"--set {shown(key)}: both the scene and the solver have it; "
-                             f"write scene.{key} or solver.{key}")
-        elif key in scene_spec:
-            target = "scene"
-        elif key in solver_spec:
-            target = "solver"
-        else:
-            known = sorted(set(scene_spec) | set(solver_spec))
-            raise SceneError(f"--set {shown(key)}: unknown parameter; known: {', '.join(known)}")
-        spec = scene_spec if target == "scene" else solver_spec
-        if key not in spec:
-            raise SceneError(f"--set {target}.{shown(key)}: unknown {target} parameter; known: "
-                             f"{', '.join(sorted(spec))}")
-        (scene_vals if target == "scene" else solver_vals)[key] = spec[key].parse(text)
-    return scene_vals, solver_vals
 
 
 def run_one_cell(args: argparse.Namespace) -> int:

@@ -54,6 +54,8 @@ class Param:
         """Human-readable allowed range, used in every error message."""
         if self.choices is not None:
             return "one of " + ", ".join(str(c) for c in self.choices)
+        if self.kind is bool:
+            return "true or false" + (" or none" if self.optional else "")
         lo = "-inf" if self.low is None else f"{self.low:g}"
         hi = "inf" if self.high is None else f"{self.high:g}"
         left = "(" if (self.low is None or self.low_open) else "["

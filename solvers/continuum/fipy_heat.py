@@ -87,7 +87,6 @@ from scipy.interpolate import RegularGridInterpolator
 
 from pcverify.scene import (
     FaceTemperature,
-    Param,
     PatchTemperature,
     PointTemperature,
     Resolution,
@@ -98,6 +97,7 @@ from pcverify.solvers.continuum.assembly import grid_graph, split_free
 from pcverify.solvers.continuum.fipy_fast import diffusion_term, tensor_grid3d
 from pcverify.solvers.continuum.grid import held_node
 from pcverify.solvers.continuum.linear_solver import smoothed_aggregation
+from pcverify.solvers.continuum.parameters import FIPY_HEAT
 from pcverify.solvers.continuum.work import heat_estimate, transient_steps
 from pcverify.solvers.protocol import Solution, WorkEstimate, effective_params, heat_summary
 
@@ -258,22 +258,7 @@ class FipyHeat:
 
     name = "fipy"
     kind = "continuum"
-    parameters = (
-        Param("patch", "cut", "", "patch constraint: cut (fixed cells + Shortley-Weller faces), volume-fraction "
-              "weighted penalty, or staircase", choices=("cut", "fraction", "staircase"), kind=str),
-        Param("scheme", "crank-nicolson", "", "time scheme of transient scenes",
-              choices=("implicit-euler", "crank-nicolson"), kind=str),
-        Param("rannacher_steps", 4, "", "implicit-Euler half steps that start Crank-Nicolson (even)",
-              low=0, high=100, kind=int),
-        Param("linear_solver", "auto", "", "auto: direct (splu) up to amg_threshold free unknowns, else "
-              "pyamg smoothed-aggregation CG", choices=("auto", "direct", "amg"), kind=str),
-        Param("amg_threshold", 10000, "", "free unknowns above which 'auto' uses AMG", low=0, high=1e9, kind=int),
-        Param("rtol", 1e-10, "", "relative residual of AMG-CG (checked on the true residual)",
-              low=0.0, high=1e-3, low_open=True),
-        Param("penalty", 1e8, "", "penalty factor: B = penalty * k / h^2 for fixed cells", low=1e3, high=1e14),
-        Param("max_steps", 1_000_000, "", "largest number of time steps of a transient (t_end / dt)", low=1,
-              high=1e10, kind=int),
-    )
+    parameters = FIPY_HEAT
 
     def estimate(self, scene: Scene, resolution: Resolution, **params: Any) -> WorkEstimate:
         """Cells (one per lattice-grid node), time steps and memory of the solve."""

@@ -29,23 +29,15 @@ from skfem import Basis, BilinearForm, ElementVector, FacetBasis, Functional, Me
 from skfem.helpers import dot
 from skfem.models.elasticity import lame_parameters, linear_elasticity
 
-from pcverify.scene import FaceClamp, FaceSupport, Param, Resolution, Scene, SceneError
+from pcverify.scene import FaceClamp, FaceSupport, Resolution, Scene, SceneError
 from pcverify.solvers.continuum.grid import HEX_CORNERS, StructuredGrid
 from pcverify.solvers.continuum.linear_solver import SpdSolver, smoothed_aggregation
+from pcverify.solvers.continuum.parameters import SKFEM_ELASTIC
 from pcverify.solvers.continuum.work import ELASTIC_BYTES_PER_DOF, grid_nodes
 from pcverify.solvers.modes import classify, cut_is_complete, lowest_of_each_kind, symmetric_lateral
 from pcverify.solvers.protocol import Solution, WorkEstimate, effective_params
 
-PARAMETERS: tuple[Param, ...] = (
-    Param("element", "q2", "", "Q1 (trilinear) or Q2 (triquadratic) hexahedra", choices=("q1", "q2"), kind=str),
-    Param("linear_solver", "auto", "", "direct (SuperLU), amg (pyamg SA-preconditioned CG) or auto",
-          choices=("auto", "direct", "amg"), kind=str),
-    Param("cg_rtol", 1e-11, "", "relative residual tolerance of CG", low=0.0, high=1e-3, low_open=True),
-    Param("direct_max_unknowns", 10000, "", "auto, static: direct solver up to this many unknowns, AMG-CG above",
-          low=1, high=1e9, kind=int),
-    Param("modal_direct_max_unknowns", 60000, "", "auto, modal: direct shift-invert up to this many unknowns",
-          low=1, high=1e9, kind=int),
-)
+PARAMETERS = SKFEM_ELASTIC
 
 ELEMENTS = {"q1": ("ElementHex1", 2, 1), "q2": ("ElementHex2", 4, 2)}  # class, intorder, degree
 

@@ -51,7 +51,6 @@ from skfem import Basis, ElementHex1, LinearForm, MeshHex
 from pcverify.scene import (
     Conduction,
     FaceTemperature,
-    Param,
     PatchTemperature,
     PointTemperature,
     Resolution,
@@ -61,26 +60,13 @@ from pcverify.scene import (
 from pcverify.solvers.continuum.assembly import assemble_q1, grid_graph, plane_load, split_free
 from pcverify.solvers.continuum.grid import StructuredGrid, held_node, plan_sphere_warp
 from pcverify.solvers.continuum.linear_solver import SpdSolver, smoothed_aggregation
+from pcverify.solvers.continuum.parameters import SKFEM_HEAT
 from pcverify.solvers.continuum.work import heat_estimate, transient_steps
 from pcverify.solvers.protocol import Solution, WorkEstimate, effective_params, heat_summary
 
 PHYSICS = frozenset({"conduction", "heat-source", "heat-source-field", "interface-flux"})  # implemented
 
-PARAMETERS: tuple[Param, ...] = (
-    Param("scheme", "crank-nicolson", "", "time integration of transient scenes",
-          choices=("implicit-euler", "crank-nicolson"), kind=str),
-    Param("rannacher_steps", 4, "", "implicit-Euler half steps that start Crank-Nicolson (even; 0 = plain CN)",
-          low=0, high=1000, kind=int),
-    Param("patch", "conforming", "", "patch constraint: warped conforming sphere or staircase of nodes",
-          choices=("conforming", "staircase"), kind=str),
-    Param("linear_solver", "auto", "", "direct (SuperLU), amg (pyamg SA-preconditioned CG) or auto",
-          choices=("auto", "direct", "amg"), kind=str),
-    Param("cg_rtol", 1e-11, "", "relative residual tolerance of CG", low=0.0, high=1e-3, low_open=True),
-    Param("max_steps", 1_000_000, "", "largest number of time steps of a transient (t_end / dt)", low=1, high=1e10,
-          kind=int),
-    Param("direct_max_unknowns", 10000, "", "auto: direct solver up to this many free nodes, AMG-CG above",
-          low=1, high=1e9, kind=int),
-)
+PARAMETERS = SKFEM_HEAT
 
 
 def amg_options(graph: sp.spmatrix | None = None) -> dict[str, Any]:

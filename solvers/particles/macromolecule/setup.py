@@ -15,8 +15,8 @@ from . import modal
 from .fixes import Fixes, make_fixes
 from .force import SevenRoot
 from .lattice import Lattice, build_lattice
+from .parameters import DEFAULT_DAMPING_RATIO
 
-DEFAULT_DAMPING_RATIO = 0.01
 MIN_WINDOW_STEPS = 100  # hotness is a time average: fewer steps cannot make one
 
 

@@ -28,7 +28,6 @@ from scipy.spatial import cKDTree
 from pcverify.scene import Box, Contact, SceneError
 
 WHOLE = 1e-9  # relative tolerance of "on a node plane" / "midway between node planes"
-PACKINGS = ("nodes", "cells")
 
 
 @dataclass(frozen=True, eq=False)

@@ -32,9 +32,8 @@ from . import kernel as mk
 from . import response as rf
 from .automata import Automata
 from .kernels import timed
+from .parameters import COEFFICIENTS
 from .stiffness import mass_diagonal, omega_max_bound, stiffness
-
-COEFFICIENTS = ("hooke", "psakhie-2G/K")
 
 
 @dataclass(frozen=True)
