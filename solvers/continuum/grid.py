@@ -1,16 +1,9 @@
 """Structured hexahedral grids on the bar, conforming corner-patch warps, point location (for the continuum
 solvers).
 
-Grid.  The grid of resolution (n, refine) has the particle lattice of resolution n as a subset of its nodes:
-spacing h = a / refine on every axis, a = W / (n - 1).  Node (i, j, k) has the flat index (i * ny + j) * nz + k
-(x slowest, z fastest, the order of `Box.lattice_points`); cell (i, j, k) spans the nodes (i..i+1, j..j+1,
-k..k+1), listed in scikit-fem's MeshHex1 order (`hex_connectivity`).
-
-Warp.  `SphereWarp` moves the nodes near a patch centre so that a cube shell of grid faces lands exactly on
-the patch's sphere; nodes far from it do not move.
-
-Location.  `StructuredGrid.locate` / `interpolation_matrix`: exact Q1 interpolation at arbitrary points, by
-inverting the warp and then Newton on the candidate cell's trilinear map (searching its neighbours).
+The grid of resolution (n, refine) has the particle lattice of resolution n among its nodes; node (i, j, k) is
+(i * ny + j) * nz + k (the order of `Box.lattice_points`), cells in MeshHex1 order; the warp and the location
+(docs/physics.md, "Continuum references", "The structured grid").
 """
 
 from __future__ import annotations
