@@ -49,7 +49,8 @@ class Cycle(NamedTuple):
 
 def cycle(mass: float, normal_force: float, stiffness: float, speed: float, mu_static: float,
           mu_kinetic: float) -> Cycle:
-    """The closed-form cycle of the module docstring (SI units; mu_static >= mu_kinetic >= 0, the rest > 0)."""
+    """The rigid block's closed-form cycle (docs/physics.md, "Analytic references"; SI units;
+    mu_static >= mu_kinetic >= 0, the rest > 0)."""
     omega = math.sqrt(stiffness / mass)
     delta = (mu_static - mu_kinetic) * normal_force
     slip = (math.pi + 2.0 * math.atan2(stiffness * speed, omega * delta)) / omega

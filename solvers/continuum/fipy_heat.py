@@ -115,7 +115,7 @@ def cell_load(scene: Scene, edges: list[np.ndarray]) -> np.ndarray:
 
 def _pad_axis(vals: np.ndarray, centres: np.ndarray, edge: np.ndarray, axis: int,
               fixed: dict[int, float]) -> tuple[np.ndarray, np.ndarray]:
-    """Pad `vals` with one face layer on each side of `axis` (see module docstring)."""
+    """Pad `vals` with one face layer on each side of `axis` (the insulated-face quadratic: docs/physics.md, FiPy)."""
     v = np.moveaxis(vals, axis, 0)
     layers = []
     for side in (0, 1):

@@ -272,7 +272,7 @@ class SkfemHeat:
 
     @staticmethod
     def _load(scene: Scene, grid: StructuredGrid, weights: np.ndarray) -> np.ndarray:
-        """Nodal heat load (W): the volumetric source and the interface flux (see the module docstring)."""
+        """Nodal heat load (W): the volumetric source and the interface flux (docs/physics.md, scikit-fem)."""
         heat = scene.conduction
         load = heat.source * weights if not heat.source_field else _field_load(heat, grid)
         plane = heat.interface
