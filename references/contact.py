@@ -79,7 +79,7 @@ def given_peak(setting: Setting, peak: float) -> dict[str, float]:
 def spring_force(t: np.ndarray, mass: float, normal_force: float, stiffness: float, speed: float, mu_static: float,
                  mu_kinetic: float) -> np.ndarray:
     """The spring force F(t) (N) from the start (spring unstretched, block at rest): the first stick, then the
-    steady cycle (stick ramps at k V, slips as the module docstring's F)."""
+    steady cycle (stick ramps at k V, slips as F of the closed form in docs/physics.md)."""
     c = cycle(mass, normal_force, stiffness, speed, mu_static, mu_kinetic)
     t = np.asarray(t, dtype=float)
     delta = (mu_static - mu_kinetic) * normal_force

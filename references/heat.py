@@ -55,7 +55,7 @@ def terms_needed(c: float, bound: float, tol: float) -> int:
 
 @dataclass(frozen=True)
 class Slab:
-    """Heat flow across 0 <= z <= length (see the module docstring); temperatures in K."""
+    """Heat flow across 0 <= z <= length (the slab: docs/physics.md, "Analytic references"); temperatures in K."""
 
     length: float
     conductivity: float
