@@ -68,17 +68,8 @@ def _smooth_fall_slope(xi: np.ndarray) -> np.ndarray:
 class SphereWarp:
     """Radial warp that puts the max-norm shell s = s1 of a grid onto the sphere |x - c| = rho.
 
-    With u = x - c, t = |u|, s = max_i |u_i| (the max-norm distance; s/t depends only on the direction
-    of u), a point moves along its ray from c to radius R:
-
-        s <= s1:        R = rho * s / s1                        (the cube of half-size s1 -> the ball)
-        s1 < s < s2:    R = t + (rho - t1) * phi(xi),  t1 = s1 * t / s,  xi = (s - s1) / (s2 - s1)
-        s >= s2:        R = t                                   (identity)
-
-    phi (`_smooth_fall`) makes the warp C1 across s = s2, a bijection of the cube {s < s2} while R increases
-    along every ray (`min_slope`).  The nodes with s = s1 land exactly on the sphere (the mesh's faceted inner
-    boundary interpolates it to O(h^2)); the map is radial from c, so a plane through c stays put; s1 and s2
-    depend on h only through s1 = m h, so the warps of a refinement sequence differ by O(h).
+    C1 across s = s2 (`_smooth_fall`), a bijection while R increases along every ray (`min_slope`); the map and
+    why the warps of a refinement sequence differ by O(h): docs/physics.md, "The structured grid".
     """
 
     centre: tuple[float, float, float]
