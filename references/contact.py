@@ -1,35 +1,7 @@
 """The contact family: two duralumin blocks pressed, slid, pulled by a spring, tilted and heated by friction, their
-references (the contact pressure, the rigid block's stick-slip cycle and incline, the heat share e1 / (e1 + e2), the
-heat family's slab) and the summary scalars a contact solver reports (`SCALARS`: names, units, signs).
-
-The stick-slip cycle of a rigid block pulled by a spring across a plane with static and kinetic friction.
-
-A block of mass m, pressed by the normal force N, is pulled along the plane by a spring of stiffness k whose far
-end moves at the constant speed V; friction holds it while the spring force F stays within mu_s N (stick) and
-resists at mu_k N while it slides (mu_k <= mu_s).  Starting at rest with the spring unstretched, it sticks for
-t_0 = mu_s N / (k V); then every slip is the same.  With omega = sqrt(k / m), Delta = (mu_s - mu_k) N and tau
-the time since the slip began, F'' = -omega^2 (F - mu_k N) during the slip, from F = mu_s N and F' = k V:
-    F - mu_k N = Delta cos(omega tau) + (k V / omega) sin(omega tau),
-    x' = V (1 - cos(omega tau)) + (omega Delta / k) sin(omega tau)   (the block's velocity),
-and the slip ends when x' is 0 again: tan(omega tau / 2) = -omega Delta / (k V), i.e. after
-    t_slip = (pi + 2 atan(k V / (omega Delta))) / omega,
-where F - mu_k N = -Delta: the trough is (2 mu_k - mu_s) N, the force drop 2 Delta. While the block slips the force
-first still rises (F' = k (V - x')), to its largest value mu_k N + sqrt(Delta^2 + (k V / omega)^2). The block then
-sticks (|F| <= mu_s N) until F is back at mu_s N:
-    t_stick = 2 Delta / (k V),   period = t_stick + t_slip,
-and the largest slip velocity is V + sqrt(V^2 + (omega Delta / k)^2).  With mu_s = mu_k there is no stick:
-t_stick = 0 and the block slides on (its velocity touches 0 once a period 2 pi / omega).
-A scene's cycle: m = density x the slider's volume (body 2), N = normal_stress x its far face's area.
-
-An elastic slider need not break away at mu_s N (its contacts do not reach the static limit together: a slip
-front runs across them); whatever force F_p it breaks away at, the rigid block's slip from F_p follows from the
-same equations with Delta' = F_p - mu_k N in place of Delta (`given_peak`): trough mu_k N - Delta', slip time
-(pi + 2 atan(k V / (omega Delta'))) / omega, stick 2 Delta' / (k V), largest velocity V + sqrt(V^2 + (omega
-Delta' / k)^2), largest force mu_k N + sqrt(Delta'^2 + (k V / omega)^2): the kinetic half of the cycle, checked
-apart from the static limit.
-
-An incline (a block under its own weight m g tilted by theta from the plane's normal): it sticks while tan theta
-<= mu_s, else it slides with the acceleration g (sin theta - mu_k cos theta) (`incline_acceleration`).
+references (the contact pressure, the rigid block's stick-slip cycle, also from a measured breakaway, and incline,
+the heat share e1 / (e1 + e2), the heat family's slab) and the summary scalars a contact solver reports (`SCALARS`:
+names, units, signs).  The closed forms: (docs/physics.md, "Analytic references", "The contact family").
 """
 
 from __future__ import annotations
@@ -77,7 +49,8 @@ class Cycle(NamedTuple):
 
 def cycle(mass: float, normal_force: float, stiffness: float, speed: float, mu_static: float,
           mu_kinetic: float) -> Cycle:
-    """The closed-form cycle of the module docstring (SI units; mu_static >= mu_kinetic >= 0, the rest > 0)."""
+    """The rigid block's closed-form cycle (docs/physics.md, "Analytic references"; SI units;
+    mu_static >= mu_kinetic >= 0, the rest > 0)."""
     omega = math.sqrt(stiffness / mass)
     delta = (mu_static - mu_kinetic) * normal_force
     slip = (math.pi + 2.0 * math.atan2(stiffness * speed, omega * delta)) / omega
@@ -106,7 +79,7 @@ def given_peak(setting: Setting, peak: float) -> dict[str, float]:
 def spring_force(t: np.ndarray, mass: float, normal_force: float, stiffness: float, speed: float, mu_static: float,
                  mu_kinetic: float) -> np.ndarray:
     """The spring force F(t) (N) from the start (spring unstretched, block at rest): the first stick, then the
-    steady cycle (stick ramps at k V, slips as the module docstring's F)."""
+    steady cycle (stick ramps at k V, slips as F of the closed form in docs/physics.md)."""
     c = cycle(mass, normal_force, stiffness, speed, mu_static, mu_kinetic)
     t = np.asarray(t, dtype=float)
     delta = (mu_static - mu_kinetic) * normal_force

@@ -1,29 +1,8 @@
 """The elastic family: the duralumin bar compressed, vibrating and pulled to fracture, its reference scalars (E_eff =
 E, nu_eff = nu; failure_stress = sigma_c / k: uniaxial tension's Drucker-Prager stress is k sigma) and the summary
-scalars an elasticity solver reports (`SCALARS`: names, units, signs).
-
-Formulas of the MCA model on the bar (the study's targets for its rotational modes and its packing's bending):
-- `mca_rotational_hz`: the lowest rotational mode of the MCA bar (nodes on the faces, spacing a, clamped at
-  z = 0), from the model's potential by hand, not from its code: a rotational pair spring k_r = krot G S r0 on
-  phi_j - phi_i, a shear spring that sees only phi_i + phi_j (a rotation about the pair's own axis is not
-  seen), J = m (e_x^2 + e_y^2 + e_z^2) / 18.  Rotations about the bar's axis alternating across the section,
-  phi_z = (-1)^(ix + iy) psi(z), cost no shear at all: the section's pairs see phi_i + phi_j = 0, the axial
-  pairs turn about their own axis.  So only krot resists them: 2 krot G S r0 psi^2 per section pair, and
-  krot G S r0 (dpsi)^2 / 2 per axial pair.  Deep inside a long bar with a wide section this is
-  omega^2 = 48 krot G / (rho a^2), below the three-dimensional checkerboard's 72 krot G / (rho a^2) (whose
-  axial pairs would also pay krot); the half-width automata on the section's faces carry less inertia per
-  spring, omega^2 = 48 krot G / (rho a^2 (1 - (1/N_x + 1/N_y) / 4)) for N_x, N_y automata spacings across;
-  along the bar the layers form a chain (plane z = 0 held, the last plane half thick), solved exactly.
-
-Geometric (the MCA packing, `packing_second_moment_ratio`, `packing_bending_ratio`): the axial pairs of a
-packing carry the bending moment as a quadrature of y^2 over the section's depth H with one spacing a.
-"nodes" (centres on the faces, half cells there) is the trapezoid rule, whose error is +a^2 H / 6:
-I_lattice / I = 1 + 2 (a/H)^2; "cells" (equal cubes, centres a/2 inside) is the midpoint rule, error
--a^2 H / 12: I_lattice / I = 1 - (a/H)^2.  A beam's bending frequency scales as sqrt(E I), so the
-frequency ratio against the continuum is sqrt(I_lattice / I) if nothing else in the model changes.
-
-The converged continuum reference of bar-modes (scikit-fem Q2 refined, Richardson with its GCI) is a study
-group (`modes-q2-convergence` of the elasticity study), not a formula: it lives in the study's tables.
+scalars an elasticity solver reports (`SCALARS`: names, units, signs).  The MCA bar's rotational modes and its
+packing's bending ratios, derived by hand from the model's potential (docs/physics.md, "Analytic references",
+"The elastic family").
 """
 
 from __future__ import annotations

@@ -1,43 +1,8 @@
 """The heat family: the three bar-heating scenes (docs/physics.md, "The heating scenes") and the manufactured
 solution heat-manufactured, their references and the summary scalars a heat solver reports.  Its field
-reference (`analytic`, exact T / t_max) is the slab below, for every heat scene that reduces to one
-(bar-heat-faces, a study file's scenes, frictional-heating's flux).
-
-Heat flowing along one axis of the bar (a slab 0 <= z <= L):
-
-The field depends on one coordinate z when the other faces are insulated, the initial temperature is
-uniform and every load is uniform across the section:
-- the two faces z = 0 and z = L held at T0 and TL (`held`), or both insulated (`held` None);
-- a uniform volumetric source s (W/m^3);
-- a planar source releasing q (W/m^2) on the plane z = zp (`InterfaceFlux`: temperature continuous
-  across the plane, the split between the sides left to conduction).
-
-    rho c dT/dt = k d2T/dz2 + s + q delta(z - zp),    T(z, 0) = Ti,    alpha = k / (rho c).
-
-Held faces (separation of variables in sin(m pi z / L)):
-    steady  S(z) = T0 + (TL - T0) z/L + s z (L - z) / (2k) + (q/k) G(z),
-            G(z) = z (L - zp)/L for z <= zp, zp (L - z)/L for z >= zp (the Green's function);
-    T(z, t) = S(z) + sum_m b_m sin(m pi z/L) exp(-alpha m^2 pi^2 t / L^2),  b_m the sine coefficients of
-    Ti - S:  b_m = 2 (Ti - T0)(1 - (-1)^m)/(m pi) - 2 (TL - T0)(-1)^(m+1)/(m pi)
-                   - 2 s L^2 (1 - (-1)^m)/(k m^3 pi^3) - 2 q L sin(m pi zp/L)/(k m^2 pi^2).
-    (s = q = 0, T0 = t_max, TL = Ti = 0 is bar-heat-faces; T0 = TL = Ti = 0 with s gives
-    T = s z (L - z)/(2k) minus its Fourier series.)
-Insulated faces (cosine modes; no steady state unless s = q = 0):
-    T(z, t) = Ti + (s + q/L) t / (rho c)
-              + sum_m (2 q L / (k m^2 pi^2)) cos(m pi zp/L) cos(m pi z/L) (1 - exp(-alpha m^2 pi^2 t/L^2)).
-    The time-independent part of the sum is summed in closed form (sum_m cos(m theta)/m^2 =
-    pi^2/6 - pi theta/2 + theta^2/4 on [0, 2 pi]); only the decaying part is a series.  The energy
-    balance holds exactly: the integral of rho c (T - Ti) over the slab is (s L + q) t per unit area.
-
-Every series is summed until a bound on its tail is below `tol` (absolute, in K): each coefficient is
-at most B/m, so the tail beyond K terms is at most B/(K+1) e^{-c (K+1)^2} / (1 - e^{-c (2K+3)}),
-c = alpha pi^2 t / L^2.
-
-Short times (`semi_infinite_rise`): a flux q into a semi-infinite solid raises it by
-dT(x, t) = (2 q / k) sqrt(alpha t) ierfc(x / (2 sqrt(alpha t))), at its surface 2 q sqrt(alpha t / pi) / k
-(Carslaw & Jaeger, Conduction of Heat in Solids, 2nd ed., §2.9).  Two solids in perfect contact share a
-flux generated between them in proportion to their effusivities sqrt(k rho c) (`effusivity_shares`), so
-at a plane inside one material each side takes q / 2.
+reference (`analytic`, exact T / t_max) is the slab along one axis (held or insulated faces, a uniform source, a
+planar flux), summed to a bounded tail, and the semi-infinite solid's rise and effusivity shares for short times
+(docs/physics.md, "Analytic references", "Heat flowing along one axis (the slab)").
 """
 
 from __future__ import annotations
@@ -90,7 +55,7 @@ def terms_needed(c: float, bound: float, tol: float) -> int:
 
 @dataclass(frozen=True)
 class Slab:
-    """Heat flow across 0 <= z <= length (see the module docstring); temperatures in K."""
+    """Heat flow across 0 <= z <= length (the slab: docs/physics.md, "Analytic references"); temperatures in K."""
 
     length: float
     conductivity: float

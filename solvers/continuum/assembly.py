@@ -1,20 +1,9 @@
 """Fast assembly of scikit-fem's Q1 operators on structured (possibly locally warped) hexahedral grids.
 
-Why: scikit-fem's general assembly spends ~18 s on the ~640 000 cells of a 673 000-node grid, although almost
-every cell of a `grid.StructuredGrid` is the same undistorted box.  On a tensor-product grid the Q1 operators
-with `intorder=2` (exact on boxes) are Kronecker sums of the 1-D P1 operators, which scikit-fem itself
-assembles on the grid's axis coordinates (so the result is scikit-fem's matrix up to round-off; a test checks
-1e-12, plain and warped):
-
-    stiffness  K = Kx (x) My (x) Mz + Mx (x) Ky (x) Mz + Mx (x) My (x) Kz
-    mass       M = Mx (x) My (x) Mz
-    load       w = wx (x) wy (x) wz           (w_i = integral of phi_i)
-
-Warped cells (the conforming patch band) are not boxes: K = K_tensor - K_box(warped) + K_skfem(warped).
-`tensor_csr` (numba) builds a sum of Kronecker products straight into a sorted CSR matrix and drops the
-round-off of exact zeros (below `drop_rtol` times the row's diagonal), which cuts the 27-point stencil of K to
-21 points.  `grid_graph` is the 27-point node adjacency the AMG set-up aggregates on; `split_free` condenses
-Dirichlet nodes out of a matrix in one numba pass (scipy's A[free][:, free] copies the matrix twice).
+Why: scikit-fem's general assembly takes ~18 s on a 673 000-node grid of (almost all) equal boxes; Kronecker
+sums of scikit-fem's 1-D P1 operators give its matrix up to round-off (tested 1e-12, plain and warped), with the
+warped band corrected (docs/physics.md, "Continuum references", scikit-fem).  `tensor_csr` (numba) builds straight
+into sorted CSR, `grid_graph` is the AMG's 27-point node graph, `split_free` condenses Dirichlet nodes in one pass.
 """
 
 from __future__ import annotations
@@ -29,7 +18,7 @@ from skfem.models.poisson import laplace, mass, unit_load
 
 from pcverify.solvers.continuum.grid import HEX_CORNERS, StructuredGrid
 
-DROP_RTOL = 1e-12  # entries |a_ij| <= DROP_RTOL * |a_ii| are round-off of exact zeros (see module docstring)
+DROP_RTOL = 1e-12  # entries |a_ij| <= DROP_RTOL * |a_ii| are round-off of exact zeros (27 -> 21 points)
 
 
 @numba.njit(cache=True)

@@ -1,76 +1,9 @@
 """FiPy finite-volume heat solver (steady and transient conduction) on the bar.
 
-Cell layout: the node-centred ("dual") grid.  The lattice of resolution n, refined by an
-integer `refine`, has spacing h = a / refine per axis (a = extent / (nodes - 1)); every node of
-the refined lattice owns one cell, interior cells are h wide, boundary cells h/2 wide
-(FiPy `Grid3D` with non-uniform dx = [h/2, h, ..., h, h/2], i.e. `NonUniformGrid3D`; built through
-fipy_fast, the same mesh and DiffusionTerm matrix with less of FiPy's set-up work, see there).  The
-number of unknowns equals the number of refined lattice nodes; at refine=1 each particle of the
-paper's lattice is one cell (16 / 63 / 160 cells at n = 2 / 3 / 4) and each box corner is its own
-cell.  Cell centres of boundary cells sit h/4 inside the face (not on the node).
-
-How constraints reach the equations (all of it FiPy's discretisation):
-- FaceTemperature: `T.constrain(value, where=mesh.facesXxx)` on the exterior faces; FiPy's
-  DiffusionTerm then couples the boundary cell to the face value over the half distance h/4.
-  FiPy's Grid3D names: facesLeft/Right = x, facesBottom/Top = y, facesFront/Back = z
-  (docs/physics.md, "Conventions").
-- PointTemperature: the cell of the refined lattice node at the point is fixed (a point between nodes is
-  refused, as scikit-fem and the particle solvers refuse it: `grid.held_node`) with a penalty source
-  `-ImplicitSourceTerm(B) + B*T_fix` (B = penalty * k / h^2; default penalty 1e8).  A
-  `CellVariable.constrain(where=cell_mask)` does not reach the equations (docs/physics.md, "Continuum
-  references").
-  When solving, rows of fully fixed cells are eliminated (T = T_fix exactly, their coupling moved
-  to the right-hand side), so the value of B neither limits the accuracy of the fixed cells nor
-  spoils the conditioning or the stopping test of CG; with FiPy's own solvers the penalty rows
-  would hold the cell to ~6/penalty relative.
-- PatchTemperature (the sphere of radius rho about a corner), param `patch`:
-  * "cut" (default): cells whose centre lies within rho are fixed (as above), and every face between
-    a free and a fixed cell gets the diffusion coefficient k / theta (a FaceVariable coefficient of
-    FiPy's DiffusionTerm), theta = where the sphere cuts the segment between the two centres
-    (Shortley-Weller): the flux is k (T_fix - T_c) / (theta d), the sphere's position enters to
-    O(h^2) instead of O(h).  Measured: ~20x closer to the converged volume mean than "fraction" or
-    "staircase" at the same grid and monotone under refinement (tests).  When no cell centre lies
-    within rho (coarse grids, e.g. the paper's n = 2..4 at refine 1) that patch falls back to
-    "fraction" (diagnostics["patch_fallback_to_fraction"]);
-  * "staircase": cells whose centre lies within rho are fixed (as above); if none is, the cell that
-    contains the patch centre (the corner node's cell, as the particle solvers hold the corner node);
-  * "fraction" (default): f = volume fraction of the cell inside the sphere (8^3 sub-samples per
-    cell, vectorised).  f = 1 cells are fixed; partially covered cells get the penalty
-    B_c = f / (1 - f) * D_c / V_c, D_c the cell's conduction diagonal, so their row reads
-    T_c = f T_fix + (1 - f) * (conductance-weighted mean of the neighbours): the constraint varies
-    continuously with the geometry under refinement instead of jumping cell by cell.  A patch so
-    small that no sub-sample falls inside it is held at the cell containing its centre (the point
-    limit, as the particle solvers hold the node at the corner) instead of vanishing.
-  FiPy grids are tensor-product grids and cannot be warped to conform to the sphere, so the patch
-  surface is always represented to O(h) (a conforming patch is the scikit-fem solver's job).
-  The penalty source is added as FiPy's ImplicitSourceTerm discretises it (S_P V_P on the
-  diagonal, S_P V_P T_fix on the right); a test checks this against FiPy's own combined build.
-
-Loads: a volumetric source s (W/m^3) adds s V_c to every cell's right-hand side (FiPy's
-explicit source term, a cell-centred value: a source field is taken at the cell centre, the midpoint
-rule, second order as the scheme); an interface flux q on the plane {x_axis = p} adds
-q A_c w_c, A_c the cell's cross-section across the axis and w_c the 1-D hat weights of p between the
-two neighbouring cell centres along the axis (all of it to the cell whose centre lies on the plane, as
-for a plane on a lattice node plane; to the boundary cell when p lies between a face and its centre).
-The plane is a surface load inside one continuous body: conduction divides the flux between its two
-sides (`InterfaceFlux`).  With no temperature held, every row of K sums to zero, so the heat content
-sum rho c V_c T_c grows by exactly dt (s V + q A) per step (energy balance to round-off).
-
-Steady: K T = f with (K, f) the negated matrix / RHS FiPy assembles for DiffusionTerm(k) plus
-sources.  Transient (theta method, C = rho c V the TransientTerm diagonal):
-(C/dt + theta K) T^{n+1} = (C/dt - (1 - theta) K) T^n + f; "implicit-euler" theta = 1,
-"crank-nicolson" theta = 1/2 after `rannacher_steps` implicit-Euler half steps.  FiPy rebuilds
-the matrix every time step; here FiPy assembles once and each distinct step matrix is factored
-once (splu) or gets one pyamg hierarchy, reused for all steps.
-
-Interpolation to sample points: trilinear on the cell centres padded with one layer of face
-values per side (so the grid covers the closed box): fixed faces -> the prescribed value;
-insulated faces -> the zero-gradient quadratic through the two nearest centres at distances
-d0 < d1 from the face, T_face = T0 - (T1 - T0) d0^2 / (d1^2 - d0^2) (= (16 T0 - T1)/15 for
-d0 = h/4, d1 = h; = (9 T0 - T1)/8 for n = 2, refine = 1).  Second order, exact for fields linear
-along the axes whose faces are fixed and constant across insulated ones (e.g. the steady face
-scene).  Points inside a patch sphere report the patch value; points inside a cell fixed by a
-PointTemperature report its value.
+The continuum reference for the heat scenes on FiPy's node-centred grid: constraints and loads reach FiPy's own
+discretisation, the step matrices are factored once, and values are interpolated to the shared sample points.
+The cell layout, the patch variants (cut, staircase, fraction), the loads, the theta-method and the interpolation:
+(docs/physics.md, "Continuum references", FiPy).
 """
 
 from __future__ import annotations
@@ -182,7 +115,7 @@ def cell_load(scene: Scene, edges: list[np.ndarray]) -> np.ndarray:
 
 def _pad_axis(vals: np.ndarray, centres: np.ndarray, edge: np.ndarray, axis: int,
               fixed: dict[int, float]) -> tuple[np.ndarray, np.ndarray]:
-    """Pad `vals` with one face layer on each side of `axis` (see module docstring)."""
+    """Pad `vals` with one face layer on each side of `axis` (the insulated-face quadratic: docs/physics.md, FiPy)."""
     v = np.moveaxis(vals, axis, 0)
     layers = []
     for side in (0, 1):

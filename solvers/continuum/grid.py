@@ -1,16 +1,9 @@
 """Structured hexahedral grids on the bar, conforming corner-patch warps, point location (for the continuum
 solvers).
 
-Grid.  The grid of resolution (n, refine) has the particle lattice of resolution n as a subset of its nodes:
-spacing h = a / refine on every axis, a = W / (n - 1).  Node (i, j, k) has the flat index (i * ny + j) * nz + k
-(x slowest, z fastest, the order of `Box.lattice_points`); cell (i, j, k) spans the nodes (i..i+1, j..j+1,
-k..k+1), listed in scikit-fem's MeshHex1 order (`hex_connectivity`).
-
-Warp.  `SphereWarp` moves the nodes near a patch centre so that a cube shell of grid faces lands exactly on
-the patch's sphere; nodes far from it do not move.
-
-Location.  `StructuredGrid.locate` / `interpolation_matrix`: exact Q1 interpolation at arbitrary points, by
-inverting the warp and then Newton on the candidate cell's trilinear map (searching its neighbours).
+The grid of resolution (n, refine) has the particle lattice of resolution n among its nodes; node (i, j, k) is
+(i * ny + j) * nz + k (the order of `Box.lattice_points`), cells in MeshHex1 order; the warp and the location
+(docs/physics.md, "Continuum references", "The structured grid").
 """
 
 from __future__ import annotations
@@ -75,17 +68,8 @@ def _smooth_fall_slope(xi: np.ndarray) -> np.ndarray:
 class SphereWarp:
     """Radial warp that puts the max-norm shell s = s1 of a grid onto the sphere |x - c| = rho.
 
-    With u = x - c, t = |u|, s = max_i |u_i| (the max-norm distance; s/t depends only on the direction
-    of u), a point moves along its ray from c to radius R:
-
-        s <= s1:        R = rho * s / s1                        (the cube of half-size s1 -> the ball)
-        s1 < s < s2:    R = t + (rho - t1) * phi(xi),  t1 = s1 * t / s,  xi = (s - s1) / (s2 - s1)
-        s >= s2:        R = t                                   (identity)
-
-    phi (`_smooth_fall`) makes the warp C1 across s = s2, a bijection of the cube {s < s2} while R increases
-    along every ray (`min_slope`).  The nodes with s = s1 land exactly on the sphere (the mesh's faceted inner
-    boundary interpolates it to O(h^2)); the map is radial from c, so a plane through c stays put; s1 and s2
-    depend on h only through s1 = m h, so the warps of a refinement sequence differ by O(h).
+    C1 across s = s2 (`_smooth_fall`), a bijection while R increases along every ray (`min_slope`); the map and
+    why the warps of a refinement sequence differ by O(h): docs/physics.md, "The structured grid".
     """
 
     centre: tuple[float, float, float]

@@ -1,18 +1,8 @@
 """scikit-fem linear elasticity of the bar: static (supports, clamps) and modal analysis, Q1 or Q2 hexahedra.
 
-Discretisation (docs/physics.md, "Continuum references"): vector Lagrange hexahedra on
-`grid.StructuredGrid.lattice(box, n, refine)`, whose nodes include the particle lattice of resolution n.  Gauss
-quadrature with 2 (Q1) or 3 (Q2) points per axis integrates K and M exactly on the grid's boxes (scikit-fem's
-default for Q2, intorder 12, costs 343 points per cell instead of 27); every cell being the same translated
-cube, K and M are assembled once on the unit cube, scaled and scattered (`unit_cell_matrices`,
-`scatter_uniform`).  Constraints are nodal.  A scene held only by supports normal to z keeps three rigid-body
-modes, removed by the statically determinate "3-2-1" set at the corners of face z0 on y = 0, which carries no
-force in the uniaxial state (`rigid_constraint_reactions_N` reports it).  Static solves: SuperLU, or CG with a
-smoothed-aggregation AMG on the 3x3-block matrix with the rigid-body modes as near-nullspace; "auto" switches at
-`direct_max_unknowns` (SuperLU's 3-D fill makes AMG-CG cheaper between ~6k and ~19k Q2 unknowns,
-tests/bench/test_bench_skfem_elastic.py) and, for modes, at `modal_direct_max_unknowns` (shift-invert needs ~40
-solves with one matrix, so one factorisation beats ~40 AMG-CG solves; the limit bounds the factor's memory).
-Modes: ARPACK in shift-invert mode about 0 from a seeded start vector, classified by `pcverify.solvers.modes`.
+The continuum reference for the elastic scenes: K and M assembled once on the unit cube and scattered, rigid
+motions held by the force-free "3-2-1" set, SuperLU or AMG-CG by size, ARPACK shift-invert for the modes
+(docs/physics.md, "Continuum references", scikit-fem).
 """
 
 from __future__ import annotations

@@ -1,42 +1,9 @@
 """scikit-fem heat conduction solver: Q1 hexahedra on the refined particle lattice, steady and transient.
 
-Discretisation (docs/physics.md, "Continuum references"):
-- Mesh: `grid.StructuredGrid.lattice(box, n, refine)`: the nodes of the particle lattice of resolution n
-  are grid nodes, h = a / refine.  MeshHex1 + ElementHex1, quadrature `intorder=2` (exact for the Q1
-  stiffness and mass on undistorted cells; the skfem default order is much more expensive).
-- Operator: K = k ∫ grad u . grad v, M = rho c ∫ u v (transient only), assembled by
-  `assembly.assemble_q1`: Kronecker sums of scikit-fem's 1-D P1 matrices on the box cells, scikit-fem's
-  general assembly on the warped patch band only (= scikit-fem's 3-D assembly to ~2e-15 relative, tested;
-  ~0.3 s instead of ~18 s at 673 000 nodes).  Temperatures are nodal
-  constraints eliminated by condensation (no penalty): rows/columns of the free nodes only.
-- Constraints: PointTemperature -> the grid node at the point; FaceTemperature -> every node of the face;
-  PatchTemperature -> parameter `patch`: "staircase" fixes the nodes with |x - c| <= radius on the plain
-  grid; "conforming" warps the grid (see `grid.SphereWarp`) so that a closed shell of grid faces lies on
-  the sphere, then fixes the nodes on and inside it.  The warp is checked: every warped cell must have a
-  positive Jacobian at its corners and centre.
-- Loads: a volumetric source s (W/m^3) enters as s w (w_i = integral of phi_i, the same weights as the
-  volume mean), a source field s(x) as the linear form's integral of s phi_i (`_field_load`); an interface
-  flux q on the plane {x_axis = p} as q times `assembly.plane_load` (the 1-D hat at p times the 1-D loads
-  across; exact for Q1).  The plane is a surface load inside one continuous
-  body: temperature stays continuous across it and conduction divides the flux between the two sides
-  (`InterfaceFlux`).  A plane that crosses a warped patch band is refused.  Both loads are constant in
-  time: the theta-method adds dt f per step; with no temperature held, 1^T K = 0 and the heat content
-  w^T (rho c T) grows by exactly dt sum(f) per step (energy balance to round-off).
-- Transient: theta-method from `scene.conduction.initial_temperature`, constrained values switched on at t = 0+
-  (the state at t = 0+ is the initial field with the constrained nodes at their values, as the analytic
-  Fourier series assumes).  `scheme` "implicit-euler" (theta = 1) or "crank-nicolson" (theta = 1/2) with a
-  Rannacher start: the first `rannacher_steps` half steps (dt/2) are implicit Euler, so
-  rannacher_steps = 4 replaces the first two Crank-Nicolson steps.  Steps: round(t_end / dt), which must
-  reproduce t_end to 1e-9 relative.
-- Linear algebra: "direct" = SuperLU (scipy splu, factored once per distinct operator); "amg" = CG
-  preconditioned by a pyamg smoothed-aggregation V-cycle (settings: `amg_options`; for steady solves the
-  finest level aggregates on the grid's node graph; hierarchy built once, reused every step, warm
-  start from the previous step), relative residual `cg_rtol`; the true residual is re-checked after CG.
-  "auto" uses direct up to `direct_max_unknowns` free nodes (default 10 000: measured on 2 cores, SuperLU
-  with MMD ordering factors 26k free nodes in ~2 s while AMG-CG solves them in ~0.2 s).
-- Output: values T / t_max at the sample points by exact Q1 interpolation on the (warped) grid
-  (`grid.StructuredGrid.interpolation_matrix`), volume mean ∫T dV / V / t_max by the same quadrature as
-  the operator (∫T dV = sum_i T_i ∫phi_i dV).
+The finite-element reference for the heat scenes: nodal constraints eliminated by condensation, a conforming
+patch by warping the grid, implicit Euler or Crank-Nicolson with a Rannacher start, SuperLU or AMG-CG.
+The mesh, operator, constraints, loads, time stepping, linear algebra and output in full:
+(docs/physics.md, "Continuum references", scikit-fem).
 """
 
 from __future__ import annotations
@@ -291,7 +258,7 @@ class SkfemHeat:
 
     @staticmethod
     def _load(scene: Scene, grid: StructuredGrid, weights: np.ndarray) -> np.ndarray:
-        """Nodal heat load (W): the volumetric source and the interface flux (see the module docstring)."""
+        """Nodal heat load (W): the volumetric source and the interface flux (docs/physics.md, scikit-fem)."""
         heat = scene.conduction
         load = heat.source * weights if not heat.source_field else _field_load(heat, grid)
         plane = heat.interface

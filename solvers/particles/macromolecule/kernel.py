@@ -1,18 +1,9 @@
 """The macromolecule integrator: one kernel, its inputs, its pair pass and its step with fixes and computes.
 
-Kick-drift velocity Verlet (v_n = (v_{n-1/2} + v_{n+1/2}) / 2; LAMMPS fix nve with pair damping at force time):
-  v_{n+1/2} = v_{n-1/2} + dt (Fc(x_n) + Fd(x_n, v_{n-1/2}) + lambda_n) / m,   x_{n+1} = x_n + dt v_{n+1/2},
-Fd = delta rdot e the radial pair damping with the half-step velocity (DPD-VV's predictor): one force pass per
-step, stable for omega dt / 2 < sqrt(1 + zeta^2) - zeta for one mode (`modal.discrete_stability_limit`);
-lambda_n is what a fix adds.  The energy ledger E_n = sum 1/2 m v_{n-1/2} . v_{n+1/2} + U(x_n) is exact algebra
-but for the trapezoid error of the conservative work: nil for a harmonic lattice, O(dt^2) otherwise (n = 5,
-D = 0.02 a: 2.0e-3 of the drive work at safety 0.1, 5.0e-4 at 0.05, hence the default safety 0.05).
-
-Layout: the fixed pair list as a lattice stencil (`stencil`: groups of equal index offset and rest shell, each
-a contiguous loop over slots with a 0/1 mask for non-pairs), so LLVM vectorises the pair loop.  Dissipation is
-kept exactly per slot and summed (8 fixed partial sums) only for the history and at the end.  Hop flags are
-exact every pass; NaN, box, energy-growth and neighbourhood checks run every `check_every` steps.
-Compiled per envelope, when used: `run_p2` ((a/r)^2, vectorised) and `run_any` (x^-p through pow).
+Kick-drift velocity Verlet with radial pair damping at the half-step velocity, one force pass per step, and an
+exact energy ledger (scheme, stability limit and why the default safety is 0.05: docs/physics.md, "The
+macromolecule model").  The pair list is a lattice stencil (contiguous, masked slots) so LLVM vectorises the pair
+loop; dissipation is kept per slot and summed in 8 fixed partial sums; compiled per envelope: `run_p2`, `run_any`.
 """
 
 from __future__ import annotations

@@ -1,20 +1,9 @@
 """Automata of the movable cellular automaton (MCA) method on a rectangular simple-cubic lattice
 (docs/physics.md, "The movable cellular automaton (MCA) model": packing).
 
-"nodes" (`build_automata`, `bar_automata`): each automaton is the Voronoi cell of its lattice node clipped by
-the body (a box of extent h inside, h/2 at a face).  Pairs are the face neighbours (r0 = h); S is the shared
-cell face and q = r0/2 the distance from either centre to the contact point.  Two sums then hold exactly for
-every automaton, on faces, edges and corners too:
-    sum_j q_ij S_ij = 3 Omega_i,      sum_j q_ij S_ij n_ij (x) n_ij = Omega_i I,
-so a homogeneous strain gives every automaton the continuum's average stress and volume strain: this is what
-lets the uniaxial tests return E and nu exactly.  Mass m = rho Omega, moment of inertia J = m (ex^2 + ey^2 +
-ez^2) / 18 (the mean of the box's principal moments: a spherical top).
-
-"cells" (`cell_automata`): equal cubes of edge a = W / n filling the body, centres a/2 inside the faces, as MCA
-codes pack it; the sums hold inside only.  A constrained face acts through wall bonds (`walls`, half-length
-pairs to a wall point on the face); a free face's outer half-cell is condensed (`many_body_volume` = Omega_i
-(1 + m_i lam / (2 kn)) for m_i free faces), so that a homogeneous strain with traction-free sides is an exact
-equilibrium.
+"nodes" (`build_automata`, `bar_automata`): Voronoi cells of the lattice nodes clipped by the body, for which
+sum_j q S = 3 Omega and sum_j q S n (x) n = Omega I hold exactly (why the uniaxial tests return E and nu);
+"cells" (`cell_automata`): equal cubes, with wall bonds and condensed free faces ("The MCA solver in detail").
 """
 
 from __future__ import annotations
@@ -51,7 +40,7 @@ class Automata:
 
     def many_body_volume(self, lam: float, kn: float) -> np.ndarray:
         """The volume the many-body term divides by: Omega_i, times 1 + m_i lam / (2 kn) for an automaton
-        with m_i free faces ("cells"; see the module's docstring)."""
+        with m_i free faces ("cells"; docs/physics.md, "The MCA solver in detail")."""
         if self.free_faces is None or lam == 0.0:
             return self.volume
         return self.volume * (1.0 + 0.5 * self.free_faces * lam / kn)

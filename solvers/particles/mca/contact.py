@@ -1,32 +1,9 @@
-"""Contact of two MCA bodies by the segment method, in 3-D: surface facets, contact search, friction
-(docs/physics.md, "The movable cellular automaton (MCA) model", states the physics).
+"""Contact of two MCA bodies by the segment method, in 3-D: surface facets, contact search, friction.
 
-Surfaces (from the linked pairs): an automaton faces direction +-e_a when it has no linked pair on that
-side; four such automata joined by linked pairs around a lattice square form a facet square, split into two
-triangles (i, j1, j12) and (i, j12, j2), ordered so that their normal points out of the body.
-
-Segment method (eqs. 10-15 of the MCA paper), one pass: every surface automaton k of body 2 (a slave)
-interacts with one facet of body 1: the nearest listed facet that contains its foot point, else the one whose
-foot lies least outside if that is at most EDGE outside (barycentric units, about half a spacing); k must be in
-front of the facet, at a height h < h0 = d.  The weights w_v of the foot point (clipped to >= 0) share every
-force on k among the facet's three automata: F_v = -w_v F_k.
-- Normal: the compressive half of a linked pair written for a foot point,
-      sigma_c = min(0, kn (h - h0) / h0 + lam (theta_k + sum_v w_v theta_v) / 2),
-  so a stack compressed across a flat interface is exactly its bonded lattice; it acts at the centres.
-- Friction acts at the contact point c = x_k - (h / 2) n, with its moments about the automata's centres: a
-  contact exerts no net force and no net couple.  Without rotations it acts at the centres (the sliding
-  scenes refuse rotations=false).  The slip velocity is that of the two contact points, spins included.
-- Friction law (eq. 16, `friction_law`): regularised (viscous below v_reg, Coulomb above; the explicit step
-  caps the force at what stops the relative velocity in one step -- without the cap a pressed stack never
-  relaxed), or static (Cundall-Strack: a tangential spring per contact with a Coulomb limit, mu_s while it
-  sticks, mu1 once it slips; `_static`); plus the viscous mu0 V_t.
-- Heat: the dissipated power enters k and the facet's automata, half to each body.
-- Reactions: the held degrees of freedom (`held`, `held_rot`) record the force and moment their constraint
-  exerts and their time integrals, so a drive's and a clamp's reactions measure the friction outside the
-  law's own bookkeeping.
-
-The candidate list (facets whose centroid lies within h0 + 0.75 d + 2 skin of a slave that faces them,
-nearest first) is rebuilt with the pair list, whenever an automaton has moved further than the skin.
+Facets from the automata without a linked pair on a side, each slave automaton against one facet by its foot
+point's barycentric weights, the bonded pair's compressive law, friction at the contact point with its moments,
+the reactions of held degrees of freedom, and the candidate list rebuilt with the pair list
+(docs/physics.md, "The movable cellular automaton (MCA) model" and "The MCA solver in detail").
 """
 
 from __future__ import annotations

@@ -1,24 +1,8 @@
 """The MCA solver's contact scenes: two bodies pressed together, pressed and slid, or slid and heated by
 friction (contact.py holds the segment method and the friction law; this module maps a scene's Contact part
-onto the model and summarises the run; the physics is in docs/physics.md, "The movable cellular automaton
-(MCA) model").
-
-- Pressed (`pressed`): the supports compress the stack across the interface, relaxed dynamically as
-  bar-compression is; each body's far face carries the force-free "3-2-1" set against rigid motion (the
-  friction law has no static part).  The contact pressure is held against E |strain| of the bonded stack.
-- Sliding (`sliding`): body 2's far face is pressed by normal_stress, the preload relaxed, then the face is
-  driven along the direction, ramped in over `slide_ramp`, for the scene's duration: the window every average
-  is taken over.  Damping (slide_damping) acts relative to each body's drive, so it damps vibrations and not
-  the sliding: undamped, the slider on its elastic base develops a friction-induced vibration (measured at
-  n = 4, V = 1 m/s, 1 MPa: contacts open and close, mu_dr(t) swings by +-0.2 about 0.3).  mu_dr = F_dr / F_N
-  (eq. 17) against the law as implemented (`mu_dr_expected`), and, outside the law's bookkeeping, mu at the
-  drive and at the clamp, Newton's third law, the angular momentum balance and the drive's power
-  (`_reaction_summary`, `_drive_power`).  The run is ok only if the bodies stayed in contact over the whole
-  window (`contact_lost`) and the ramp and window fit in max_steps (a cut window is never averaged).
-- Frictional heating (`heating`): sliding, then MCA heat on the bonded automata fed by each contact's mean
-  friction power over the window, split by the bodies' conductivities (`thermal_split`; one-way, quasi-steady
-  coupling: the mechanics' time scale is ~1e-7 s, the heat's ~1e-2 s; no thermal expansion), against two
-  semi-infinite solids in contact.
+onto the model and summarises the run: pressure, mu at the drive and the clamp, Newton's third law, angular
+momentum, the drive's power, the heat split by conductivities) (docs/physics.md, "The MCA solver in detail",
+"Contact scenes").
 """
 
 from __future__ import annotations
@@ -130,7 +114,7 @@ def contact_summary(st: mk.State) -> dict[str, Any]:
 
 def pressed(scene: Scene, aut: Automata, bonded: Automata, el: Elastic, law: ct.ContactLaw, p: dict[str, Any]
             ) -> dict[str, Any]:
-    """Pressed: the supports compress the stack across the interface, relaxed dynamically (module docstring)."""
+    """Pressed: the supports compress the stack across the interface, relaxed dynamically (docs/physics.md)."""
     contact = scene.contact
     rate = Model(bonded, el).relaxation_rate()
     t_ramp = p["ramp_periods"] * 2 * math.pi / rate

@@ -1,41 +1,9 @@
 """Numba kernel of the MCA mechanics: pair and many-body forces in incremental form, velocity Verlet.
 
-Pair state (per listed pair p = (i, j), n the unit vector from i to j, r its length, q = r0/2 on either side
-at rest; the contact point is the pair's midpoint, r/2 from either centre):
-- normal stress sig (tension > 0) and tangential stress vector tau (in the pair's tangent plane), both
-  "effective" (undamaged) stresses carried incrementally; the force on i is S (1 - d_ij) (sig n + tau),
-  d_ij the mean damage of the two automata;
-- linked (1) or unlinked (0).  Unlinked pairs carry compression only, sig = kc min(0, (r - r0)/r0), and
-  Coulomb friction |tau| <= mu |sig| (the same objective update, then the cap: a tangential spring with a
-  Coulomb limit).
-Increments over one step (strain split: equal automata, so q_ij = q_ji and equal stresses give equal pair
-strains on both sides; model.py derives the many-body coefficient):
-    d sig = kn d r / r0 + lam (d theta_i + d theta_j) / 2,
-    tau_new = Q R tau_old + (2 G / r0) P_n (d_new - R d_old),
-theta_i = sum_j S_ij (r_ij - r0_ij) / (2 Omega_i) is the automaton's volume strain from the displacements
-of its contact points (eq. 9 of the MCA paper); kn = 2G and lam = 1 - 2G/(3K) times K with the many-body
-term, kn = E and lam = 0 without it (pair-only).  d = x_j - x_i is the pair's separation (d_old = d_new -
-(dx_j - dx_i)), R the exact (Rodrigues) rotation by the pair's mean spin increment w = (dphi_i + dphi_j)/2
-(the identity without rotations), P_n the projection on the new tangent plane and Q the smallest rotation
-taking m = R n_old to n_new, applied as v - (n.v)(m + n)/(1 + m.n): exact for v tangent to m, as R tau_old
-is, and with no component along n by construction (no drift off the plane).  To first order the increment
-is the relative displacement of the contact points at the pair's midpoint, dx_j - dx_i - (r/2)(dphi_i +
-dphi_j) x n: the MCA pair law, unchanged in the linearised model (stiffness.py).
-Why it is objective: under a rigid motion every automaton turns by the same R (dphi_i = dphi_j = w) and
-d_new = R d_old exactly, so the increment is zero and tau_new = R tau_old (Q = I), for any axis and any
-step, to round-off; the moments use the same arm r/2, so the pair forces do work only on the increment
-(energy) and their net couple is zero (angular momentum).  The update it replaced, and the shear a rigid turn
-is without rotations (`rotations = false`), are measured in docs/physics.md.
-Automaton state (the inelastic part): average stress (from the pair stresses, sigma = (1/Omega) sum q S
-(sig n n + sym(n tau))), equivalent plastic strain alpha (radial return), kappa (largest effective stress
-intensity) and damage d.
-
-The kernel family (kernels.py): a kernel takes (state, params, nsteps).  `State` holds every array (the
-automata, their pairs and fixes, and what a step advances) and `Params` the run's scalars, both
-typing.NamedTuple values that numba compiles as structures.  The parts a scene may not need -- rotations,
-the inelastic state (response functions, fracture), loads, contact of two bodies (contact.py), a moving
-damping frame -- are None in the state; numba prunes the branches on a None argument, so a scene without
-rotation compiles and runs no rotation terms.  Each combination of parts is compiled (and cached) once.
+The pair state (normal and tangential stress, linked or not), its objective incremental update and the automata's
+inelastic state (docs/physics.md, "The MCA solver in detail").  A kernel takes (state, params, nsteps): `State` and
+`Params` are NamedTuples numba compiles as structures; the parts a scene may not need (rotations, inelastic state,
+loads, contact, a moving damping frame) are None, so numba prunes their branches; each combination compiles once.
 """
 
 from __future__ import annotations

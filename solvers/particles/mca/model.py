@@ -1,19 +1,9 @@
 """MCA model: material constants, the automata's state, and two ways of running it: `Model.advance` in time,
 `relax` with viscous damping to a residual force (dynamic relaxation, for static scenes).
 
-Many-body coefficient (1 - 2G/K and 1 - 2G/(3K): docs/physics.md, "The movable cellular automaton (MCA)
-model").  The pair's normal stress is
-    sig_ij = 2 G eps_ij + D P_i,  P_i = K theta_i (mean stress of the automaton, theta its volume strain),
-eps_ij = n.eps.n the normal strain of the pair.  For a homogeneous strain eps of the lattice every automaton
-has theta = tr eps (the geometric identities of automata.py), so sig_ij = n.(2 G eps + D K tr(eps) I).n,
-which is Hooke's law n.sigma.n = n.(2 G eps + lambda tr(eps) I).n for every direction n exactly when
-    D K = lambda = K - 2G/3,  i.e.  D = 1 - 2G/(3K).
-The other form, D = 1 - 2G/K, gives lambda' = K - 2G and so Poisson's ratio lambda'/(2(lambda' + G))
-(0.19 instead of 0.33 for duralumin); the uniaxial-stress tests (tests/test_mca.py) measure both.  The
-tangential stress 2G gamma, gamma the pair's shear strain at the contact point (relative displacement of
-the contact points including the automata's rotations over r0), gives the shear modulus G.
-Without the many-body term (`many_body = false`) a pair carries sig = E eps_ij: a lattice of central
-normal springs along the cube axes has no lateral coupling, so nu_eff = 0 (measured, not assumed).
+The many-body coefficient D = 1 - 2G/(3K) is the one for which the pair stress is Hooke's law in every direction
+(1 - 2G/K gives nu = 0.19 for duralumin; without the term nu_eff = 0): derived in docs/physics.md, "The MCA
+solver in detail", "The many-body coefficient".
 """
 
 from __future__ import annotations

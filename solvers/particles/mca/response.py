@@ -1,20 +1,8 @@
 """Response functions sigma = f(eps) of the MCA automata (Fig. 3 of the MCA paper): the kernel's numbers for
 the scene's `Response`, and the exact uniaxial curve the block test compares against.
 
-The four kinds, as the project defines them (one post-linear modulus, `hardening` = H):
-- (a) elastic: sigma = E eps up to the strength sigma_c, then fracture.
-- (b) degradation: linear to sigma_d, then the tangent modulus H up to sigma_c.  The loss of stiffness is
-  damage: the transmitted stress is (1 - d) times the elastic ("effective") stress, with
-  d(kappa) = 1 - g(kappa)/kappa, g(kappa) = sigma_d + (H/E)(kappa - sigma_d) for kappa > sigma_d, where
-  kappa is the largest effective stress intensity reached.  Unloading therefore follows the reduced
-  (secant) modulus (1 - d) E back to the origin.
-- (c) plastic: linear to sigma_y, then linear isotropic hardening with uniaxial tangent modulus H (plastic
-  modulus H' = E H / (E - H)) by radial return on the automaton's stress intensity (Wilkins); unloading
-  is elastic with E and leaves the plastic strain.
-- (d) plastic-degradation: (c) for the effective stress and the damage of (b) on top, kappa being the
-  largest effective (plastic) stress intensity: unloading with (1 - d) E to the plastic strain.
-Fracture (every kind): a linked pair unlinks when the Drucker-Prager equivalent stress
-sigma_eq = 0.5 (k + 1) sigma_int + 1.5 (k - 1) sigma_mean of its automata reaches sigma_c.
+Elastic, degradation (damage), plastic (radial return) and plastic-degradation, one post-linear modulus H;
+fracture at the Drucker-Prager equivalent stress (docs/physics.md, "The MCA solver in detail", "Response functions").
 """
 
 from __future__ import annotations

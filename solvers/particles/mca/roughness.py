@@ -1,22 +1,8 @@
-"""Micro-roughness K_mu of an MCA contact (eq. 18 of the MCA paper,
-docs/physics.md, "The movable cellular automaton (MCA) model"), and its analytic mean.
+"""Micro-roughness K_mu of an MCA contact (eq. 18 of the MCA paper), and its analytic mean.
 
-K_mu of a contact is the sum of two piecewise sinusoids advanced by the contact's sliding distance:
-    K = A_1 sin(pi (x_1 - l_1) / l_1) + A_2 sin(pi (x_2 - l_2) / l_2),   x_m += |V_tau| dt,
-(eq. 18 with the amplitudes already divided by the mesovolume size: A_m here is A_m^n / A).  The project's
-choice of the fragments, which the paper leaves open: each fragment of sinusoid m is one positive half-wave,
-its coordinate x_m running from l to 2 l (so K >= 0 and oscillates about K_av > 0, as the paper says); at
-x_m = 2 l a new fragment starts with a new half-period l and amplitude A, drawn uniformly from
-[(1 - s) d_m, (1 + s) d_m] and [(1 - s) a_m, (1 + s) a_m] (d_m: the regularity parameter, the mean
-half-period; a_m: the mean amplitude A_m^av / A; s: the spread), the overshoot carried into it.  The draws
-come from a counter-based generator (splitmix64 of seed, contact, sinusoid, fragment): the same seed gives
-the same K on any number of threads, and each contact's process is independent of the others.  Each
-process starts in its stationary state (`start`), as a contact that has been sliding for a long time.
-
-Mean over the sliding distance (renewal-reward, amplitude and length drawn independently):
-    K_av = (2 / pi) (a_1 + a_2);
-variance of the mean over a distance D >> d (per sinusoid, delta method):
-    (4 / (3 pi^2)) s^2 a_m^2 d_m (1 + s^2 / 3) / D.
+Two piecewise sinusoids of positive half-waves advanced by the sliding distance, each fragment's half-period and
+amplitude drawn from a counter-based generator (the same K on any number of threads), started stationary; the
+mean K_av = (2 / pi)(a_1 + a_2) and its variance (docs/physics.md, "The MCA solver in detail", "Micro-roughness").
 """
 
 from __future__ import annotations

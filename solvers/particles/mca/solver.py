@@ -1,24 +1,10 @@
 """The movable cellular automaton (MCA) solver: elasticity, fracture, eigenfrequencies, heat and contact.
 
-Pieces: `automata` (the automata of the bar: "nodes" or "cells" packing), `kernel` (numba: incremental pair and
-many-body stresses, rotations, response functions, unlinking, velocity Verlet), `kernels` (the kernel family by
-name, one signature), `model` (constants, rest state, dynamic relaxation), `stiffness` (the linearised model:
-modes, stable step), `heat` (conduction between linked automata), `response` (sigma = f(eps) and its exact
-uniaxial curve), `contact_scenes`, `stick_slip` and `incline` (two bodies in contact).  This module holds the
-table of analyses (`ANALYSES`): each kind of MCA run is one entry, chosen by what the scene declares (its
-physics words, its conduction mode, whether its contact slides; never its name), with its refusal check, its
-work estimate and its run; `Mca` looks the scene's analysis up and turns the run's results into a Solution.
-
-Analyses on the bar lattice (the physics: docs/physics.md, "The movable cellular automaton (MCA) model"):
-- heat, steady (a direct solve of the automata's heat balance) and transient (explicit steps at the stable step);
-- static elasticity: the supports' displacements ramped in and relaxed dynamically (`Model.relaxation_rate`) to
-  relax_tol E |strain| a^2, rigid motions held by the same force-free "3-2-1" set as skfem-elastic;
-- fracture: face zL pulled at strain_rate until the reaction falls below 5 % of its peak after unlinking, or the
-  strain reaches 1.5 times the response function's failure strain;
-- modes: eigenfrequencies of the linearised automata, kinds by `pcverify.solvers.modes`, shared with
-  skfem-elastic; a mode mostly in the rotations is rotational (only krot resists it), listed below the
-  `modes`-th one of a continuum kind so that f_<kind> stands on the same modes as the continuum's.
-"cells" packing runs static elasticity and modes only (the linearised model); the others skip it.
+This module holds the table of analyses (`ANALYSES`): each kind of MCA run is one entry, chosen by what the scene
+declares (never its name), with its refusal check, its work estimate and its run; `Mca` looks the scene's analysis
+up and turns the run's results into a Solution.  The pieces are the sibling modules (automata, kernel, kernels,
+model, stiffness, heat, response, contact_scenes, stick_slip, incline); the analyses: (docs/physics.md, "The MCA
+solver in detail").
 """
 
 from __future__ import annotations

@@ -1,20 +1,9 @@
 """The MCA solver's stick-slip run: a slider pressed on its clamped base and pulled by a spring (Contact's
 spring_stiffness) whose far end moves at the contact's speed (docs/physics.md, the MCA model's stick-slip).
 
-The contact law's coefficients are the scene's friction pair (`law_params`); the solver's `friction_law`
-chooses the law (the regularised law has no static friction, so it cannot stick).  The preload is relaxed as
-the sliding analysis does (contact_scenes.sliding), then the spring (kernel.Spring, pulling at the centre of
-mass) is attached unstretched and its far end moves for the scene's duration.  Damping (`slide_damping`) acts
-relative to each body's mean velocity, so its resultant on the slider is zero: undamped, the slider chatters
-after its first slip (measured at n = 4) and no second stick follows.
-
-Measured from the rows of the spring force and the slider's mean velocity and displacement alone (not from the
-friction law's bookkeeping): slip phases are the rows where the mean velocity exceeds SLIP_SPEED of the drive
-speed, ending at the nearest rows below REST_SPEED.  Each slip after the first gives its peak, trough, force
-drop, largest force, slip time, largest velocity, the stick before it and the period; the summary holds their
-means and spreads over the whole cycles (`stick_slip_cycles`).  The rest threshold biases the ends inward by
-REST_SPEED V m / (mu_s - mu_k) N (1.4 us at the scene's defaults: slip time -0.4 %, stick +0.35 %, force drop
-+0.35 %; the period and the largest force and velocity are unbiased).  Fewer than two slips: failed.
+The cycle is measured from the spring's rows alone, not from the friction law's bookkeeping: slips between
+SLIP_SPEED and REST_SPEED of the drive speed, each slip after the first giving peak, trough, drop, slip time and
+stick; the thresholds' bias and the damping relative to the slider's mean velocity: (docs/physics.md, "Contact scenes").
 """
 
 from __future__ import annotations

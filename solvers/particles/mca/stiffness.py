@@ -1,20 +1,8 @@
 """Linearised MCA: the stiffness and mass matrices of the automata about the rest state.
 
-The elastic MCA kernel (kernel.py) derives from the potential
-    U = sum_p [ kn S (n.du)^2 / (2 r0) + G S |P delta|^2 / r0 + krot G S r0 |phi_j - phi_i|^2 / 2 ]
-        + sum_i lam Omega_i theta_i^2 / 2,
-    delta = u_j - u_i - q (phi_i + phi_j) x n,   theta_i = sum_j S (n.(u_j - u_i)) / (2 Omega_i),
-(P = I - n n, q = r0 / 2) to first order in the displacements u and rotations phi.  Its Hessian K and the
-diagonal mass matrix M (m for translations, J for rotations) give the eigenfrequencies (bar-modes) and
-the stable time step.  Wall bonds (the "cells" packing's constrained faces, `Automata.walls`) add, for
-automaton i with outward face normal n at distance l = a/2 and face area S, a half-length pair to a wall
-point w on the face (degrees of freedom appended after the automata's, one set per bond):
-    kn S (n.(u_w - u_i))^2 / (2 l) + G S |P delta_w|^2 / l + krot G S a |phi_w - phi_i|^2 / 2,
-    delta_w = u_w - u_i - l phi_i x n,
-and S (n.(u_w - u_i)) / Omega_i to theta_i (the whole bond lies in automaton i; the krot spring is a pair's
-to a mirror automaton).  A frictionless wall (a support) keeps the normal term only.  Omega_i in theta_i is
-`Automata.many_body_volume` (the "cells" packing's free faces condensed).  Velocity Verlet needs
-dt < 2 / omega_max, and the Gershgorin bound on M^-1/2 K M^-1/2 bounds omega_max from above.
+The Hessian of the elastic kernel's potential (wall bonds of the "cells" packing included) and the diagonal mass
+matrix give the eigenfrequencies (bar-modes) and, by a Gershgorin bound on omega_max, the stable time step of
+velocity Verlet (docs/physics.md, "The MCA solver in detail", "The linearised model").
 """
 
 from __future__ import annotations
