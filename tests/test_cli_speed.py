@@ -99,7 +99,8 @@ def test_the_light_path_imports_no_numerical_library_but_numpy() -> None:
             "from pcverify.harness.cli import main\n"
             "with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):\n"
             "    codes = [main(['scenes']), main(['scenes', '--json']), main(['run', 'nope', '--solver', 'skfem']),\n"
-            "             main(['study', 'nope']), main(['run', 'bar-heat-faces', '--solver', 'skfem', '--set', 'x=1'])]\n"
+            "             main(['study', 'nope']),\n"
+            "             main(['run', 'bar-heat-faces', '--solver', 'skfem', '--set', 'x=1'])]\n"
             f"print(codes, sorted(m for m in {HEAVY!r} if m in sys.modules))\n")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=False)
     assert done.returncode == 0, done.stderr[-1500:]
