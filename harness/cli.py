@@ -30,10 +30,10 @@ from collections.abc import Callable
 from pcverify import __version__
 from pcverify.harness.run.interrupt import TERMINATED, received, sigterm_interrupts
 from pcverify.harness.run.limits import DEFAULT_MUTANT_TIME_LIMIT, DEFAULT_TIME_LIMIT, MAX_TIME_LIMIT
-from pcverify.harness.spec.catalogue import get_spec
-from pcverify.harness.spec.schema import MAX_CELLS
-from pcverify.harness.spec.settings import split_settings
-from pcverify.harness.spec.shipped import study_path
+from pcverify.harness.study.catalogue import get_spec
+from pcverify.harness.study.schema import MAX_CELLS
+from pcverify.harness.study.settings import split_settings
+from pcverify.harness.study.shipped import study_path
 from pcverify.scene import SceneError, shown
 from pcverify.solvers.registry import SolverUnavailable, check_solver_name, shipped_parameters
 

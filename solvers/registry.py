@@ -2,7 +2,7 @@
 
 Four sources, one table: the shipped solvers; the `pcverify.solvers` entry points of installed plugin
 distributions (name -> "module:Class"); solvers registered at run time by plugin modules (a study
-file's `plugins` list, see `pcverify.harness.spec.plugins`); and "module:Class" given directly (the
+file's `plugins` list, see `pcverify.harness.study.plugins`); and "module:Class" given directly (the
 command line's `--solver pkg.mod:Class`, or a study file's solver list).  Modules are imported when a
 solver is asked for, so a broken plugin is one clear error for that solver only.  Two sources that
 give the same name are an error that names both.

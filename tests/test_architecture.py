@@ -20,16 +20,16 @@ def test_import_contracts_hold() -> None:
 
 
 @pytest.mark.parametrize("where, line, contract", [
-    ("solvers/particles/mca/heat.py", "from pcverify.harness.spec import study", "Data flows one way"),
+    ("solvers/particles/mca/heat.py", "from pcverify.harness.study import study", "Data flows one way"),
     ("harness/report/write.py", "from pcverify.solvers.particles.macromolecule import solver",
      "The harness reaches solvers only through the registry"),
     ("references/shared.py", "import pcverify.solvers.registry", "Data flows one way"),
     ("scene/geometry.py", "from pcverify.harness.run import cache", "Data flows one way"),
     ("fingerprint.py", "from pcverify.scene import params", "Data flows one way"),
-    ("harness/spec/study.py", "from pcverify.harness.run import cache", "Harness layers"),
+    ("harness/study/study.py", "from pcverify.harness.run import cache", "Harness layers"),
     ("harness/judge/verdict.py", "from pcverify.harness.report import figures", "Harness layers"),
     ("harness/run/cache.py", "from pcverify.harness.run import execution", "Inside the run package"),
-    ("harness/spec/schema.py", "from pcverify.harness.spec import study", "Inside the spec package"),
+    ("harness/study/schema.py", "from pcverify.harness.study import study", "Inside the study package"),
     ("solvers/particles/mca/automata.py", "from pcverify.solvers.particles.macromolecule import lattice",
      "Particle models and continuum solvers do not import each other"),
 ])

@@ -21,7 +21,7 @@ import pytest
 
 from pcverify.harness.cli import main
 from pcverify.harness.judge.metrics import field_errors
-from pcverify.harness.spec.catalogue import make_scene
+from pcverify.harness.study.catalogue import make_scene
 from pcverify.references.heat import analytic
 from pcverify.scene import Resolution
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pcverify.harness.spec.catalogue import make_scene
+from pcverify.harness.study.catalogue import make_scene
 from pcverify.references.heat import analytic
 from pcverify.scene import ALUMINIUM, Box, Conduction, FaceTemperature, Resolution, Scene
 from pcverify.solvers.registry import SHIPPED, get_solver

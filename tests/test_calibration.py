@@ -20,7 +20,7 @@ from pcverify.harness.report.calibration_section import calibration_section
 from pcverify.harness.report.reproduce import select_groups
 from pcverify.harness.run.cache import Cache
 from pcverify.harness.run.calibration import CALIBRATED, VALIDATED, NotCached, run_calibration
-from pcverify.harness.spec.study import load_study
+from pcverify.harness.study.study import load_study
 from pcverify.scene import SceneError
 
 TESTS = Path(__file__).resolve().parent

@@ -21,8 +21,8 @@ from pcverify.harness.judge.tables import cells_table
 from pcverify.harness.report.reproduce import run_command, select_groups
 from pcverify.harness.run.cache import Cache
 from pcverify.harness.run.execution import cell_identity, execute
-from pcverify.harness.spec.catalogue import make_scene
-from pcverify.harness.spec.study import Group, Study, load_study
+from pcverify.harness.study.catalogue import make_scene
+from pcverify.harness.study.study import Group, Study, load_study
 from pcverify.references import heat
 
 REPO = Path(__file__).resolve().parent.parent
@@ -187,7 +187,7 @@ def test_the_cell_key_covers_the_compare_step_and_the_scene_family(tmp_path) -> 
     payload, skip = cell_identity(paper.cells[0])
     assert skip is None and payload["compare"] == compare.fingerprint(paper.cells[0].scene)
     copy = installed_layout(REPO, tmp_path / "copy")
-    probe = ("import json, pcverify.harness.judge.compare as c; from pcverify.harness.spec.catalogue import "
+    probe = ("import json, pcverify.harness.judge.compare as c; from pcverify.harness.study.catalogue import "
              "make_scene as m; print(json.dumps([c.__file__, c.fingerprint(m('bar-heat-faces')), "
              "c.fingerprint(m('stick-slip'))]))")
 

@@ -16,8 +16,8 @@ from pathlib import Path
 import pytest
 
 from pcverify.harness.run.mutation import overlaid
-from pcverify.harness.spec.mutants import Mutant, catalogue
-from pcverify.harness.spec.study import load_study
+from pcverify.harness.study.mutants import Mutant, catalogue
+from pcverify.harness.study.study import load_study
 
 STUDY = Path(__file__).resolve().parent.parent / "harness" / "studies" / "contact-friction.toml"
 

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from pcverify.harness.spec.catalogue import make_scene
+from pcverify.harness.study.catalogue import make_scene
 from pcverify.scene import Resolution
 from pcverify.solvers.registry import get_solver
 

@@ -23,8 +23,8 @@ from pcverify.harness.report.reproduce import select_groups
 from pcverify.harness.report.write import write_study_report
 from pcverify.harness.run.cache import Cache
 from pcverify.harness.run.execution import execute, run_cell
-from pcverify.harness.spec.catalogue import make_scene
-from pcverify.harness.spec.study import load_study
+from pcverify.harness.study.catalogue import make_scene
+from pcverify.harness.study.study import load_study
 from pcverify.scene import Resolution
 from pcverify.solvers.registry import SHIPPED
 

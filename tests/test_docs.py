@@ -1,7 +1,7 @@
 """The documentation says what the code does, and points only inside the project.
 
 - docs/study-files.md carries the study-file reference rendered from the schema's declarations
-  (`pcverify.harness.spec.schema_markdown`): it is regenerated here and compared, so a changed declaration fails
+  (`pcverify.harness.study.schema_markdown`): it is regenerated here and compared, so a changed declaration fails
   until the page is regenerated with `python tests/test_docs.py --regenerate`; the defaults it states are the
   code's, and its first example is a study that loads;
 - every relative link of README.md and docs/*.md points to a file that exists, and a `#section` to one of its
@@ -23,11 +23,11 @@ from pathlib import Path
 import pytest
 
 from pcverify.harness.cli import build_parser
-from pcverify.harness.spec.calibspec import Calibration
-from pcverify.harness.spec.claims import Claim
-from pcverify.harness.spec.schema import CALIBRATION, CLAIM
-from pcverify.harness.spec.schema_markdown import BEGIN, END, study_file_reference
-from pcverify.harness.spec.study import load_study
+from pcverify.harness.study.calibspec import Calibration
+from pcverify.harness.study.claims import Claim
+from pcverify.harness.study.schema import CALIBRATION, CLAIM
+from pcverify.harness.study.schema_markdown import BEGIN, END, study_file_reference
+from pcverify.harness.study.study import load_study
 
 ROOT = Path(__file__).resolve().parent.parent
 DOCS = ROOT / "docs"

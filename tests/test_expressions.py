@@ -7,8 +7,8 @@ import pandas as pd
 import pytest
 
 from pcverify.harness.cli import main
-from pcverify.harness.spec.expressions import evaluate, resolve, variables
-from pcverify.harness.spec.study import load_study
+from pcverify.harness.study.expressions import evaluate, resolve, variables
+from pcverify.harness.study.study import load_study
 from pcverify.scene import Param, SceneError
 
 AT_3 = variables(3, 2, 0.005)  # n = 3 on the 10 mm bar: a = 5 mm; refine 2: h = 2.5 mm

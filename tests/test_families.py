@@ -17,9 +17,9 @@ import pytest
 from pcverify import references
 from pcverify.harness.judge import compare
 from pcverify.harness.report import figures
-from pcverify.harness.spec import catalogue
-from pcverify.harness.spec.catalogue import get_spec, make_scene, register_scene
-from pcverify.harness.spec.study import load_study
+from pcverify.harness.study import catalogue
+from pcverify.harness.study.catalogue import get_spec, make_scene, register_scene
+from pcverify.harness.study.study import load_study
 from pcverify.references.heat import Slab
 
 REPO = Path(__file__).resolve().parent.parent
@@ -35,7 +35,7 @@ def test_each_shipped_scene_has_one_family_and_the_catalogue_holds_them_all() ->
 
 
 @pytest.mark.parametrize("path", ["harness/judge/compare.py", "harness/report/figures.py",
-                                  "harness/spec/catalogue.py", "harness/report/listings.py"])
+                                  "harness/study/catalogue.py", "harness/report/listings.py"])
 def test_the_harness_names_no_scene(path: str) -> None:
     text = (REPO / path).read_text()
     assert not [name for name in NAMES if f'"{name}"' in text or f"'{name}'" in text or name in text.split()]
@@ -104,7 +104,7 @@ def test_a_plugin_scene_is_compared_with_the_plugin_reference(plugin_scenes) -> 
 def test_the_cell_key_covers_the_plugin_scene_module(tmp_path) -> None:
     """An edit of the plugin's scene module (a copy) changes the compare fingerprint of its scene's cells."""
     shutil.copytree(PLUGIN / "fd_heat", tmp_path / "fd_heat")
-    probe = ("from fd_heat import scenes; from pcverify.harness.spec.catalogue import register_scene, make_scene; "
+    probe = ("from fd_heat import scenes; from pcverify.harness.study.catalogue import register_scene, make_scene; "
              "from pcverify.harness.judge.compare import fingerprint; "
              "register_scene(scenes.LONG_BAR_SOURCE, 'test'); print(fingerprint(make_scene('long-bar-source')))")
 

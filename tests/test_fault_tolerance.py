@@ -30,7 +30,7 @@ from pcverify.harness.cli import main
 from pcverify.harness.run import cache as cache_module
 from pcverify.harness.run.cache import Cache
 from pcverify.harness.run.execution import execute
-from pcverify.harness.spec.study import load_study
+from pcverify.harness.study.study import load_study
 
 SLOW_STUDY = """name = "killme"
 title = "FiPy cells of a fraction of a second each"

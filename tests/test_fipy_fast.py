@@ -15,7 +15,7 @@ import weakref
 import numpy as np
 import pytest
 
-from pcverify.harness.spec.catalogue import make_scene
+from pcverify.harness.study.catalogue import make_scene
 from pcverify.scene import Resolution
 from pcverify.solvers.continuum.fipy_fast import diffusion_term, tensor_grid3d
 from pcverify.solvers.continuum.fipy_heat import FipyHeat, grid_axes

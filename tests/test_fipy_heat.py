@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from heat_faces import transient
 
-from pcverify.harness.spec.catalogue import make_scene
+from pcverify.harness.study.catalogue import make_scene
 from pcverify.scene import Resolution, SceneError
 from pcverify.solvers.continuum.fipy_heat import FipyHeat, grid_axes
 

@@ -52,7 +52,7 @@ import numpy as np
 import pytest
 import yaml
 
-from pcverify.harness.spec.catalogue import make_scene
+from pcverify.harness.study.catalogue import make_scene
 from pcverify.scene import Resolution
 from pcverify.solvers.particles.macromolecule import codes
 from pcverify.solvers.particles.macromolecule.setup import Setup, prepare

@@ -22,7 +22,7 @@ from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 from pcverify.harness.cli import main
-from pcverify.harness.spec.catalogue import CATALOGUE, make_scene
+from pcverify.harness.study.catalogue import CATALOGUE, make_scene
 from pcverify.scene import Param, Resolution, SceneError
 from pcverify.solvers.protocol import effective_params
 from pcverify.solvers.registry import SHIPPED, SolverUnavailable, get_solver

@@ -14,7 +14,7 @@ import textwrap
 import numpy as np
 import pytest
 
-from pcverify.harness.spec.catalogue import make_scene
+from pcverify.harness.study.catalogue import make_scene
 from pcverify.scene import Resolution, SceneError
 from pcverify.solvers.particles.macromolecule import codes
 from pcverify.solvers.particles.macromolecule.computes import unlisted_contact
@@ -367,7 +367,7 @@ def test_runs_beyond_max_steps_are_refused_before_they_start() -> None:
 # ---------------------------------------------------------------- compilation, timing
 _FRESH_PROCESS_RUN = textwrap.dedent("""
     import json, math
-    from pcverify.harness.spec.catalogue import make_scene
+    from pcverify.harness.study.catalogue import make_scene
     from pcverify.solvers.particles.macromolecule import computes, kernel
     from pcverify.solvers.particles.macromolecule.setup import prepare
     from pcverify.solvers.particles.macromolecule.simulate import simulate

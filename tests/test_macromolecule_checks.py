@@ -15,10 +15,10 @@ import numpy as np
 import pytest
 
 from pcverify.harness.cli import main
-from pcverify.harness.spec.catalogue import make_scene
-from pcverify.harness.spec.mutants import read_mutants_file
-from pcverify.harness.spec.shipped import study_files
-from pcverify.harness.spec.study import load_study
+from pcverify.harness.study.catalogue import make_scene
+from pcverify.harness.study.mutants import read_mutants_file
+from pcverify.harness.study.shipped import study_files
+from pcverify.harness.study.study import load_study
 from pcverify.scene import Resolution
 from pcverify.solvers.particles.macromolecule import checks, codes
 from pcverify.solvers.particles.macromolecule.setup import prepare
@@ -215,4 +215,4 @@ def test_the_catalogue_loads_and_every_mutant_applies_and_names_claims_of_its_st
         assert m.changes_code(source, edited) and m.breaks, m.name
         assert m.expect and set(m.expect) <= claims, (m.name, m.expect)
     if study == "stability":
-        assert sum(m.file == "harness/spec/stability.py" for m in mutants) >= 2
+        assert sum(m.file == "harness/study/stability.py" for m in mutants) >= 2

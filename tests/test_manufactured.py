@@ -15,7 +15,7 @@ import pytest
 
 from pcverify.harness.judge.compare import errors
 from pcverify.harness.judge.metrics import fit_order
-from pcverify.harness.spec.catalogue import make_scene
+from pcverify.harness.study.catalogue import make_scene
 from pcverify.references.heat import manufactured as exact
 from pcverify.references.heat import wavenumbers
 from pcverify.scene import (

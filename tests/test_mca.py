@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from mca_block import block_curve
 
-from pcverify.harness.spec.catalogue import make_scene
+from pcverify.harness.study.catalogue import make_scene
 from pcverify.references.heat import analytic, semi_infinite_rise
 from pcverify.scene import (
     ALUMINIUM,
@@ -223,7 +223,7 @@ def test_kernel_seconds_of_a_fresh_process_leave_out_the_dispatcher_and_cache_lo
     """In a fresh process the first heat solve loads numba's dispatcher and cache (0.1-0.5 s); kernel_s counts
     the steps alone, so it is that of a warm solve (~1e-4 s at n = 4), not the load's (measured before the
     fix: 0.39 s against 60-80 us).  The bound 0.05 s leaves room for a loaded machine's preemptions."""
-    code = ("from pcverify.harness.spec.catalogue import make_scene\n"
+    code = ("from pcverify.harness.study.catalogue import make_scene\n"
             "from pcverify.scene import Resolution\n"
             "from pcverify.solvers.registry import get_solver\n"
             "s = make_scene('bar-heat-faces', mode='transient', t_end=1.0)\n"

@@ -16,7 +16,7 @@ import itertools
 
 import pytest
 
-from pcverify.harness.spec.catalogue import make_scene
+from pcverify.harness.study.catalogue import make_scene
 from pcverify.scene import PHYSICS, Conduction, Resolution, Scene, SceneError
 from pcverify.solvers.particles.mca import probe as mca_probe
 from pcverify.solvers.particles.mca import solver as mca_solver

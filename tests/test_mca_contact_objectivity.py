@@ -22,7 +22,7 @@ from red_team import TALLY, check_tally, tally
 from scipy.spatial.transform import Rotation
 
 from pcverify.harness.cli import main
-from pcverify.harness.spec.catalogue import make_scene
+from pcverify.harness.study.catalogue import make_scene
 from pcverify.scene import Resolution
 from pcverify.solvers.particles.mca import contact as ct
 from pcverify.solvers.particles.mca import kernel as mk

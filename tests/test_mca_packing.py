@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from pcverify.harness.cli import main
-from pcverify.harness.spec.catalogue import make_scene
+from pcverify.harness.study.catalogue import make_scene
 from pcverify.references.elastic import packing_bending_ratio, packing_second_moment_ratio
 from pcverify.scene import Box, Resolution
 from pcverify.solvers.particles.mca.automata import bar_automata, cell_automata

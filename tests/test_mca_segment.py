@@ -19,7 +19,7 @@ import math
 import numpy as np
 import pytest
 
-from pcverify.harness.spec.catalogue import make_scene
+from pcverify.harness.study.catalogue import make_scene
 from pcverify.references import heat as slab
 from pcverify.references.heat import analytic
 from pcverify.scene import Box, Contact, Resolution, SceneError

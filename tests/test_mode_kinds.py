@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from pcverify.harness.spec.catalogue import make_scene
+from pcverify.harness.study.catalogue import make_scene
 from pcverify.scene import Resolution
 from pcverify.solvers.continuum.skfem_elastic import SkfemElastic
 from pcverify.solvers.modes import classify, cut_is_complete, lowest_of_each_kind, mirror, symmetric_lateral

@@ -11,8 +11,8 @@ import time
 from pathlib import Path
 
 from pcverify.harness.cli import main
-from pcverify.harness.spec.mutants import beside_file, read_mutants_file
-from pcverify.harness.spec.shipped import study_files
+from pcverify.harness.study.mutants import beside_file, read_mutants_file
+from pcverify.harness.study.shipped import study_files
 
 STUDY = Path(__file__).resolve().parent / "mutate" / "continuum-heat-ci.toml"
 

@@ -17,7 +17,7 @@ import pytest
 from pcverify.harness.cli import main
 from pcverify.harness.run.cache import CLAIMED, HELD, Cache
 from pcverify.harness.run.execution import cached_results, first_of_each_kind, identify, plan
-from pcverify.harness.spec.study import load_study
+from pcverify.harness.study.study import load_study
 from pcverify.solvers.energy import balance_error
 from pcverify.solvers.particles.macromolecule import codes
 from pcverify.solvers.particles.macromolecule.simulate import energy_balance_error

@@ -12,9 +12,9 @@ import pandas as pd
 import pytest
 
 from pcverify.harness.cli import main
-from pcverify.harness.spec.catalogue import make_scene
-from pcverify.harness.spec.study import load_study
-from pcverify.harness.spec.tasks import SOLVE, SupportsAnswerError, ask_supports
+from pcverify.harness.study.catalogue import make_scene
+from pcverify.harness.study.study import load_study
+from pcverify.harness.study.tasks import SOLVE, SupportsAnswerError, ask_supports
 
 # fipy solves the transient bar; the macromolecule's hotness has no transient counterpart (it does not support
 # the scene), so its cells are not planned

@@ -27,7 +27,7 @@ import pytest
 
 from pcverify.harness.judge import tables
 from pcverify.harness.judge.verdict import verdicts
-from pcverify.harness.spec.claims import parse_claims
+from pcverify.harness.study.claims import parse_claims
 
 REPO = Path(__file__).resolve().parent.parent
 EXAMPLE = REPO / "examples" / "fd-heat-plugin"

@@ -39,7 +39,7 @@ from pcverify.harness.cli import main
 from pcverify.harness.run import cache as cache_module
 from pcverify.harness.run.execution import execute, identify
 from pcverify.harness.run.limits import DEFAULT_TIME_LIMIT
-from pcverify.harness.spec.study import load_study
+from pcverify.harness.study.study import load_study
 
 TESTS = Path(__file__).resolve().parent
 sys.path.insert(0, str(TESTS))  # calib_synthetic: the synthetic solver (and its sleep) as a study plugin

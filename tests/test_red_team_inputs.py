@@ -18,8 +18,8 @@ from red_team import TALLY, tally
 
 from pcverify.harness.cli import main
 from pcverify.harness.run.limits import check_work
-from pcverify.harness.spec.catalogue import make_scene
-from pcverify.harness.spec.study import load_study
+from pcverify.harness.study.catalogue import make_scene
+from pcverify.harness.study.study import load_study
 from pcverify.scene import PatchTemperature, PointTemperature, Resolution, Scene, SceneError
 from pcverify.solvers.registry import get_solver
 

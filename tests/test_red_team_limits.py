@@ -11,7 +11,7 @@ import time
 import pytest
 from red_team import check_tally, one_line_error, run, tally
 
-from pcverify.harness.spec.catalogue import make_scene
+from pcverify.harness.study.catalogue import make_scene
 from pcverify.scene import Resolution
 from pcverify.solvers.registry import get_solver
 

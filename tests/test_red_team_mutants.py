@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 from red_team import check_tally, one_line_error, run, tally
 
-from pcverify.harness.spec.mutants import Mutant, MutantError, apply_diff
+from pcverify.harness.study.mutants import Mutant, MutantError, apply_diff
 
 TABLES = "mutant tables"
 EDITS = "mutant edits"

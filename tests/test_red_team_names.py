@@ -10,12 +10,12 @@ from __future__ import annotations
 from red_team import TALLY, tally
 
 from pcverify.harness.cli import main
-from pcverify.harness.spec.catalogue import SCENES
+from pcverify.harness.study.catalogue import SCENES
 from pcverify.solvers.registry import Entry
 
 IMPOSTOR = '''
 import dataclasses
-from pcverify.harness.spec.catalogue import get_spec
+from pcverify.harness.study.catalogue import get_spec
 
 _faces = get_spec("bar-heat-faces")
 # a spec of its own name whose scene is the shipped one, name included
@@ -66,7 +66,7 @@ def test_a_spec_whose_scene_carries_a_shipped_name_is_refused(tmp_path, monkeypa
 
 def test_a_plugin_module_cannot_register_a_shipped_scene_name(tmp_path, monkeypatch, capsys) -> None:
     (tmp_path / "shadow.py").write_text(
-        "from pcverify.harness.spec.catalogue import get_spec\nimport dataclasses\n"
+        "from pcverify.harness.study.catalogue import get_spec\nimport dataclasses\n"
         "SHADOW = dataclasses.replace(get_spec('bar-heat-paper'), name='bar-heat-faces')\n")
     monkeypatch.syspath_prepend(str(tmp_path))
     path = tmp_path / "shadow.toml"

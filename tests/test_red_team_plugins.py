@@ -30,7 +30,7 @@ import pytest
 from red_team import ENV, check_tally, cli, deadline, popen, processes_with, tally
 
 from pcverify.harness.cli import main
-from pcverify.harness.spec.catalogue import make_scene
+from pcverify.harness.study.catalogue import make_scene
 from pcverify.scene import Resolution
 from pcverify.solvers.registry import get_solver
 

@@ -15,7 +15,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from red_team import TALLY, check_tally, one_line_error, run, tally
 
-from pcverify.harness.spec.catalogue import make_scene
+from pcverify.harness.study.catalogue import make_scene
 from pcverify.scene import Resolution, SceneError
 from pcverify.solvers.protocol import STATUSES
 from pcverify.solvers.registry import get_solver

@@ -13,7 +13,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from red_team import TALLY, check_tally, one_line_error, run, tally
 
-from pcverify.harness.spec.study import load_study
+from pcverify.harness.study.study import load_study
 from pcverify.scene import SceneError
 
 GROUP = 'scene = "bar-heat-faces"\nsolvers = ["skfem"]\nn = [2]\n'

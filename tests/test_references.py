@@ -8,7 +8,7 @@ import heat_faces
 import numpy as np
 import pytest
 
-from pcverify.harness.spec.catalogue import make_scene
+from pcverify.harness.study.catalogue import make_scene
 from pcverify.references.heat import Slab, analytic, effusivity, effusivity_shares, semi_infinite_rise
 from pcverify.scene import ALUMINIUM, Box, Conduction, FaceTemperature, InterfaceFlux, Scene
 

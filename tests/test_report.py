@@ -15,7 +15,7 @@ from pcverify.harness.cli import main
 from pcverify.harness.judge.verdict import verdicts
 from pcverify.harness.report.provenance import source_commit
 from pcverify.harness.report.vtu import write_vtu
-from pcverify.harness.spec.claims import parse_claims
+from pcverify.harness.study.claims import parse_claims
 from pcverify.scene import SceneError
 from pcverify.solvers.particles.mca.solver import Mca
 

@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 import pcverify.solvers.modes as modes
-from pcverify.harness.spec.catalogue import make_scene
+from pcverify.harness.study.catalogue import make_scene
 from pcverify.references.elastic import mca_rotational_hz
 from pcverify.scene import Resolution
 from pcverify.solvers.particles.mca.solver import Mca

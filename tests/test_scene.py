@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from pcverify.harness.spec.catalogue import CATALOGUE, make_scene, spec_from_table
+from pcverify.harness.study.catalogue import CATALOGUE, make_scene, spec_from_table
 from pcverify.scene import (
     ALUMINIUM,
     Box,

@@ -10,10 +10,10 @@ import re
 import numpy as np
 import pytest
 
-from pcverify.harness.spec.analyses import REGISTRIES
-from pcverify.harness.spec.schema import CALIBRATION, NAME, STUDY, TABLES, Field, Table, check, check_value
-from pcverify.harness.spec.shipped import study_files
-from pcverify.harness.spec.studyfile import read_study_document
+from pcverify.harness.study.analyses import REGISTRIES
+from pcverify.harness.study.schema import CALIBRATION, NAME, STUDY, TABLES, Field, Table, check, check_value
+from pcverify.harness.study.shipped import study_files
+from pcverify.harness.study.studyfile import read_study_document
 from pcverify.scene import SceneError, is_real
 
 TOY = Table("[[toy]]", (

@@ -10,10 +10,10 @@ import pytest
 
 from pcverify.harness.judge import group_tables
 from pcverify.harness.report import group_figures
-from pcverify.harness.spec import analyses, calibspec, claims, study, studyfile
-from pcverify.harness.spec.analyses import REGISTRIES
-from pcverify.harness.spec.calibspec import Calibration
-from pcverify.harness.spec.schema import (
+from pcverify.harness.study import analyses, calibspec, claims, study, studyfile
+from pcverify.harness.study.analyses import REGISTRIES
+from pcverify.harness.study.calibspec import Calibration
+from pcverify.harness.study.schema import (
     CALIBRATION,
     CALIBRATION_CELL,
     CLAIM,
@@ -23,7 +23,7 @@ from pcverify.harness.spec.schema import (
     TABLES,
     check,
 )
-from pcverify.harness.spec.study import load_study
+from pcverify.harness.study.study import load_study
 
 MINIMAL = """
 [[group]]

@@ -31,8 +31,8 @@ from pcverify.harness.report.reproduce import select_groups
 from pcverify.harness.report.write import write_study_report
 from pcverify.harness.run.cache import Cache
 from pcverify.harness.run.execution import execute
-from pcverify.harness.spec.shipped import study_files
-from pcverify.harness.spec.study import load_study
+from pcverify.harness.study.shipped import study_files
+from pcverify.harness.study.study import load_study
 
 # study: cells the dry run plans, by state; the calibration study's cells follow from the values found
 PLANNED = {

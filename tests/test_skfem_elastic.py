@@ -23,7 +23,7 @@ import pytest
 
 from pcverify.harness.judge import tables
 from pcverify.harness.judge.metrics import richardson
-from pcverify.harness.spec.catalogue import make_scene
+from pcverify.harness.study.catalogue import make_scene
 from pcverify.scene import FaceSupport, Resolution, SceneError
 from pcverify.solvers.continuum.skfem_elastic import mode_shape
 from pcverify.solvers.registry import get_solver

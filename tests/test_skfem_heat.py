@@ -15,7 +15,7 @@ import pytest
 import scipy.sparse as sp
 from heat_faces import transient
 
-from pcverify.harness.spec.catalogue import make_scene
+from pcverify.harness.study.catalogue import make_scene
 from pcverify.scene import Elasticity, Material, Resolution, SceneError
 from pcverify.solvers.continuum.assembly import assemble_q1, split_free, tensor_csr
 from pcverify.solvers.continuum.grid import SphereWarp, StructuredGrid, plan_sphere_warp

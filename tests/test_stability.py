@@ -14,9 +14,9 @@ import pytest
 from pcverify.harness.report.write import write_study_report
 from pcverify.harness.run.cache import Cache
 from pcverify.harness.run.execution import execute
-from pcverify.harness.spec.catalogue import make_scene
-from pcverify.harness.spec.stability import StabilityTask, measure_limit, probe_of, split_params
-from pcverify.harness.spec.study import load_study
+from pcverify.harness.study.catalogue import make_scene
+from pcverify.harness.study.stability import StabilityTask, measure_limit, probe_of, split_params
+from pcverify.harness.study.study import load_study
 from pcverify.scene import Resolution, SceneError
 from pcverify.solvers.registry import get_solver
 

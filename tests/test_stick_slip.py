@@ -19,7 +19,7 @@ from scipy.integrate import solve_ivp
 
 from pcverify.harness.cli import main
 from pcverify.harness.judge.compare import scalar_errors
-from pcverify.harness.spec.catalogue import make_scene
+from pcverify.harness.study.catalogue import make_scene
 from pcverify.references import contact as ref
 from pcverify.scene import Contact, SceneError
 from pcverify.solvers.particles.mca import stick_slip as mss

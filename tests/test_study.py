@@ -8,7 +8,7 @@ import pytest
 from pcverify.harness.cli import main
 from pcverify.harness.run.cache import Cache
 from pcverify.harness.run.execution import execute
-from pcverify.harness.spec.study import load_study
+from pcverify.harness.study.study import load_study
 
 STUDY = """
 name = "tiny"

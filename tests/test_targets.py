@@ -11,9 +11,9 @@ import pytest
 
 from pcverify.harness.judge.verdict import verdicts
 from pcverify.harness.report.findings import target_text
-from pcverify.harness.spec.catalogue import entries, get_spec, register_scene
-from pcverify.harness.spec.shipped import study_files
-from pcverify.harness.spec.study import load_study
+from pcverify.harness.study.catalogue import entries, get_spec, register_scene
+from pcverify.harness.study.shipped import study_files
+from pcverify.harness.study.study import load_study
 from pcverify.scene import Reference, SceneError
 
 SCENE = "stick-slip-with-reference"  # the stick-slip scene with its cycle declared as the spec's reference

@@ -19,7 +19,7 @@ import pytest
 from pcverify.harness.cli import main
 from pcverify.harness.judge.metrics import fit_order
 from pcverify.harness.judge.verdict import decide, verdicts
-from pcverify.harness.spec.claims import parse_claims
+from pcverify.harness.study.claims import parse_claims
 from pcverify.solvers.registry import SOLVERS, Entry
 
 TOY = '''

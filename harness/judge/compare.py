@@ -17,7 +17,7 @@ import numpy as np
 
 from pcverify.fingerprint import module_fingerprint
 from pcverify.harness.judge.metrics import field_errors
-from pcverify.harness.spec.catalogue import reference_of, spec_modules
+from pcverify.harness.study.catalogue import reference_of, spec_modules
 from pcverify.references.shared import number
 from pcverify.scene import Scene
 

@@ -1,4 +1,4 @@
-"""The tables of a study group, by its analysis (`pcverify.harness.spec.analyses`): convergence levels and fits,
+"""The tables of a study group, by its analysis (`pcverify.harness.study.analyses`): convergence levels and fits,
 timing, work-precision, stability limits and maps.  Pure functions of the group's results and the tables of the
 groups before it (a convergence group may take its reference from an earlier group's fits)."""
 
@@ -10,7 +10,7 @@ from typing import Any
 import pandas as pd
 
 from pcverify.harness.judge import tables
-from pcverify.harness.spec import stability
+from pcverify.harness.study import stability
 
 Tables = dict[str, pd.DataFrame]
 

@@ -14,7 +14,7 @@ import numpy as np
 import pandas as pd
 
 from pcverify.harness.judge.metrics import fit_order, richardson, self_convergence
-from pcverify.harness.spec.catalogue import make_scene
+from pcverify.harness.study.catalogue import make_scene
 
 
 def spacing(result: dict[str, Any]) -> float:

@@ -36,8 +36,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from pcverify.harness.spec.claims import SPREAD, Claim
-from pcverify.harness.spec.schema import AGGREGATES as AGGREGATE_NAMES
+from pcverify.harness.study.claims import SPREAD, Claim
+from pcverify.harness.study.schema import AGGREGATES as AGGREGATE_NAMES
 
 STATES = ("fail", "inconclusive", "not-applicable", "pass")  # worst first
 AGGREGATES = dict(zip(AGGREGATE_NAMES, (np.max, np.min, np.median, np.mean), strict=True))

@@ -20,7 +20,7 @@ from pcverify.harness.run.calibration import run_calibration
 from pcverify.harness.run.execution import cell_time_limit, execute
 from pcverify.harness.run.interrupt import remember_sigint
 from pcverify.harness.run.workers import output_to_stderr
-from pcverify.harness.spec.study import load_study
+from pcverify.harness.study.study import load_study
 from pcverify.scene import SceneError, shown
 
 

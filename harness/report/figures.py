@@ -31,7 +31,7 @@ from PIL import Image  # noqa: E402
 
 from pcverify.harness.judge.tables import spacing, stored_errors  # noqa: E402
 from pcverify.harness.run.files import atomic_write  # noqa: E402
-from pcverify.harness.spec.catalogue import get_spec  # noqa: E402
+from pcverify.harness.study.catalogue import get_spec  # noqa: E402
 
 EDGES = ("front_top_edge", "bottom_back_edge")
 CONTINUUM_STYLES = tuple(dict(lw=2.0, color=c, ls=ls, alpha=0.75)

@@ -1,4 +1,4 @@
-"""The figures of a study group, by its analysis (`pcverify.harness.spec.analyses`), and the group's part of a
+"""The figures of a study group, by its analysis (`pcverify.harness.study.analyses`), and the group's part of a
 report: its tables (`pcverify.harness.judge.group_tables`) and figures, with the figures its `figures` list asks
 for by name."""
 

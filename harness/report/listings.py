@@ -11,8 +11,8 @@ import json
 from collections.abc import Callable
 from typing import Any
 
-from pcverify.harness.spec.catalogue import entries as scene_entries
-from pcverify.harness.spec.catalogue import get_spec
+from pcverify.harness.study.catalogue import entries as scene_entries
+from pcverify.harness.study.catalogue import get_spec
 from pcverify.scene import Param, SceneError
 from pcverify.solvers.protocol import model_notes
 from pcverify.solvers.registry import SolverUnavailable, get_solver

@@ -23,9 +23,9 @@ from pcverify.harness.run.execution import cell_time_limit
 from pcverify.harness.run.interrupt import remember_sigint
 from pcverify.harness.run.mutation import Runner, prepare
 from pcverify.harness.run.workers import output_to_stderr
-from pcverify.harness.spec.mutants import catalogue, select_mutants, solver_packages
-from pcverify.harness.spec.shipped import study_files
-from pcverify.harness.spec.study import load_study
+from pcverify.harness.study.mutants import catalogue, select_mutants, solver_packages
+from pcverify.harness.study.shipped import study_files
+from pcverify.harness.study.study import load_study
 
 
 def run_mutants(args: argparse.Namespace) -> int:

@@ -21,9 +21,9 @@ from pcverify.harness.report.write import manifests, warn, write_index, write_st
 from pcverify.harness.run.cache import Cache
 from pcverify.harness.run.calibration import NotCached, run_calibration
 from pcverify.harness.run.execution import cached_results
-from pcverify.harness.spec.calibspec import Calibration
-from pcverify.harness.spec.shipped import study_files
-from pcverify.harness.spec.study import Study, declared_name, load_study
+from pcverify.harness.study.calibspec import Calibration
+from pcverify.harness.study.shipped import study_files
+from pcverify.harness.study.study import Study, declared_name, load_study
 from pcverify.scene import SceneError
 from pcverify.solvers.registry import SolverUnavailable
 

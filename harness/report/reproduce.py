@@ -18,11 +18,11 @@ import pandas as pd
 
 from pcverify.harness.judge.tables import params_label
 from pcverify.harness.judge.verdict import Command
-from pcverify.harness.spec.catalogue import entries as scene_entries
-from pcverify.harness.spec.catalogue import get_spec
-from pcverify.harness.spec.claims import Claim
-from pcverify.harness.spec.shipped import study_files
-from pcverify.harness.spec.study import Group, Study
+from pcverify.harness.study.catalogue import entries as scene_entries
+from pcverify.harness.study.catalogue import get_spec
+from pcverify.harness.study.claims import Claim
+from pcverify.harness.study.shipped import study_files
+from pcverify.harness.study.study import Group, Study
 from pcverify.scene import SceneError
 from pcverify.solvers.registry import SolverUnavailable, get_solver
 from pcverify.solvers.registry import entries as solver_entries

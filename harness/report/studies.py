@@ -23,8 +23,8 @@ from pcverify.harness.run.calibration import run_calibration
 from pcverify.harness.run.execution import cell_time_limit, execute, plan
 from pcverify.harness.run.interrupt import remember_sigint
 from pcverify.harness.run.workers import output_to_stderr
-from pcverify.harness.spec.shipped import study_files
-from pcverify.harness.spec.study import Study, load_study
+from pcverify.harness.study.shipped import study_files
+from pcverify.harness.study.study import Study, load_study
 
 
 def run_studies(args: argparse.Namespace) -> int:

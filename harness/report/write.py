@@ -27,7 +27,7 @@ from pcverify.harness.report.provenance import code_origin, command, provenance
 from pcverify.harness.report.reproduce import study_command, table_group, verdict_commands
 from pcverify.harness.report.vtu import write_vtu
 from pcverify.harness.run.files import atomic_write, exclusive, read_json, remove_stray_files
-from pcverify.harness.spec.claims import Claim
+from pcverify.harness.study.claims import Claim
 from pcverify.scene import is_real
 from pcverify.solvers.protocol import model_notes
 from pcverify.solvers.registry import SolverUnavailable, get_solver

@@ -26,8 +26,8 @@ from pcverify.harness.judge.metrics import richardson
 from pcverify.harness.judge.tables import scalars, spacing, stored_errors, work_counter
 from pcverify.harness.run.cache import Cache
 from pcverify.harness.run.execution import execute, identify
-from pcverify.harness.spec.calibspec import CalibCell, Calibration
-from pcverify.harness.spec.study import Cell, Group, Study
+from pcverify.harness.study.calibspec import CalibCell, Calibration
+from pcverify.harness.study.study import Cell, Group, Study
 from pcverify.scene import SceneError
 
 PENALTY = 1e6  # objective handed to the local search for a failed parameter set (steers it away; never data)

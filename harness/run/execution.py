@@ -35,10 +35,10 @@ from pcverify.harness.run.interrupt import check_interrupted, ignore_sigint_in_w
 from pcverify.harness.run.limits import DEFAULT_TIME_LIMIT, EstimateError, check_work
 from pcverify.harness.run.progress import progress_bar
 from pcverify.harness.run.workers import Outcome, describe_exception, pool
-from pcverify.harness.spec.boundary import Inadmissible
-from pcverify.harness.spec.plugins import load_plugins
-from pcverify.harness.spec.study import Cell, Study
-from pcverify.harness.spec.tasks import SolveTask, SupportsAnswerError, ask_supports
+from pcverify.harness.study.boundary import Inadmissible
+from pcverify.harness.study.plugins import load_plugins
+from pcverify.harness.study.study import Cell, Study
+from pcverify.harness.study.tasks import SolveTask, SupportsAnswerError, ask_supports
 from pcverify.scene import Resolution, Scene, SceneError, shown
 from pcverify.solvers.registry import SolverUnavailable, get_solver, named, snapshot
 

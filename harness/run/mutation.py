@@ -38,8 +38,8 @@ from pcverify.harness.run.execution import identify
 from pcverify.harness.run.files import read_json
 from pcverify.harness.run.progress import progress_bar
 from pcverify.harness.run.workers import exit_description
-from pcverify.harness.spec.mutants import Mutant
-from pcverify.harness.spec.study import Study
+from pcverify.harness.study.mutants import Mutant
+from pcverify.harness.study.study import Study
 
 OUTCOMES = ("killed", "survived", "invalid", "crashed")
 STOP_GRACE_S = 10.0  # after SIGTERM, a mutant's process has this long to stop cleanly before SIGKILL

@@ -17,9 +17,9 @@ from pcverify.harness.run.execution import identify, run_cell
 from pcverify.harness.run.limits import check_work
 from pcverify.harness.run.progress import working
 from pcverify.harness.run.workers import describe_exception, output_to_stderr
-from pcverify.harness.spec.catalogue import get_spec, make_scene
-from pcverify.harness.spec.settings import split_settings
-from pcverify.harness.spec.study import Cell
+from pcverify.harness.study.catalogue import get_spec, make_scene
+from pcverify.harness.study.settings import split_settings
+from pcverify.harness.study.study import Cell
 from pcverify.scene import Resolution, SceneError
 from pcverify.solvers.protocol import skipped
 from pcverify.solvers.registry import get_solver

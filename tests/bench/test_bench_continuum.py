@@ -21,7 +21,7 @@ import time
 import numpy as np
 import pytest
 
-from pcverify.harness.spec.catalogue import make_scene
+from pcverify.harness.study.catalogue import make_scene
 from pcverify.scene import Resolution
 from pcverify.solvers.continuum.assembly import assemble_q1
 from pcverify.solvers.continuum.fipy_heat import FipyHeat

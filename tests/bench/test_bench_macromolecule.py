@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from numba import njit
 
-from pcverify.harness.spec.catalogue import make_scene
+from pcverify.harness.study.catalogue import make_scene
 from pcverify.scene import Resolution
 from pcverify.solvers.particles.macromolecule import codes
 from pcverify.solvers.particles.macromolecule import kernel as mk

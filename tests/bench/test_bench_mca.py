@@ -15,7 +15,7 @@ import time
 import numpy as np
 import pytest
 
-from pcverify.harness.spec.catalogue import make_scene
+from pcverify.harness.study.catalogue import make_scene
 from pcverify.scene import Box, Contact, Resolution
 from pcverify.solvers.particles.mca import kernel as mk
 from pcverify.solvers.particles.mca.automata import bar_automata, body_automata, build_automata

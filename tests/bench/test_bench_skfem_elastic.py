@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import pytest
 
-from pcverify.harness.spec.catalogue import make_scene
+from pcverify.harness.study.catalogue import make_scene
 from pcverify.scene import Resolution
 from pcverify.solvers.continuum.skfem_elastic import SkfemElastic
 

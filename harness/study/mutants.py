@@ -27,9 +27,9 @@ from pathlib import Path, PurePosixPath
 from typing import Any
 
 from pcverify.fingerprint import find_spec
-from pcverify.harness.spec.schema import MUTANT, Field, Table, check, row_where
-from pcverify.harness.spec.shipped import BESIDE
-from pcverify.harness.spec.studyfile import read_study_document
+from pcverify.harness.study.schema import MUTANT, Field, Table, check, row_where
+from pcverify.harness.study.shipped import BESIDE
+from pcverify.harness.study.studyfile import read_study_document
 from pcverify.scene import SceneError, shown
 from pcverify.solvers.registry import SolverUnavailable, get_solver
 

@@ -19,8 +19,8 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
-from pcverify.harness.spec.catalogue import make_scene
-from pcverify.harness.spec.schema import (
+from pcverify.harness.study.catalogue import make_scene
+from pcverify.harness.study.schema import (
     CALIBRATION,
     CALIBRATION_CELL,
     PARAMETER,

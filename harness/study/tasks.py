@@ -1,7 +1,7 @@
 """What a study cell computes: a cell task takes a solver, a scene, a resolution and parameters and returns
 the cell's JSON-ready result.  Every cell runs through one path (`pcverify.harness.run.execution`); the
 task is the only thing that differs: a solve (this module) or a stability measurement
-(`pcverify.harness.spec.stability.StabilityTask`)."""
+(`pcverify.harness.study.stability.StabilityTask`)."""
 
 from __future__ import annotations
 
@@ -10,8 +10,8 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from pcverify.harness.spec.boundary import admitted
-from pcverify.harness.spec.stability import StabilityTask
+from pcverify.harness.study.boundary import admitted
+from pcverify.harness.study.stability import StabilityTask
 from pcverify.scene import Resolution, Scene
 from pcverify.solvers.protocol import Solver, effective_params
 

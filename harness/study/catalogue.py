@@ -14,7 +14,7 @@ import math
 from typing import Any
 
 from pcverify import references
-from pcverify.harness.spec.schema import SCENE, check
+from pcverify.harness.study.schema import SCENE, check
 from pcverify.references.heat import FIELD as SLAB
 from pcverify.references.heat import SCALARS as HEAT_SCALARS
 from pcverify.references.shared import BOX, DIMENSIONS, box_of

@@ -13,9 +13,9 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from pcverify.harness.spec.schema import Field
-from pcverify.harness.spec.stability import PROBE_KINDS
-from pcverify.harness.spec.tasks import SOLVE, TASKS, CellTask
+from pcverify.harness.study.schema import Field
+from pcverify.harness.study.stability import PROBE_KINDS
+from pcverify.harness.study.tasks import SOLVE, TASKS, CellTask
 
 # the figures a group can ask for by name (its `figures` list), drawn by `report.figures.GROUP_FIGURES`
 GROUP_FIGURE_KINDS = ("edge-profiles", "render-3d", "history", "parameter")  # parameter: figure_y against figure_x

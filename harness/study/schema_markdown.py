@@ -12,10 +12,10 @@ import html
 import json
 from typing import Any
 
-from pcverify.harness.spec.analyses import ANALYSES, REGISTRIES
-from pcverify.harness.spec.schema import STUDY, Field, Table
+from pcverify.harness.study.analyses import ANALYSES, REGISTRIES
+from pcverify.harness.study.schema import STUDY, Field, Table
 
-BEGIN = "<!-- generated from harness/spec/schema.py by `python tests/test_docs.py --regenerate`: edit the schema -->"
+BEGIN = "<!-- generated from harness/study/schema.py by `python tests/test_docs.py --regenerate`: edit the schema -->"
 END = "<!-- end of the generated reference -->"
 
 

@@ -18,8 +18,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from pcverify.harness.spec.expressions import evaluate
-from pcverify.harness.spec.schema import CLAIM, STUDY, check_value, row_where
+from pcverify.harness.study.expressions import evaluate
+from pcverify.harness.study.schema import CLAIM, STUDY, check_value, row_where
 from pcverify.scene import SceneError, shown
 
 SPREAD = "spread"  # uncertainty = the standard error of the mean over a case's replica rows

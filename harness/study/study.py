@@ -4,7 +4,7 @@ A study file has a `name`, a `title`, optional `plugins` (modules imported in ev
 its cells) and `[[scene]]` tables (scenes built from the shipped building blocks), `[[group]]` tables,
 `[[claim]]` tables, `[[calibration]]` tables (`calibspec`) and `[[mutant]]` tables (`mutants`).  Each group
 names a scene (with `scene_params`), `solvers`, lists `n` and `refine`, `solver_params`, a `sweep`, and the `analysis`
-applied to its cells (the registry in `pcverify.harness.spec.analyses`).  The whole file is checked before any
+applied to its cells (the registry in `pcverify.harness.study.analyses`).  The whole file is checked before any
 cell is built (`studyfile`).
 """
 
@@ -17,15 +17,15 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from pcverify.harness.spec.analyses import ANALYSES
-from pcverify.harness.spec.calibspec import Calibration, parse_calibrations
-from pcverify.harness.spec.catalogue import register_scene, spec_from_table
-from pcverify.harness.spec.claims import Claim, parse_claims
-from pcverify.harness.spec.mutants import Mutant, parse_mutants
-from pcverify.harness.spec.plugins import load_plugins
-from pcverify.harness.spec.schema import GROUP, MAX_CELLS, NAME, SCENE, as_list, check_value, row_where
-from pcverify.harness.spec.shipped import study_path
-from pcverify.harness.spec.studyfile import (
+from pcverify.harness.study.analyses import ANALYSES
+from pcverify.harness.study.calibspec import Calibration, parse_calibrations
+from pcverify.harness.study.catalogue import register_scene, spec_from_table
+from pcverify.harness.study.claims import Claim, parse_claims
+from pcverify.harness.study.mutants import Mutant, parse_mutants
+from pcverify.harness.study.plugins import load_plugins
+from pcverify.harness.study.schema import GROUP, MAX_CELLS, NAME, SCENE, as_list, check_value, row_where
+from pcverify.harness.study.shipped import study_path
+from pcverify.harness.study.studyfile import (
     check_groups,
     check_study_document,
     read_study_document,
@@ -36,7 +36,7 @@ from pcverify.harness.spec.studyfile import (
     solver_params_of,
     target_names,
 )
-from pcverify.harness.spec.tasks import SOLVE, CellTask, ask_supports
+from pcverify.harness.study.tasks import SOLVE, CellTask, ask_supports
 from pcverify.scene import Scene, SceneError
 from pcverify.solvers.registry import SolverUnavailable, get_solver, named
 

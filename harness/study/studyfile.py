@@ -5,7 +5,7 @@ fail in one line that names the file, the group, the field and the allowed value
 with a traceback halfway through a study.  Its keys, types and ranges are declared in `schema` and checked
 by its one walk (unknown keys are errors: a misspelt key would otherwise be ignored and the wrong study
 run); this module adds what needs other objects: the scenes and the solvers' own parameters.
-`pcverify.harness.spec.study.load_study` calls these functions, then builds cells from a document it can
+`pcverify.harness.study.study.load_study` calls these functions, then builds cells from a document it can
 trust.
 """
 
@@ -17,10 +17,10 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
-from pcverify.harness.spec.analyses import ANALYSES, REGISTRIES
-from pcverify.harness.spec.catalogue import get_spec, make_scene
-from pcverify.harness.spec.expressions import is_expression, resolve, variables
-from pcverify.harness.spec.schema import GROUP, STUDY, as_list, check, row_where
+from pcverify.harness.study.analyses import ANALYSES, REGISTRIES
+from pcverify.harness.study.catalogue import get_spec, make_scene
+from pcverify.harness.study.expressions import is_expression, resolve, variables
+from pcverify.harness.study.schema import GROUP, STUDY, as_list, check, row_where
 from pcverify.scene import Scene, SceneError, is_real
 from pcverify.solvers.registry import SolverUnavailable, get_solver
 

@@ -9,7 +9,7 @@ import importlib
 from collections.abc import Iterable
 from functools import cache
 
-from pcverify.harness.spec.catalogue import register_scene
+from pcverify.harness.study.catalogue import register_scene
 from pcverify.scene import SceneError, SceneSpec, shown
 from pcverify.solvers.registry import MODULE, is_solver_class, register_solver, search_first
 
