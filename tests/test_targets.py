@@ -131,6 +131,13 @@ PASTED = {
        for n, v in ((3, "0.057191"), (4, "0.031754"), (6, "0.013987"), (8, "0.007843"))},
     ("continuum-heat", "paper-bulk-mesh-limit"): ("0.3333333333333333", None),  # the paper scene's bulk_median
     ("heat-particles", "paper-bulk-one-third"): ("0.3333333333333333", None),
+    ("elasticity", "mca-rotational-frequency-n4"): ("11179.818", 4),  # the analytic chain at the group's krot
+    ("elasticity", "mca-rotational-frequency-n6"): ("17859.730", 6),
+    ("macromolecule", "top-mode-damping-ratio"): ("0.01", None),  # the value the claim selects
+    ("macromolecule", "top-frequency-as-asked"): ("50.0", None),  # the solver's defaults
+    ("macromolecule", "time-step-safety"): ("0.05", None),
+    **{("macromolecule", f"stop-{what}-{scene}"): (v, None) for scene in ("paper", "faces")
+       for what, v in (("halves-agree", "0.02"), ("deviation", "0.01"))},
 }
 WRONG: dict[tuple[str, str], float] = {}
 
@@ -146,3 +153,40 @@ def test_every_computed_target_of_a_shipped_study_is_the_number_it_replaces(name
             if n is None or level_n == n:
                 want = WRONG.get(key, float(pasted))
                 assert math.isfinite(value) and abs(value - want) <= max(half_digit, 1e-15 * abs(want)), (key, value)
+
+
+SWEPT = """
+name = "solver-targets"
+[[group]]
+id = "g"
+scene = "bar-heat-faces"
+solvers = ["macromolecule"]
+n = [2]
+solver_params = { p = 3.0 }
+sweep = { damping_ratio = [0.0, 0.01] }
+[[claim]]
+id = "c"
+text = "t"
+table = "g-cells"
+metric = "m"
+reference = "theory"
+target = "TARGET"
+tolerance = 0.0
+"""
+
+
+@pytest.mark.parametrize("target, select, value", [
+    ("p", "", 3.0),  # the group's own value of a solver parameter
+    ("f_top / 2", "", 25.0),  # the solver's default
+    ("damping_ratio", "select = { damping_ratio = 0.01 }", 0.01),  # swept: the value the claim selects
+    ("density * conductivity", "", 2700.0 * 237.0),  # the scene material's constants
+    ("damping_ratio", "", None),  # swept and not selected: no one value, an error
+])
+def test_a_target_names_the_solver_parameters_its_cases_share(tmp_path, target, select, value) -> None:
+    path = tmp_path / "solver-targets.toml"
+    path.write_text(SWEPT.replace("TARGET", target).replace('tolerance = 0.0', f"tolerance = 0.0\n{select}"))
+    if value is None:
+        with pytest.raises(SceneError, match=r"claim\[1\] \(c\): .*target.*damping_ratio"):
+            load_study(str(path))
+        return
+    assert load_study(str(path)).claims[0].targets == ((2, 1, pytest.approx(value, rel=1e-15)),)

@@ -6,7 +6,8 @@ which cell statuses its cases may stand on.  `pcverify.harness.judge.verdict` ju
 module only reads and checks them (one line naming the claim and the field, before anything runs).
 
 A target is a number, `"reference:NAME"` (a scalar of the scene's reference) or an expression of the resolution
-(n, refine, a, h), the scene's numeric parameters and reference scalars (`"sigma_c / k"`): computed, not pasted.
+(n, refine, a, h), the scene's numeric parameters, its material's constants, the solver parameters the group's
+cells share, the values the claim selects and reference scalars (`"sigma_c / k"`): computed, not pasted.
 It is evaluated at every (n, refine) of the claim's group when the study loads (a bad name fails there).
 """
 
@@ -20,7 +21,7 @@ from typing import Any
 
 from pcverify.harness.study.expressions import evaluate
 from pcverify.harness.study.schema import CLAIM, STUDY, check_value, row_where
-from pcverify.scene import SceneError, shown
+from pcverify.scene import SceneError, is_real, shown
 
 SPREAD = "spread"  # uncertainty = the standard error of the mean over a case's replica rows
 REFERENCE = "reference:"  # a target naming a scalar of the scene's reference
@@ -66,12 +67,14 @@ def parse_claims(items: list[dict[str, Any]], where: str, levels: Callable[[str]
                              "aggregate = \"mean\"")
         claim = Claim(**item | {"statuses": tuple(item["statuses"])})
         if isinstance(claim.target, str):
-            claim = dataclasses.replace(claim, targets=_targets(claim.target, levels(claim.table), at))
+            chosen = {k: v for k, v in claim.select.items() if is_real(v)}  # a value the claim's rows all have
+            claim = dataclasses.replace(claim, targets=_targets(claim.target, levels(claim.table), chosen, at))
         claims.append(claim)
     return claims
 
 
-def _targets(text: str, levels: Levels | None, at: str) -> tuple[tuple[int, int, float], ...]:
+def _targets(text: str, levels: Levels | None, chosen: dict[str, float], at: str
+             ) -> tuple[tuple[int, int, float], ...]:
     """A text target's value at each (n, refine) of its group (SceneError naming the claim and the field)."""
     if not levels:
         raise SceneError(f"{at}: target={shown(text)} is not valid; allowed: a number (no group makes the table)")
@@ -81,7 +84,8 @@ def _targets(text: str, levels: Levels | None, at: str) -> tuple[tuple[int, int,
             raise SceneError(f"{at}: target={shown(text)} is not valid; allowed: reference:NAME, NAME one of the "
                              f"scene's reference scalars ({', '.join(scalars) or 'it has none'})")
         try:
-            out.append((n, refine, scalars[name] if name != text else evaluate("target", text, names | scalars)))
+            value = scalars[name] if name != text else evaluate("target", text, chosen | names | scalars)
+            out.append((n, refine, value))
         except SceneError as exc:
             raise SceneError(f"{at}: {exc}") from None
     return tuple(out)

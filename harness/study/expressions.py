@@ -3,7 +3,8 @@ the cell's resolution, e.g. `delta = "3 * h"` (a horizon of three spacings) or `
 
 The names an expression may use: `n` (the lattice resolution), `refine`, `a` (the lattice spacing of the scene's
 box at n, m) and `h` (= a / refine, m).  Numbers, + - * / ** and parentheses, and the functions sqrt, exp, log,
-min, max, abs.  A text is an expression only where the parameter is a number (a text parameter keeps its text).
+min, max, abs, round (and, for a claim's target, mca_rotational_hz).  A text is an expression only where the
+parameter is a number (a text parameter keeps its text).
 Each cell gets the value of its own resolution, checked against the parameter's range like any value; the
 expression itself travels with the cell (its key, its tables) so a reader sees "delta=0.0015 (= 3 * h)".
 """
@@ -16,11 +17,16 @@ import operator
 from collections.abc import Callable
 from typing import Any
 
+from pcverify.references.elastic import mca_rotational_hz
 from pcverify.scene import Param, SceneError, shown
 
 NAMES = ("n", "refine", "a", "h")
-FUNCTIONS: dict[str, Callable[..., float]] = {"sqrt": math.sqrt, "exp": math.exp, "log": math.log, "min": min,
-                                              "max": max, "abs": abs}
+FUNCTIONS: dict[str, Callable[..., float]] = {
+    "sqrt": math.sqrt, "exp": math.exp, "log": math.log, "min": min, "max": max, "abs": abs, "round": round,
+    # the analytic chain of the MCA bar's lowest rotational mode (a target: shear modulus, density, spacing, krot,
+    # and the spacings across, across and along)
+    "mca_rotational_hz": lambda g, rho, a, krot, nx, ny, nz: mca_rotational_hz(g, rho, a, krot, (nx, ny, nz)),
+}
 _BINARY = {ast.Add: operator.add, ast.Sub: operator.sub, ast.Mult: operator.mul, ast.Div: operator.truediv,
            ast.Pow: operator.pow}
 _UNARY = {ast.USub: operator.neg, ast.UAdd: operator.pos}

@@ -342,7 +342,8 @@ CLAIM = Table("[[claim]]", (
     Field("tolerance", "real", "the bound around the target", low=0.0, required=True),
     Field("target", "any", "the value claimed (unless against gives it): a number, \"reference:NAME\" (the scalar "
           "NAME of the scene's reference) or an expression of n, refine, a, h, pi, the scene's numeric parameters and "
-          "its reference scalars", default=0.0, alternatives=(Field("target", "real"), Field(
+          "material constants, the solver parameters the group's cells share, the claim's selected numbers and its "
+          "reference scalars", default=0.0, alternatives=(Field("target", "real"), Field(
               "target", "text", hint="reference:NAME or an expression", pattern=r"(?s).{1,200}"))),
     Field("select", "table", "the rows read: { column = value or [values] }", values=TEXT_TABLE, default={}),
     Field("aggregate", "text", "how the rows of a case combine", choices=AGGREGATES, default="max"),

@@ -92,18 +92,39 @@ def scene_at(scene: str, scene_params: dict[str, Any], n: int, refine: int
     return make_scene(scene, **values), values, expressions
 
 
+MATERIAL_NAMES = ("density", "conductivity", "heat_capacity", "youngs_modulus", "poisson_ratio")
+
+
 def target_names(g: dict[str, Any]) -> dict[tuple[int, int], tuple[dict[str, float], dict[str, float]]]:
     """What a claim's target on a group's tables may name at each (n, refine) of the group: (the scalars of the
-    scene's reference, asked before any solve; the resolution's names, pi and the scene's numeric parameters)."""
+    scene's reference, asked before any solve; the resolution's names, pi, the scene's numeric parameters, its
+    material's constants and the solver parameters every cell of the group shares)."""
     spec, given, out = get_spec(g["scene"]), g.get("scene_params", {}), {}
+    shared = _shared_solver_params(g)
     for n, refine in resolutions(g):
         scene, values, _ = scene_at(g["scene"], given, n, refine)
         ref = spec.reference.scalars(scene, {}) if spec.reference and spec.reference.scalars else {}
-        params = {p.name: p.default for p in spec.parameters} | values
+        mat = scene.material
+        params = shared | {k: getattr(mat, k) for k in MATERIAL_NAMES} | {p.name: p.default for p in spec.parameters}
+        names = (params | values | {"pi": math.pi}) | resolution_names(g["scene"], given, n, refine)
         out[n, refine] = ({k: float(v) for k, v in ref.items() if is_real(v)},
-                          {k: float(v) for k, v in params.items() if is_real(v)} | {"pi": math.pi}
-                          | resolution_names(g["scene"], given, n, refine))
+                          {k: float(v) for k, v in names.items() if is_real(v)})
     return out
+
+
+def _shared_solver_params(g: dict[str, Any]) -> dict[str, Any]:
+    """The solver parameters with one value in every cell of the group: each solver's defaults and the group's
+    solver_params (flat or by solver), less the swept ones and those on which the group's solvers differ."""
+    table, swept, found = g.get("solver_params", {}), set(g.get("sweep", {})), []
+    for solver in as_list(g["solvers"]):
+        try:
+            declared = {p.name: p.default for p in get_solver(solver).parameters}
+        except SolverUnavailable:
+            return {}
+        given = {k: v for k, v in table.items() if not isinstance(v, dict)} | table.get(solver, {})
+        found.append({k: v for k, v in (declared | given).items() if k not in swept and not isinstance(v, str)})
+    keys = set.intersection(*(set(f) for f in found)) if found else set()
+    return {k: found[0][k] for k in keys if all(f[k] == found[0][k] for f in found)}
 
 
 def solver_params_at(solver: str, params: dict[str, Any], names: dict[str, float]
