@@ -10,7 +10,7 @@ import pytest
 
 from pcverify.harness.judge import group_tables
 from pcverify.harness.report import group_figures
-from pcverify.harness.study import analyses, calibspec, claims, study, studyfile
+from pcverify.harness.study import analyses, calibspec, catalogue, claims, study, studyfile
 from pcverify.harness.study.analyses import REGISTRIES
 from pcverify.harness.study.calibspec import Calibration
 from pcverify.harness.study.schema import (
@@ -112,7 +112,7 @@ def test_no_reader_of_the_spec_repeats_a_default_the_schema_declares() -> None:
     options = [f for fields in REGISTRIES["analyses"].values() for f in fields]
     defaults = {(f.name, repr(f.default)) for t in [*TABLES.values(), CALIBRATION_CELL, PARAMETER, REFERENCE]
                 for f in [*t.fields, *options] if f.default is not None}
-    for module in (study, studyfile, claims, calibspec, analyses, group_tables, group_figures):
+    for module in (study, studyfile, claims, calibspec, analyses, catalogue, group_tables, group_figures):
         text = Path(module.__file__).read_text(encoding="utf-8")
         for name, default in defaults:
             literal = "|".join(re.escape(d) for d in {default, default.replace("'", '"')})

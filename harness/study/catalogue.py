@@ -17,7 +17,7 @@ from pcverify import references
 from pcverify.harness.study.schema import SCENE, check
 from pcverify.references.heat import FIELD as SLAB
 from pcverify.references.heat import SCALARS as HEAT_SCALARS
-from pcverify.references.shared import BOX, DIMENSIONS, box_of
+from pcverify.references.shared import DIMENSIONS, box_of
 from pcverify.scene import (
     MATERIALS,
     Box,
@@ -124,24 +124,23 @@ def spec_from_table(table: dict[str, Any], where: str) -> SceneSpec:
 
     The scene's only parameters are its box dimensions (width, height, length; the table's values are
     the defaults), so that groups can vary them; everything else is fixed by the table (`schema.SCENE`)."""
-    check(table, SCENE, where)
-    name = table["name"]
+    doc = check(table, SCENE, where)  # with the schema's defaults; which physics it has is what `table` gives
+    name = doc["name"]
     try:
-        box = Box(**{"width": BOX.width, "height": BOX.height, "length": BOX.length, **table.get("box", {})})
-        material = table.get("material", "aluminium")
+        box = Box(**doc.get("box", {}))
+        material = doc["material"]
         material = MATERIALS[material] if isinstance(material, str) else Material(**{"name": "custom",
                                                                                      **_reals(material, ("name",))})
         heat = any(k in table for k in HEAT_KEYS)
         elastic = any(k in table for k in ELASTIC_KEYS)
-        constraints = [_held(item) for item in table.get("held", [])]
-        constraints += [FaceSupport(item["face"], float(item.get("displacement", 0.0)))
-                        for item in table.get("supports", [])]
-        constraints += [FaceClamp(face) for face in table.get("clamps", [])]
-        heat_fields = {k: table[k] for k in HEAT_KEYS if k in table and k != "held"}
+        constraints = [_held(item) for item in doc.get("held", [])]
+        constraints += [FaceSupport(item["face"], float(item["displacement"])) for item in doc.get("supports", [])]
+        constraints += [FaceClamp(face) for face in doc.get("clamps", [])]
+        heat_fields = {k: doc[k] for k in HEAT_KEYS if k in table and k != "held"}
         if "interface" in heat_fields:
             heat_fields["interface"] = InterfaceFlux(**_reals(heat_fields["interface"], ("axis",)))
         conduction = Conduction(**heat_fields) if heat else None
-        elasticity = Elasticity(modes=table.get("modes", 0)) if elastic else None
+        elasticity = Elasticity(modes=doc["modes"]) if elastic else None
     except (TypeError, ValueError) as exc:
         raise SceneError(f"{where}: {exc}") from None
     if not heat and not elastic:
@@ -153,7 +152,7 @@ def spec_from_table(table: dict[str, Any], where: str) -> SceneSpec:
     physics |= {"interface-flux"} if plane is not None and plane.flux != 0 else set()
     physics |= {"elasticity"} if elastic else set()
     physics |= {"modes"} if elasticity is not None and elasticity.modes > 0 else set()
-    description = table.get("description", f"scene {name} (defined in a study file)")
+    description = doc.get("description", f"scene {name} (defined in a study file)")
     dims = tuple(Param(p.name, getattr(box, p.name), p.unit, p.description, low=p.low, high=p.high,
                        low_open=p.low_open) for p in DIMENSIONS)
 
