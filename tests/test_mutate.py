@@ -84,7 +84,7 @@ diff = """
              held[tuple(index)] = True
 -        rate = alpha * dt / (h * h)
 +        rate = 2.0 * alpha * dt / (h * h)
-         for _ in range(steps):
+         rise = heat.source * dt / (scene.material.density * scene.material.heat_capacity)  # K per step
 """
 breaks = "twice the diffusivity in the update"
 expect = ["fd-order"]
