@@ -101,6 +101,14 @@ def caught_by(claims: dict[str, dict[str, Any]]) -> list[str]:
     return [c for c, s in claims.items() if s.get("caught")]
 
 
+def _copy_data_files(package: Path, target: Path) -> None:
+    """The files beside the mutated module that are not Python (a solver's model notes, say) copied beside its
+    edited copy: a module that finds them next to its own `__file__` finds them in the mutant too."""
+    for path in package.iterdir():
+        if path.is_file() and path.suffix not in (".py", ".pyc") and not (target / path.name).is_file():
+            shutil.copy2(path, target / path.name)
+
+
 def _copy_numba_cache(target: Path, packages: Iterable[Path]) -> None:
     """A copy of the real numba cache for a mutant: NUMBA_CACHE_DIR's folder, or, without it, the in-tree
     `__pycache__` entries of the packages' folders laid out as numba lays out a cache folder."""
@@ -210,6 +218,7 @@ class Runner:
         source.parent.mkdir(exist_ok=True)
         if not source.is_file() or source.read_text(encoding="utf-8") != p.edited:
             source.write_text(p.edited, encoding="utf-8")  # rewritten only when it changed: numba keys on it
+        _copy_data_files(p.original.parent, source.parent)
         results = p.folder / "results"
         seeded = _seed(results, self.cache, sorted(self.keys)) if m.seedable() else 0
         results.mkdir(exist_ok=True)
