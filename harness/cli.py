@@ -230,8 +230,8 @@ def build_parser() -> argparse.ArgumentParser:
                    f"(status crashed; its finished cells are kept; default {DEFAULT_MUTANT_TIME_LIMIT:g})")
     p.add_argument("--json", action="store_true", help="print mutants.json of each study (a list), nothing else on "
                    "stdout")
-    p.add_argument("--strict", action="store_true", help="exit 1 when a mutant survives, is invalid or crashed (a "
-                   "CI gate)")
+    p.add_argument("--strict", action="store_true", help="exit 1 when a mutant survives, is invalid, crashed or "
+                   "was killed only incidentally (a CI gate)")
 
     p = sub.add_parser("bench", help="run the benchmarks, save them, compare with the previous saved run")
     p.add_argument("--tests", default="tests/bench", help="benchmark folder (default tests/bench)")

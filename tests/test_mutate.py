@@ -27,7 +27,8 @@ import pytest
 
 from pcverify.fingerprint import module_fingerprint
 from pcverify.harness.cli import main
-from pcverify.harness.run.mutation import caught_by, judge, overlaid, prune
+from pcverify.harness.report.gates import mutant_gate
+from pcverify.harness.run.mutation import caught_by, judge, kill_kind, overlaid, prune
 from pcverify.harness.run.overlay import OverlayFinder
 
 REPO = Path(__file__).resolve().parent.parent
@@ -144,15 +145,19 @@ def test_one_mutant_is_killed_one_survives_and_the_real_cache_is_untouched(plugi
     code, docs, err = _mutate(str(study), "--out", str(out), "--jobs", "2", "--strict", capsys=capsys)
     assert code == 1  # --strict: a survivor
     assert "pcverify: mutant survived: tiny/dt-reported-twice (fd_heat/solver.py: twice the time step" in err
-    assert "pcverify: 1 of 2 mutants are not killed (1 survived, 0 invalid, 0 crashed) (--strict)" in err
+    assert ("pcverify: 1 of 2 mutants are not killed by a claim that measures them (1 survived, 0 invalid, 0 crashed, "
+            "0 killed incidentally) (--strict)") in err
     assert _files(cache, skip="mutants") == before  # the real result cache, byte for byte
 
     doc = json.loads((out / "tiny" / "mutants.json").read_text())
     assert doc == docs[0]
     killed, survived = doc["mutants"]
     assert (killed["name"], killed["status"], killed["caught_by"]) == ("rate-doubled", "killed", ["fd-order"])
-    assert killed["claims"] == {"fd-order": {"baseline": "pass", "mutant": "fail", "passing": 1, "caught": [""]},
-                                "skfem-exact": {"baseline": "pass", "mutant": "pass", "passing": 1, "caught": []}}
+    assert killed["claims"] == {"fd-order": {"baseline": "pass", "mutant": "fail", "passing": 1, "caught": [""],
+                                             "incidental": []},
+                                "skfem-exact": {"baseline": "pass", "mutant": "pass", "passing": 1, "caught": [],
+                                                "incidental": []}}
+    assert killed["kill"] == "expected"  # fd-order measured the order it declares
     assert (survived["name"], survived["status"], survived["caught_by"]) == ("dt-reported-twice", "survived", [])
     assert survived["origin"] == f"mutants file {tmp_path / 'tiny.mutants.toml'}"
     for m in (killed, survived):
@@ -209,7 +214,8 @@ breaks = "a name that does not exist at import"
     assert broken["status"] == "invalid"
     assert broken["reason"] == "fd_heat.solver does not import: NameError: name 'UNDEFINED_NAME' is not defined"
     assert docs[0]["counts"] == {"killed": 0, "survived": 0, "invalid": 2, "crashed": 0}
-    assert "pcverify: 2 of 2 mutants are not killed (0 survived, 2 invalid, 0 crashed) (--strict)" in err
+    assert ("pcverify: 2 of 2 mutants are not killed by a claim that measures them (0 survived, 2 invalid, 0 crashed, "
+            "0 killed incidentally) (--strict)") in err
 
 
 def test_a_mutant_that_hangs_is_stopped_at_its_time_limit_and_is_crashed(plugin_path, tmp_path, capsys) -> None:
@@ -389,9 +395,29 @@ def test_a_claim_judged_per_case_catches_a_mutant_with_any_case_that_passed() ->
         return [{"claim": "c", "case": "n=3", "verdict": n3}, {"claim": "c", "case": "n=8", "verdict": n8}]
 
     claims = judge(rows("fail", "pass"), rows("fail", "inconclusive"))
-    assert claims == {"c": {"baseline": "fail", "mutant": "fail", "passing": 1, "caught": ["n=8"]}}
+    assert claims == {"c": {"baseline": "fail", "mutant": "fail", "passing": 1, "caught": ["n=8"],
+                            "incidental": ["n=8"]}}  # these records carry no value: nothing was measured
     assert caught_by(claims) == ["c"]
     assert caught_by(judge(rows("fail", "pass"), rows("pass", "pass"))) == []
+
+
+def test_a_kill_is_expected_measuring_or_incidental() -> None:
+    """A claim whose number moved beyond its bound measured the defect (expected where the mutant names it); a
+    claim that failed only because its cells did not run to a value (out of steps, stopped) caught it
+    incidentally, and --strict does not count such a kill."""
+    base = [{"claim": "a", "case": "", "verdict": "pass", "value": 1.0},
+            {"claim": "b", "case": "", "verdict": "pass", "value": 2.0}]
+    moved = [{"claim": "a", "case": "", "verdict": "fail", "value": 1.5}, base[1]]
+    unjudged = [{"claim": "a", "case": "", "verdict": "fail", "value": None,
+                 "note": "not judged on all its cells: n=4 non-stationary"}, base[1]]
+    assert kill_kind(judge(base, moved), expect=["a"]) == "expected"
+    assert kill_kind(judge(base, moved), expect=["b"]) == "measuring"
+    assert kill_kind(judge(base, unjudged), expect=["a"]) == "incidental"
+    assert kill_kind(judge(base, base), expect=[]) == ""
+    doc = {"study": "s", "mutants": [{"name": "m", "status": "killed", "kill": "incidental", "package": "p",
+                                      "file": "f.py", "breaks": "b", "reason": "caught only where no claim "
+                                      "measured it: a ()"}]}
+    assert mutant_gate([doc], strict=True) == 1 and mutant_gate([doc], strict=False) == 0
 
 
 MAIN_MODULES = '''

@@ -29,15 +29,19 @@ def verdict_gate(records: list[dict[str, Any]], strict: bool) -> int:
 
 
 def mutant_gate(docs: list[dict[str, Any]], strict: bool) -> int:
-    """Exit code of `mutate`: with --strict, 1 when a mutant run is not killed (survived, invalid or crashed),
-    each listed on stderr with why."""
-    bad = [(d["study"], o) for d in docs for o in d["mutants"] if o["status"] != "killed"]
+    """Exit code of `mutate`: with --strict, 1 when a mutant run is not killed (survived, invalid or crashed) or
+    killed only where no claim measured it (`kill` incidental), each listed on stderr with why."""
+    bad = [(d["study"], o) for d in docs for o in d["mutants"]
+           if o["status"] != "killed" or o.get("kill") == "incidental"]
     if not strict or not bad:
         return 0
     for study, o in bad:
-        print(f"pcverify: mutant {o['status']}: {study}/{o['name']} ({o['package']}/{o['file']}: {o['breaks']}): "
+        state = "killed incidentally" if o["status"] == "killed" else o["status"]
+        print(f"pcverify: mutant {state}: {study}/{o['name']} ({o['package']}/{o['file']}: {o['breaks']}): "
               f"{o['reason']}", file=sys.stderr)
     total = sum(len(d["mutants"]) for d in docs)
     counts = ", ".join(f"{sum(o['status'] == s for _, o in bad)} {s}" for s in ("survived", "invalid", "crashed"))
-    print(f"pcverify: {len(bad)} of {total} mutants are not killed ({counts}) (--strict)", file=sys.stderr)
+    counts += f", {sum(o['status'] == 'killed' for _, o in bad)} killed incidentally"
+    print(f"pcverify: {len(bad)} of {total} mutants are not killed by a claim that measures them ({counts}) "
+          "(--strict)", file=sys.stderr)
     return 1

@@ -42,7 +42,8 @@ def mutation_document(study: str, baseline: list[dict[str, Any]], outcomes: list
 
 
 def kill_matrix(doc: dict[str, Any]) -> pd.DataFrame:
-    """Claims x mutants: "killed (fail)" where the claim caught the mutant (its state on the mutant), "pass" where
+    """Claims x mutants: "killed (fail)" where the claim caught the mutant (its state on the mutant; "killed (fail,
+    incidental)" where none of its caught cases measured a value), "pass" where
     it passed on both, "baseline fail" where it did not pass on the original, the mutant's status where it was
     not judged (invalid, crashed)."""
     rows = []
@@ -53,7 +54,8 @@ def kill_matrix(doc: dict[str, Any]) -> pd.DataFrame:
             if o["status"] in ("invalid", "crashed"):
                 row[o["name"]] = o["status"]
             elif claim in o.get("caught_by", []):
-                row[o["name"]] = f"killed ({s['mutant']})"
+                measured = set(s.get("caught", [])) - set(s.get("incidental", []))
+                row[o["name"]] = f"killed ({s['mutant']}{'' if measured else ', incidental'})"
             elif s is None or not c.get("passing"):
                 row[o["name"]] = f"baseline {c['baseline']}"
             else:
@@ -107,8 +109,10 @@ def mutation_section(folder: Path, name: str, doc: Any) -> str:
                  "<th>status</th><th>caught by</th><th>breaks</th><th>file</th><th>expected</th><th>wall</th>"
                  "<th>cells recomputed</th><th>why</th></tr>")
     for o in doc["mutants"]:
-        status = str(o.get("status"))
-        css = {"killed": "pass", "survived": "fail", "invalid": "inconclusive", "crashed": "inconclusive"}.get(status)
+        status = str(o.get("status")) + (f" ({o['kill']})" if o.get("kill") else "")
+        css = {"killed": "pass", "survived": "fail", "invalid": "inconclusive", "crashed": "inconclusive"}.get(
+            str(o.get("status")))
+        css = "inconclusive" if o.get("kill") == "incidental" else css
         parts.append(f"<tr><td>{e(str(o.get('name')))}</td><td class='{css}'>{e(status)}</td>"
                      f"<td>{_names(o.get('caught_by') or []) or '—'}</td><td title='{e(str(o.get('breaks')))}'>"
                      f"{e(str(o.get('breaks')))}</td><td>{e(str(o.get('package')))}/{e(str(o.get('file')))}</td>"
@@ -116,10 +120,11 @@ def mutation_section(folder: Path, name: str, doc: Any) -> str:
                      f"<td>{int(o.get('recomputed') or 0)}</td><td title='{e(str(o.get('reason') or ''))}'>"
                      f"{e(str(o.get('reason') or ''))}</td></tr>")
     parts.append("</table></div>")
-    missed = [o for o in doc["mutants"] if o.get("status") != "killed"]
+    missed = [o for o in doc["mutants"] if o.get("status") != "killed" or o.get("kill") == "incidental"]
     if missed:
-        parts.append("<p class='meta'>Not killed:</p><ul>" + "".join(
-            f"<li><b>{e(str(o.get('status')))}</b> {e(str(o.get('name')))} ({e(str(o.get('package')))}/"
+        parts.append("<p class='meta'>Not killed by a claim that measures them:</p><ul>" + "".join(
+            f"<li><b>{e('killed incidentally' if o.get('kill') == 'incidental' else str(o.get('status')))}</b> "
+            f"{e(str(o.get('name')))} ({e(str(o.get('package')))}/"
             f"{e(str(o.get('file')))}: {e(str(o.get('breaks')))}): {e(str(o.get('reason') or ''))}</li>"
             for o in missed) + "</ul>")
     if (folder / f"{MATRIX}.csv").is_file():

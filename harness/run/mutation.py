@@ -18,6 +18,7 @@ import concurrent.futures
 import contextlib
 import hashlib
 import json
+import math
 import os
 import re
 import shutil
@@ -76,10 +77,11 @@ def prepare(mutant: Mutant, cache_root: Path, study: str) -> Prepared:
 def judge(baseline: list[dict[str, Any]], mutated: list[dict[str, Any]]) -> dict[str, dict[str, Any]]:
     """Per claim of the baseline its state there and on the mutant (the worst of its verdicts: fail,
     inconclusive, not-applicable, pass; "missing" when the mutant's report has none), how many of its cases pass
-    on the baseline, and `caught`: those cases that do not pass on the mutant (a claim judged per n, say, catches
-    a defect with each case that passed)."""
-    def cases(records: list[dict[str, Any]]) -> dict[tuple[str, str], str]:
-        return {(r["claim"], str(r.get("case") or "")): r["verdict"] for r in records}
+    on the baseline, `caught`: those cases that do not pass on the mutant (a claim judged per n, say, catches
+    a defect with each case that passed), and `incidental`: the caught cases the claim did not measure on the
+    mutant (no value: its cells ran out of steps, stopped, failed or were skipped, or the case is missing)."""
+    def cases(records: list[dict[str, Any]]) -> dict[tuple[str, str], dict[str, Any]]:
+        return {(r["claim"], str(r.get("case") or "")): r for r in records}
 
     def worst(verdicts: list[str]) -> str:
         return next((s for s in STATES if s in verdicts), "missing")
@@ -87,13 +89,30 @@ def judge(baseline: list[dict[str, Any]], mutated: list[dict[str, Any]]) -> dict
     before, after = cases(baseline), cases(mutated)
     out: dict[str, dict[str, Any]] = {}
     for claim in dict.fromkeys(c for c, _ in before):
-        mine = [(case, v) for (c, case), v in before.items() if c == claim]
+        mine = [(case, r["verdict"]) for (c, case), r in before.items() if c == claim]
         passed = [case for case, v in mine if v == "pass"]
+        caught = [case for case in passed if after.get((claim, case), {}).get("verdict", "missing") != "pass"]
         out[claim] = {"baseline": worst([v for _, v in mine]),
-                      "mutant": worst([v for (c, _), v in after.items() if c == claim]),
-                      "passing": len(passed), "caught": [case for case in passed
-                                                         if after.get((claim, case), "missing") != "pass"]}
+                      "mutant": worst([r["verdict"] for (c, _), r in after.items() if c == claim]),
+                      "passing": len(passed), "caught": caught,
+                      "incidental": [case for case in caught if not _measured(after.get((claim, case)))]}
     return out
+
+
+def _measured(record: dict[str, Any] | None) -> bool:
+    """Whether a verdict record judged a number (not a case left unjudged by its cells' status or rows)."""
+    value = (record or {}).get("value")
+    return isinstance(value, (int, float)) and math.isfinite(value)
+
+
+def kill_kind(claims: dict[str, dict[str, Any]], expect: Iterable[str]) -> str:
+    """How a killed mutant was caught: "expected" (a claim it declares in `expect` measured it), "measuring"
+    (another claim's number moved beyond its bound), "incidental" (only cases no claim measured: a step budget,
+    a stationarity stop, a failed check), "" when nothing caught it."""
+    measuring = [c for c, s in claims.items() if set(s.get("caught", [])) - set(s.get("incidental", []))]
+    if not measuring:
+        return "incidental" if caught_by(claims) else ""
+    return "expected" if set(measuring) & set(expect) else "measuring"
 
 
 def caught_by(claims: dict[str, dict[str, Any]]) -> list[str]:
@@ -231,7 +250,8 @@ class Runner:
                                                                     ["study", *common, "--jobs", "1"]],
                                    p.folder, self.mutant_time_limit, self.live, self.lock)
         doc, _ = read_json(outcome_file)
-        out = base | self._classify(doc if isinstance(doc, dict) else {}, code, timed_out, p.folder, Cache(results), t0)
+        out = base | self._classify(doc if isinstance(doc, dict) else {}, code, timed_out, p.folder, Cache(results), t0,
+                                    m.expect)
         out["seeded"] = seeded
         if out["status"] != "crashed":
             shutil.rmtree(p.folder / "numba", ignore_errors=True)  # 18 MB each; a crashed run keeps it to resume
@@ -242,7 +262,7 @@ class Runner:
                 "cells_changed": 0, "recomputed": 0, "seeded": 0, "wall_s": round(time.perf_counter() - t0, 3)} | extra
 
     def _classify(self, doc: dict[str, Any], code: int | None, timed_out: bool, folder: Path, results: Cache,
-                  t0: float) -> dict[str, Any]:
+                  t0: float, expect: Iterable[str] = ()) -> dict[str, Any]:
         if "invalid" in doc:
             return self._outcome("invalid", str(doc["invalid"]), t0)
         ran = doc.get("results") or []  # the dry run (each cell's key), then the study (cells, verdicts)
@@ -264,7 +284,10 @@ class Runner:
                                  f"cells whose key it changed failed so, e.g. {broken[0][:300]}", t0, **extra)
         caught = caught_by(claims)
         if caught:
-            return self._outcome("killed", "", t0, **extra | {"caught_by": caught})
+            kind = kill_kind(claims, expect)
+            why = ("caught only where no claim measured it: " + "; ".join(
+                f"{c} ({', '.join(claims[c]['incidental'])})" for c in caught) if kind == "incidental" else "")
+            return self._outcome("killed", why, t0, **extra | {"caught_by": caught, "kill": kind})
         passing = [c for c, s in claims.items() if s.get("passing")]
         why = (f"every case that passes on the original passes on it ({len(passing)} claims)" if passing else
                "no claim passes on the original in any case: none can catch it")
