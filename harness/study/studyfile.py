@@ -104,9 +104,10 @@ def target_names(g: dict[str, Any]) -> dict[tuple[int, int], tuple[dict[str, flo
     for n, refine in resolutions(g):
         scene, values, _ = scene_at(g["scene"], given, n, refine)
         ref = spec.reference.scalars(scene, {}) if spec.reference and spec.reference.scalars else {}
-        mat = scene.material
-        params = shared | {k: getattr(mat, k) for k in MATERIAL_NAMES} | {p.name: p.default for p in spec.parameters}
-        names = (params | values | {"pi": math.pi}) | resolution_names(g["scene"], given, n, refine)
+        names = ({p.name: p.default for p in spec.parameters} | values | {"pi": math.pi}
+                 | resolution_names(g["scene"], given, n, refine))
+        more = {k: getattr(scene.material, k) for k in MATERIAL_NAMES} | shared  # the scene's names come first
+        names |= {k: v for k, v in more.items() if k not in names}
         out[n, refine] = ({k: float(v) for k, v in ref.items() if is_real(v)},
                           {k: float(v) for k, v in names.items() if is_real(v)})
     return out
@@ -123,8 +124,7 @@ def _shared_solver_params(g: dict[str, Any]) -> dict[str, Any]:
             return {}
         given = {k: v for k, v in table.items() if not isinstance(v, dict)} | table.get(solver, {})
         found.append({k: v for k, v in (declared | given).items() if k not in swept and not isinstance(v, str)})
-    keys = set.intersection(*(set(f) for f in found)) if found else set()
-    return {k: found[0][k] for k in keys if all(f[k] == found[0][k] for f in found)}
+    return {k: v for k, v in (found[0] if found else {}).items() if all(k in f and f[k] == v for f in found)}
 
 
 def solver_params_at(solver: str, params: dict[str, Any], names: dict[str, float]
