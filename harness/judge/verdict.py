@@ -1,28 +1,10 @@
 """Verdicts: each claim of a study judged against the tables the study produced.
 
-A claim is data in the study file (`[[claim]]`): which table, which rows (`select`), which column
-(`metric`), how rows are combined (`aggregate`), the target and tolerance, and the kind of
-reference the number stands on (analytic / extrapolated / mesh-dependent / same-grid / theory / paper).
-`per` splits a claim into one verdict per value of a column (e.g. per n); `against` takes the
-target from other rows (of `against_table`, default the same table; column `against_metric`,
-default the metric), matched by the `per` value unless `against` fixes that column itself.
-
-A pass must mean something, so a claim is judged on all its cases or on none:
-- every value its selection names must be in the table, and every row it reads must stand on cells of an
-  allowed status (`statuses`, default ok; a table of cells has a `status` column, a derived table a `missing`
-  column naming the cells it lost) with a finite value; otherwise the verdict is `fail`, naming the cases
-  (`not-applicable` only for a case whose cells were all skipped, where the claim says `allow_skipped`);
-- a verdict is three-valued: `pass` when the value's whole uncertainty band lies inside the bound, `fail`
-  when it lies wholly outside, `inconclusive` when the band straddles the bound (so an uncertainty larger
-  than the tolerance never passes).  The uncertainty is the claim's number or column, `spread` (the
-  standard error of the mean over a case's replica rows), or the table's own `<metric>_unc` column; a
-  target read from other rows adds its `<metric>_unc` in quadrature.  A named uncertainty that is unknown
-  makes the verdict inconclusive;
-- a value that stands on a Richardson sequence classified oscillatory or divergent (column `kind` or
-  `reference_class`) says so and is at best inconclusive; so is a value from a chaotic run (status
-  `defect`) unless it is the mean of replicas judged with `uncertainty = "spread"`.
-
-Each verdict names the solvers its value comes from, what it stands on (`basis`) and, given a `command`
+A pass must mean something, so a claim is judged on all its cases or on none, and a verdict is three-valued:
+pass when the value's whole uncertainty band lies inside the bound, fail when it lies wholly outside,
+inconclusive when it straddles it; a value on an oscillatory or divergent Richardson sequence, or on one
+chaotic run, is at best inconclusive.  The rules in full, with `per`, `against` and the uncertainties, are in
+docs/outputs.md, "What a verdict means".  Each verdict names its solvers, its `basis` and, given a `command`
 function, the command that reproduces its number.
 """
 

@@ -1,16 +1,10 @@
 """Result cache: one JSON file per study cell, keyed by a content hash, shared safely between processes.
 
-Writes are atomic (files.atomic_write), so an interrupted study never leaves a half-written entry.  An entry
-that fails to parse, whose stored key or checksum does not match, or whose result lacks the fields every result
-has, is reported as corrupt and recomputed.  A file in the cache folder's place is a one-line error.
-
-A cell being computed holds a lock file (`<key>.lock`: its holder's pid, host and `since`): another process
-running the same cell waits for the entry instead of computing it twice, saying which lock it waits for.  A
-lock is taken over when its holder has died on this host, and, with a warning, when it is older than
-STALE_LOCK_S (twice the default cell time limit, so a cell within its limit is never taken from its holder),
-whatever its pid (pids are reused) or host (another host cannot be asked).  Takeovers are decided one at a time
-under the folder's `.takeover.guard`, so two processes cannot both take over a lock and both compute the cell.
-Every caller follows one protocol: `claim` a cell, `release` it with its entry, or `wait` for its holder's.
+Writes are atomic, so an interrupted study never leaves a half-written entry; an entry that fails to parse or
+whose key, checksum or fields do not match is reported as corrupt and recomputed.  A cell being computed holds
+a lock file that other processes wait on, taken over when its holder died or after STALE_LOCK_S (docs/outputs.md,
+"The cache"), one takeover at a time under the folder's `.takeover.guard`.  Every caller follows one protocol:
+`claim` a cell, `release` it with its entry, or `wait` for its holder's.
 """
 
 from __future__ import annotations
