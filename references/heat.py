@@ -149,11 +149,11 @@ def slab_of(scene: Scene) -> tuple[Slab, int] | None:
 
     It does when every temperature constraint is a FaceTemperature and they hold the two faces of one axis
     (or there is none: an insulated body), and an interface flux, if any, lies across that axis; the initial
-    temperature and the volumetric source are uniform in every scene.  Not one with dissimilar blocks (a contact
-    whose body 1 has thermal constants of its own): the slab is one material.
+    temperature is uniform in every scene, the source must be too (no `source_field`).  Not one with dissimilar
+    blocks (a contact whose body 1 has thermal constants of its own): the slab is one material.
     """
     heat = scene.conduction
-    if heat is None:
+    if heat is None or heat.source_field:
         return None
     contact = scene.contact
     if contact is not None and (contact.base_conductivity is not None or contact.base_heat_capacity is not None):

@@ -16,6 +16,7 @@ import pytest
 from pcverify.harness.judge.compare import errors
 from pcverify.harness.judge.metrics import fit_order
 from pcverify.harness.study.catalogue import make_scene
+from pcverify.references.heat import analytic as slab_analytic
 from pcverify.references.heat import manufactured as exact
 from pcverify.references.heat import wavenumbers
 from pcverify.scene import (
@@ -88,6 +89,15 @@ def test_source_field_values_hash_and_refusals():
     assert other.solver_input_hash() != a.solver_input_hash()
     ok, why = Macromolecule().supports(a)
     assert not ok and "heat-source-field" in why
+
+
+def test_a_source_field_is_never_compared_with_the_slab():
+    """The heat family's slab (a study file's scenes, a plugin's that takes it) knows a uniform source only: a
+    scene with a source field gets no slab reference, where it would be compared with the answer to another
+    problem.  (Two held faces and a constant field: the slab of the uniform source would fit it exactly.)"""
+    points = np.array([[0.005, 0.005, z] for z in np.linspace(0.0, 0.03, 7)])
+    assert slab_analytic(_constant_field_scene(uniform=True), points) is not None
+    assert slab_analytic(_constant_field_scene(uniform=False), points) is None
 
 
 def _constant_field_scene(uniform: bool) -> Scene:

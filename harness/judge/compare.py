@@ -26,8 +26,10 @@ def errors(scene: Scene, samples: dict[str, Any] | None) -> dict[str, dict[str, 
     """{set: {"l2": ..., "linf": ..., "reference": kind}} for each non-empty sample set the scene has a
     reference for; a non-finite error (values of a run that is not ok) is None, as in the JSON of a result."""
     ref = reference_of(scene.name)
+    if ref is None or ref.field is None:
+        return {}
     out: dict[str, dict[str, Any]] = {}
-    for name, entry in (samples or {}).items() if ref is not None and ref.field is not None else ():
+    for name, entry in (samples or {}).items():
         values = np.asarray(entry["values"], dtype=float)
         if values.size == 0 or values.ndim != 1:
             continue

@@ -20,6 +20,7 @@ import pandas as pd
 from pcverify.harness.report.findings import by_claim, claim_state
 from pcverify.harness.report.page import anchor, table_details
 from pcverify.harness.run.files import atomic_write, read_json
+from pcverify.harness.run.mutation import measured_catches
 
 OUTCOMES = ("killed", "survived", "invalid", "crashed")
 MUTANTS_FILE = "mutants.json"
@@ -54,8 +55,7 @@ def kill_matrix(doc: dict[str, Any]) -> pd.DataFrame:
             if o["status"] in ("invalid", "crashed"):
                 row[o["name"]] = o["status"]
             elif claim in o.get("caught_by", []):
-                measured = set(s.get("caught", [])) - set(s.get("incidental", []))
-                row[o["name"]] = f"killed ({s['mutant']}{'' if measured else ', incidental'})"
+                row[o["name"]] = f"killed ({s['mutant']}{'' if measured_catches(s) else ', incidental'})"
             elif s is None or not c.get("passing"):
                 row[o["name"]] = f"baseline {c['baseline']}"
             else:

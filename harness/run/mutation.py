@@ -105,11 +105,16 @@ def _measured(record: dict[str, Any] | None) -> bool:
     return isinstance(value, (int, float)) and math.isfinite(value)
 
 
+def measured_catches(claim: dict[str, Any]) -> list[str]:
+    """The cases in which a claim (as `judge` gives it) caught a mutant with a number it measured."""
+    return [case for case in claim.get("caught", []) if case not in claim.get("incidental", [])]
+
+
 def kill_kind(claims: dict[str, dict[str, Any]], expect: Iterable[str]) -> str:
     """How a killed mutant was caught: "expected" (a claim it declares in `expect` measured it), "measuring"
     (another claim's number moved beyond its bound), "incidental" (only cases no claim measured: a step budget,
     a stationarity stop, a failed check), "" when nothing caught it."""
-    measuring = [c for c, s in claims.items() if set(s.get("caught", [])) - set(s.get("incidental", []))]
+    measuring = [c for c, s in claims.items() if measured_catches(s)]
     if not measuring:
         return "incidental" if caught_by(claims) else ""
     return "expected" if set(measuring) & set(expect) else "measuring"
@@ -124,8 +129,8 @@ def _copy_data_files(package: Path, target: Path) -> None:
     """The files beside the mutated module that are not Python (a solver's model notes, say) copied beside its
     edited copy: a module that finds them next to its own `__file__` finds them in the mutant too."""
     for path in package.iterdir():
-        if path.is_file() and path.suffix not in (".py", ".pyc") and not (target / path.name).is_file():
-            shutil.copy2(path, target / path.name)
+        if path.is_file() and path.suffix not in (".py", ".pyc"):
+            shutil.copy2(path, target / path.name)  # each run: a copy kept from an earlier run may be stale
 
 
 def _copy_numba_cache(target: Path, packages: Iterable[Path]) -> None:
