@@ -27,7 +27,9 @@ CHAOTIC = ("defect",)  # statuses of runs whose digits are a property of the ari
 MIN_REPLICAS = 3
 SUSPECT_SEQUENCES = ("oscillatory", "divergent")
 VERDICT_COLUMNS = ("study", "claim", "statement", "case", "solver", "reference", "metric", "value", "target",
-                   "target_from", "error", "uncertainty", "tolerance", "sense", "verdict", "basis", "note", "command")
+                   "target_from", "error", "uncertainty", "tolerance", "sense", "verdict", "basis", "note", "command",
+                   "tolerance_basis", "slack")
+LOOSE = 10.0  # a tolerance more than this many times the deviation measured, and not derived, is loose
 
 
 def _rows(df: pd.DataFrame, select: dict[str, Any]) -> pd.DataFrame:
@@ -146,6 +148,18 @@ def decide(value: float, target: float, tolerance: float, sense: str, uncertaint
     return "fail" if miss - u > 0 else "inconclusive"
 
 
+def slack(value: float, target: float, tolerance: float, sense: str, uncertainty: float = math.nan) -> float:
+    """The tolerance over the far edge of the value's band, the deviation measured in the direction the claim
+    bounds plus the uncertainty (a deviation below the round-off of the numbers compared counts as that
+    round-off; NaN: a zero tolerance, or an at-least claim, whose target is its own bound).  Above LOOSE, a
+    tenfold worse value would still pass."""
+    if not (tolerance > 0 and math.isfinite(value) and math.isfinite(target)) or sense == "at-least":
+        return math.nan
+    deviation = (abs(value - target) if sense == "within" else value - target) + (
+        uncertainty if math.isfinite(uncertainty) else 0.0)
+    return tolerance / max(deviation, np.finfo(float).eps * max(abs(value), abs(target), tolerance))
+
+
 def _target(claim: Claim, rows: pd.DataFrame) -> float:
     """A claim's target for a case: its number, or its text's value at the (n, refine) of the case's rows (NaN
     where the rows stand on levels of different values)."""
@@ -190,6 +204,7 @@ def judge(study: str, claim: Claim, tables: dict[str, pd.DataFrame], command: Co
     allows skips and names only such cells (a case of its own with `per = "solver"`), fail otherwise."""
     base = {"study": study, "claim": claim.id, "statement": claim.text, "reference": claim.reference,
             "metric": claim.metric, "tolerance": claim.tolerance, "sense": claim.sense, "basis": "",
+            "tolerance_basis": claim.tolerance_basis,
             "target_from": claim.target if isinstance(claim.target, str) else ""}
 
     def whole(note: str, state: str = "fail", case: str = "") -> list[dict[str, Any]]:
@@ -299,7 +314,8 @@ def _judge_case(claim: Claim, base: dict[str, Any], rows: pd.DataFrame, others: 
         notes.append("pre-asymptotic: the errors do not decrease with every refinement, so the fitted order "
                      "is not yet the asymptotic rate")
     return row | {"value": value, "target": target, "error": abs(value - target), "uncertainty": unc,
-                  "verdict": verdict, "note": "; ".join(notes)}
+                  "verdict": verdict, "note": "; ".join(notes),
+                  "slack": slack(value, target, claim.tolerance, claim.sense, unc)}
 
 
 def verdicts(study: str, claims: list[Claim], tables: dict[str, pd.DataFrame], command: Command | None = None,

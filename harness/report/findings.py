@@ -10,7 +10,7 @@ import math
 from collections.abc import Iterable
 from typing import Any
 
-from pcverify.harness.judge.verdict import STATES
+from pcverify.harness.judge.verdict import LOOSE, STATES
 from pcverify.harness.report.formatting import measured, number, to_float, unit_of
 
 REFERENCE_WORDS = {"analytic": "analytic solution", "extrapolated": "extrapolated continuum",
@@ -63,6 +63,15 @@ def state_counts(records: list[dict[str, Any]]) -> dict[str, int]:
 def claim_state(rows: list[dict[str, Any]]) -> str:
     """A claim's state: the worst of its verdicts (fail, inconclusive, not-applicable, pass)."""
     return next(s for s in STATES if any(r["verdict"] == s for r in rows))
+
+
+def claim_slack(rows: list[dict[str, Any]]) -> tuple[float, bool]:
+    """A claim's tolerance over the largest deviation any of its judged cases measured (NaN: none has one), and
+    whether that makes it loose: above verdict.LOOSE and not derived."""
+    found = [to_float(r.get("slack")) for r in rows if r.get("slack") is not None]
+    least = min(found) if found else math.nan
+    derived = str(rows[0].get("tolerance_basis") or "").startswith("derived:")
+    return least, bool(least > LOOSE and not derived)
 
 
 def by_claim(records: list[dict[str, Any]]) -> dict[tuple[str, str], list[dict[str, Any]]]:

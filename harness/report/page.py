@@ -14,9 +14,11 @@ from typing import Any
 
 import pandas as pd
 
+from pcverify.harness.judge.verdict import LOOSE
 from pcverify.harness.report.findings import (
     STATES,
     by_claim,
+    claim_slack,
     claim_state,
     orders_text,
     solvers_of,
@@ -53,7 +55,8 @@ th{background:#f0f0f0}
 .verdict-word{font-weight:600;padding:0 4px;border-radius:3px}
 .filter{display:flex;gap:12px;align-items:center;margin:6px 0 8px;font-size:13px;flex-wrap:wrap}
 #verdicts-table{width:100%}#verdicts-table td.claim{width:34%}
-.statement{color:#333}.ref{font-size:11px;color:#555;border:1px solid #bbb;border-radius:3px;padding:0 3px}
+.statement{color:#333}.loose{color:#fff;background:#b35900;border-radius:3px;padding:0 3px}
+.ref{font-size:11px;color:#555;border:1px solid #bbb;border-radius:3px;padding:0 3px}
 .cases{display:flex;flex-wrap:wrap;gap:4px}
 .case{border-radius:4px;padding:1px 5px;font-size:12px;border:1px solid rgba(0,0,0,.12)}
 .case summary{cursor:pointer;white-space:nowrap}
@@ -180,6 +183,7 @@ def _case_chip(r: dict[str, Any]) -> str:
               ("uncertainty", number(r.get("uncertainty"), "", 2)), ("tolerance", number(r.get("tolerance"), "", 3)),
               ("reference", r["reference"]), ("note", r.get("note") or "")]
     fields.insert(-1, ("basis", r.get("basis") or ""))
+    fields.insert(-3, ("tolerance/deviation", number(r.get("slack"), "", 3)))
     if r.get("value") is None:
         fields = [f for f in fields if f[0] in ("verdict", "solver", "reference", "note")]
     hover = "; ".join(f"{k}: {v}" for k, v in fields if v) + f"; command: {r.get('command') or ''}"
@@ -189,16 +193,33 @@ def _case_chip(r: dict[str, Any]) -> str:
             f"<dl>{body}</dl></details>")
 
 
+def _tolerance_line(rows: list[dict[str, Any]]) -> str:
+    """The claim's tolerance against what it measured, and where the tolerance comes from (loose flagged)."""
+    ratio, loose = claim_slack(rows)
+    basis = str(rows[0].get("tolerance_basis") or "no basis given")
+    if not math.isfinite(ratio):
+        return f"<div class='tolerance meta'>tolerance basis: {e(basis)}</div>" if rows[0].get("tolerance_basis") \
+            else ""
+    flag = "<span class='loose' title='a tenfold worse value would pass, and the tolerance is not derived'>" \
+           "loose</span> " if loose else ""
+    return (f"<div class='tolerance meta'>{flag}tolerance {ratio:.3g}&times; the largest deviation measured; "
+            f"{e(basis)}</div>")
+
+
 def verdicts_section(records: list[dict[str, Any]]) -> str:
     """One row per claim (statement once), its cases as coloured cells; a filter by study, solver, verdict."""
     claims = by_claim(records)
+    loose = sorted(f"{s}/{c}" for (s, c), rows in claims.items() if claim_slack(rows)[1])
     studies = sorted({r["study"] for r in records})
     solvers = sorted({s for r in records for s in solvers_of(r)})
     options = lambda vals: "".join(f"<option value='{e(v)}'>{e(v)}</option>" for v in vals)  # noqa: E731
     parts = ["<section id='verdicts'><h2>Verdicts by claim</h2><p class='meta'>Each claim once, its cases as cells "
              "(green pass, red fail, amber inconclusive: the uncertainty band straddles the bound, grey not "
              "applicable); hover or open a cell for value, target, error, uncertainty, "
-             "tolerance and the command that reproduces the number.</p>",
+             "tolerance and the command that reproduces the number. Under each statement: its tolerance over "
+             "the largest deviation its cases measured, and the tolerance's basis (derived, or measured with a "
+             f"factor); above {LOOSE:g}&times; and not derived, it is loose: a tenfold worse value would pass. "
+             f"Loose: {e(', '.join(loose)) or 'none'}.</p>",
              "<div class='filter'><label>study <select id='filter-study'><option value=''>all</option>"
              f"{options(studies)}</select></label><label>solver <select id='filter-solver'><option value=''>all"
              f"</option>{options(solvers)}</select></label><label>verdict <select id='filter-verdict'>"
@@ -217,7 +238,7 @@ def verdicts_section(records: list[dict[str, Any]]) -> str:
                      f"data-verdicts='{e(' '.join(verdicts))}' data-state='{claim_state(rows)}'>"
                      f"<td class='claim'><b>{e(claim)}</b> <span class='ref'>{e(first['reference'])}</span> "
                      f"<a class='meta' href='#{anchor(study)}'>{e(study)}</a>"
-                     f"<div class='statement'>{e(first['statement'])}</div>{group}</td>"
+                     f"<div class='statement'>{e(first['statement'])}</div>{_tolerance_line(rows)}{group}</td>"
                      f"<td><div class='cases'>{''.join(_case_chip(r) for r in rows)}</div></td></tr>")
     parts.append("</table></section>")
     return "".join(parts)

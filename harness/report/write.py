@@ -210,7 +210,8 @@ def study_verdicts(out: Path, study: str) -> list[dict[str, Any]]:
     return verdict.records(table.astype(object).where(table.notna(), None)) if not table.empty else []
 
 
-OPTIONAL_VERDICT_COLUMNS = ("basis",)  # columns a report written by an earlier version lacks
+# columns a report written by an earlier version lacks
+OPTIONAL_VERDICT_COLUMNS = ("basis", "tolerance_basis", "slack")
 
 
 def _records_problem(doc: Any, study: str) -> str:

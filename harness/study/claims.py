@@ -39,6 +39,7 @@ class Claim:
     metric: str
     reference: str
     tolerance: float
+    tolerance_basis: str = ""  # "derived: ..." or "measured: ... (Nx)": where the tolerance comes from
     target: float | str = CLAIM.field("target").default  # a number, "reference:NAME" or an expression (above)
     select: dict[str, Any] = field(default_factory=dict)
     aggregate: str = CLAIM.field("aggregate").default  # the defaults of a claim built here are the schema's

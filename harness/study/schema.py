@@ -340,6 +340,10 @@ CLAIM = Table("[[claim]]", (
     Field("metric", "text", "the column judged", required=True),
     Field("reference", "text", "the kind of reference the number stands on", choices=REFERENCE_KINDS, required=True),
     Field("tolerance", "real", "the bound around the target", low=0.0, required=True),
+    Field("tolerance_basis", "text", "why the tolerance is what it is: \"derived: <the bound: discretisation, "
+          "round-off, GCI>\" or \"measured: <the value or spread measured> (<factor>x)\"; the report flags a "
+          "tolerance above 10x the deviation measured as loose unless it is derived",
+          hint="derived: TEXT or measured: TEXT", pattern=r"(?s)(derived|measured): .{3,600}"),
     Field("target", "any", "the value claimed (unless against gives it): a number, \"reference:NAME\" (the scalar "
           "NAME of the scene's reference) or an expression of n, refine, a, h, pi, the scene's numeric parameters and "
           "material constants, the solver parameters the group's cells share, the claim's selected numbers and its "
