@@ -159,7 +159,7 @@ SCALARS = (
     Scalar("particles", "", "particle count N (the paper: 16, 63, 160 at n = 2, 3, 4)"),
     Scalar("lattice_spacing", "m", "lattice spacing a = W / (n - 1)"),
     Scalar("particle_mass", "kg", "mass of one particle, rho V / N"),
-    Scalar("lattice_rms_radius", "m", "root-mean-square distance of the particles' rest positions from the box's centre"),
+    Scalar("lattice_rms_radius", "m", "rms distance of the particles' rest positions from the box's centre"),
     Scalar("pairs", "", "interacting pairs: every pair within 2a"),
     Scalar("held_particles", "", "particles held in the modal problem (two frozen corners, the red pair)"),
     Scalar("f_top_hz", "Hz", "highest natural frequency of the held, linearised lattice"),
