@@ -164,7 +164,7 @@ SCALARS = (
     Scalar("held_particles", "", "particles held in the modal problem (two frozen corners, the red pair)"),
     Scalar("f_top_hz", "Hz", "highest natural frequency of the held, linearised lattice"),
     Scalar("stiffness_A", "N", "force scale A of the seven-root characteristic"),
-    Scalar("force_root_count", "", "sign changes of the pair force F(r) between 0.9a and 1.99a (not the seventh root, 2a)"),
+    Scalar("force_root_count", "", "sign changes of the pair force between 0.9a and 1.99a (not the seventh root, 2a)"),
     *(Scalar(f"force_root_{k}", "a", f"the {k}. root of F(r) in units of a (odd: stable, even: unstable)")
       for k in range(1, 7)),
     *(Scalar(f"root_stiffness_{k}", "N/m", f"dF/dr at the {k}. stable root (positive: stable)") for k in range(1, 4)),
