@@ -30,7 +30,7 @@ NAMES = [spec.name for spec in references.SCENES]
 def test_each_shipped_scene_has_one_family_and_the_catalogue_holds_them_all() -> None:
     assert len(NAMES) == len(set(NAMES)) and list(catalogue.CATALOGUE) == NAMES
     for spec in references.SCENES:
-        assert spec.build.__module__.rpartition(".")[2] in ("heat", "elastic", "contact"), spec.name
+        assert spec.build.__module__.rpartition(".")[2] in ("heat", "lattice", "elastic", "contact"), spec.name
         assert spec.scalars and spec.build.__module__ in catalogue.spec_modules(spec.name)
 
 

@@ -185,12 +185,33 @@ def test_stop_deviation_is_the_change_between_the_stopped_and_the_whole_run() ->
     assert _solve(**given | {"stop_tol": 0.0}, stop_check=True).summary["stop_deviation"] == 0.0
 
 
+def test_the_specification_sees_what_the_self_checks_cannot() -> None:
+    """The force law and lattice as built equal the lattice family's specification to round-off at the defaults;
+    an unstable root off the midpoint (unstable_fraction 0.45: force and Hessian change together) still gives the
+    50 Hz asked for by the model's own Hessian, but its roots, A and forces leave the specification."""
+    from pcverify.references import lattice  # the specification, written apart from the solver
+
+    scene = make_scene("bar-heat-lattice")
+    for given, apart in (({}, False), ({"unstable_fraction": 0.45}, True)):
+        s = prepare(scene, 2, effective_params(SOLVER, given))
+        built = checks.force_law_summary(scene, s, 2) | {"stiffness_A": s.stiffness_A, "pairs": len(s.lattice.pairs)}
+        spec = lattice.spec_scalars(scene, {"lattice_n": 2})
+        assert checks.setup_summary(s)["f_top_check_hz"] == pytest.approx(50.0, rel=1e-12)
+        off = {k for k in spec if k in built and abs(built[k] / spec[k] - 1.0) > 1e-12}
+        if apart:
+            assert {"force_root_2", "force_root_4", "force_root_6", "stiffness_A", "force_1p10a"} <= off
+            assert not off & {"particles", "pairs", "particle_mass", "lattice_rms_radius", "force_root_1"}
+        else:
+            assert not off and set(spec) - set(built) == {"particles", "f_top_hz"}  # the run's own summary has them
+
+
 # ---------------------------------------------------------------- the study's verification claims
-VERIFICATION_GROUPS = ("top-mode", "energy-balance", "red-pair", "energy-check", "stop-paper", "stop-faces")
+VERIFICATION_GROUPS = ("top-mode", "energy-balance", "red-pair", "energy-check", "stop-paper", "stop-faces",
+                       "lattice-spec")
 
 
 def test_every_verification_claim_of_the_macromolecule_study_passes_on_the_original(tmp_path, capsys) -> None:
-    """The study's verification groups (12 cells, seconds) judged as `pcverify study --group` judges them: every
+    """The study's verification groups (15 cells, seconds) judged as `pcverify study --group` judges them: every
     claim on them passes, case by case (the values are those the claims' comments state)."""
     groups = [a for g in VERIFICATION_GROUPS for a in ("--group", g)]
     code = main(["study", "macromolecule", *groups, "--jobs", "1", "--out", str(tmp_path), "--json"])
@@ -198,7 +219,8 @@ def test_every_verification_claim_of_the_macromolecule_study_passes_on_the_origi
     assert code == 0
     (doc,) = json.loads(out)
     verdicts = {(v["claim"], v["case"]): v["verdict"] for v in doc["verdicts"]}
-    assert len(verdicts) == 25 and set(verdicts.values()) == {"pass"}, verdicts
+    # 25 verdicts of the kernel against itself, 12 claims against the specification at n = 2, 3, 4
+    assert len(verdicts) == 25 + 12 * 3 and set(verdicts.values()) == {"pass"}, verdicts
     assert {c for c, _ in verdicts} == {c.id for c in load_study("macromolecule").claims}
 
 

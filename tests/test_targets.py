@@ -138,6 +138,8 @@ PASTED = {
     ("macromolecule", "time-step-safety"): ("0.05", None),
     **{("macromolecule", f"stop-{what}-{scene}"): (v, None) for scene in ("paper", "faces")
        for what, v in (("halves-agree", "0.02"), ("deviation", "0.01"))},
+    ("macromolecule", "lattice-particle-count"): ("16", 2),  # the paper's 16 particles, n^2 (3n - 2) at n = 2
+    ("continuum-heat", "slab-source-fipy-offset"): ("0.1111111111111111", 2),  # FiPy's offset (a / L)^2 at n = 2
 }
 WRONG: dict[tuple[str, str], float] = {}
 

@@ -6,7 +6,9 @@ kinetic energy and damping against the closed-form recurrence of the kernel's sc
 (`top_mode_kinetic_ratio`, `top_mode_damping_ratio`), the driven red pair's kinetic energy against its
 prescribed stroke (`red_pair_kinetic_ratio`), the kinetic energy at the 0 K points (`cold_kinetic_max`),
 omega_max recomputed from the Hessian of the force model as built (`setup_check`) and the stationarity stop's
-effect on the hotness (`stop_check`).
+effect on the hotness (`stop_check`).  `force_law_summary` reports the force law and lattice as built (roots found
+from the force itself, stiffness, force at fixed separations, particle count, mass and positions) for the
+lattice family's independent specification (references/lattice.py) to judge.
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ from scipy.optimize import brentq
 from pcverify.scene import PatchTemperature, PointTemperature, Scene
 
 from . import codes, modal
+from .force import force_array, force_slope_x
 from .setup import Setup
 from .simulate import RunResult
 
@@ -137,3 +140,29 @@ def setup_summary(s: Setup) -> dict[str, float]:
     """f_top and the time step's safety dt omega_max / 2 with omega_max recomputed from the force model as built."""
     omega = top_mode(s)[0]
     return {"f_top_check_hz": omega / (2.0 * math.pi), "dt_safety_check": s.dt * omega / 2.0}
+
+
+FORCE_PROBES = (0.95, 1.1, 1.3, 1.5, 1.65, 1.8, 1.9)  # r / a where the force is reported (force_0p95a, ...)
+# where sign changes of F are looked for: a step of 1/997 from an irrational offset never lands on a root
+# (a product exactly 0 changes no sign); the seventh root, 2, is excluded: F is 0 beyond it
+ROOT_SCAN = 0.9 + 1e-3 * math.pi + np.arange(1087) / 997.0
+
+
+def force_law_summary(scene: Scene, s: Setup, n: int) -> dict[str, float]:
+    """The force law and the lattice as built: the roots of the kernel's pair force (sign changes on ROOT_SCAN,
+    refined by brentq), dF/dr at the first three (stable) ones, F at FORCE_PROBES, the particle count, mass,
+    spacing, the rest positions' rms distance from the box's centre, the pairs and the held particles."""
+    lat, c = s.lattice, s.model.coeffs()
+    f = force_array(ROOT_SCAN, c)
+    change = np.flatnonzero(np.sign(f[:-1]) * np.sign(f[1:]) < 0)
+    found = [brentq(lambda x: float(force_array(np.array([x]), c)[0]), ROOT_SCAN[k], ROOT_SCAN[k + 1],
+                    xtol=1e-14, rtol=1e-14) for k in change]
+    out: dict[str, float] = {"force_root_count": float(len(found))}
+    out |= {f"force_root_{k + 1}": float(x) for k, x in enumerate(found[:6])}
+    out |= {f"root_stiffness_{k // 2 + 1}": force_slope_x(found[k], c)[1] / lat.a for k in (0, 2, 4) if k < len(found)}
+    probe = force_array(np.array(FORCE_PROBES), c)
+    out |= {"force_" + f"{x:.2f}".replace(".", "p") + "a": float(v) for x, v in zip(FORCE_PROBES, probe, strict=True)}
+    centre = 0.5 * np.asarray(scene.box.extent, dtype=float)
+    return out | {"lattice_n": float(n), "lattice_spacing": lat.a, "particle_mass": lat.mass,
+                  "lattice_rms_radius": float(np.sqrt(np.mean(np.sum((lat.positions - centre) ** 2, axis=1)))),
+                  "held_particles": float(np.count_nonzero(s.fixes.held))}

@@ -130,6 +130,7 @@ class Macromolecule:
                 "unknowns": 3 * int(np.count_nonzero(fx.kind == codes.FREE)), "kernel_s": run.wall_s}
         summary.update(checks.cold_kinetic_max(scene, s, H, free))
         summary.update(checks.red_pair_summary(scene, s, p, run))
+        summary.update(checks.force_law_summary(scene, s, n))
         if x0 is not None:
             summary.update(checks.top_mode_summary(s, p, run, x0))
         if p["setup_check"]:
