@@ -210,14 +210,18 @@ def _not_ok_row(r: dict[str, Any]) -> dict[str, Any]:
 
 
 def cost_columns(result: dict[str, Any]) -> dict[str, Any]:
-    """The cost of a cell as the timing tables write it: `cpu_s` (the solve's CPU seconds), `kernel_s` and
+    """The cost of a cell as the timing tables write it: `cpu_s` (the solve's CPU seconds) and `cpu_s_unc` (the
+    range of a timed cell's repeats, max - min; NaN from one solve), `kernel_s` and
     `setup_s` (its time loop or linear solve, and the rest), and for a timed cell its pass (`run`, `machine`,
     `started`), the solves it took (`repeats`: the least CPU time is the cost) and `timing` (how it was timed:
     "serial after warm-up", or "parallel pass" for a cell of an untimed group)."""
     cost = result.get("cost") or {}
     timing = result.get("timing")
     timing = timing if isinstance(timing, dict) else {"kind": timing or "parallel pass"}
-    return {"cpu_s": cost.get("cpu_s", np.nan), "kernel_s": cost.get("kernel_s", np.nan),
+    samples = [float(s) for s in timing.get("cpu_s_samples") or []]
+    return {"cpu_s": cost.get("cpu_s", np.nan),
+            "cpu_s_unc": max(samples) - min(samples) if len(samples) > 1 else np.nan,
+            "kernel_s": cost.get("kernel_s", np.nan),
             "setup_s": cost.get("setup_s", np.nan), "cold": cost.get("cold", np.nan),
             "timing": timing.get("kind", "parallel pass"),
             "repeats": timing.get("repeats", 1), "run": timing.get("run", "unknown"),
