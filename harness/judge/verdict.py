@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
+from scipy.stats import t as student_t
 
 from pcverify.harness.judge.cost import cost_at, error_column
 from pcverify.harness.study.claims import SPREAD, Claim, bound
@@ -26,6 +27,7 @@ STATES = ("fail", "inconclusive", "not-applicable", "pass")  # worst first
 AGGREGATES = dict(zip(AGGREGATE_NAMES, (np.max, np.min, np.median, np.mean), strict=True))
 CHAOTIC = ("defect",)  # statuses of runs whose digits are a property of the arithmetic, not of the model
 MIN_REPLICAS = 3
+COVERAGE = 0.95  # a replica mean's band is the one-sided Student-t quantile at this level times its standard error
 SUSPECT_SEQUENCES = ("oscillatory", "divergent")
 VERDICT_COLUMNS = ("study", "claim", "statement", "case", "solver", "reference", "metric", "value", "target",
                    "target_from", "error", "uncertainty", "tolerance", "sense", "verdict", "basis", "note", "command",
@@ -117,13 +119,16 @@ def _suspect(rows: pd.DataFrame) -> list[str]:
 
 
 def _uncertainty(rows: pd.DataFrame, spec: float | str, metric: str, values: np.ndarray) -> tuple[float, bool]:
-    """(uncertainty, named): the claim's number or column (max over the rows), the standard error of the mean
-    of the rows (`spread`), else the table's `<metric>_unc` column; `named` says the claim or table asks for
-    one, so an unknown value cannot be read as zero."""
+    """(uncertainty, named): the claim's number or column (max over the rows), the band of the mean of the rows
+    (`spread`: Student's t at COVERAGE, one-sided, for their number, times the standard error, so a claim
+    whose true value lies on its bound passes at most 1 - COVERAGE of the time), else the table's
+    `<metric>_unc` column; `named` says the claim or table asks for one, so an unknown value cannot be read as
+    zero."""
     if isinstance(spec, str) and spec == SPREAD:
         if values.size < MIN_REPLICAS:
             return math.nan, True
-        return float(np.std(values, ddof=1) / math.sqrt(values.size)), True
+        t = float(student_t.ppf(COVERAGE, values.size - 1))
+        return t * float(np.std(values, ddof=1) / math.sqrt(values.size)), True
     if isinstance(spec, str):
         u = _values(rows, spec)
         return (float(np.max(u)) if u.size and np.all(np.isfinite(u)) else math.nan), True

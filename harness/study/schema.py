@@ -360,8 +360,9 @@ CLAIM = Table("[[claim]]", (
           "value unless it names that column", values=TEXT_TABLE, default={}),
     Field("against_table", "text", "the table against reads (default: the claim's table)"),
     Field("against_metric", "text", "the column against reads (default: the metric)"),
-    Field("uncertainty", "any", "a number, a column (the largest over the rows) or \"spread\" (the standard error "
-          "of the mean over a case's rows, with aggregate = \"mean\"); default: the table's <metric>_unc column",
+    Field("uncertainty", "any", "a number, a column (the largest over the rows) or \"spread\" (the band of the "
+          "mean over a case's rows, with aggregate = \"mean\": one-sided Student-t at 95 % for their number times "
+          "the standard error); default: the table's <metric>_unc column",
           alternatives=(Field("uncertainty", "real"), Field("uncertainty", "text", hint="a column name"))),
     Field("at_error", "real", "a cost claim: the metric (e.g. cpu_s) at this error, interpolated log-log between "
           "the case's levels that bracket it (never extrapolated); with against, the target is the other rows' cost "
