@@ -199,7 +199,7 @@ def self_fits(levels: pd.DataFrame, results: list[dict[str, Any]]) -> list[dict[
                 levels.loc[seq.index, column] = sc.to_finest
                 fits.append(head | {"quantity": column, "order": sc.order, "order_unc": sc.order_se,
                                     "finest": sc.to_next[-2], "extrapolated": np.nan, "gci_fine": sc.gci_fine,
-                                    "kind": "self", "monotone": sc.monotone})
+                                    "kind": sc.kind, "monotone": sc.monotone})
     return fits
 
 

@@ -28,7 +28,7 @@ AGGREGATES = dict(zip(AGGREGATE_NAMES, (np.max, np.min, np.median, np.mean), str
 CHAOTIC = ("defect",)  # statuses of runs whose digits are a property of the arithmetic, not of the model
 MIN_REPLICAS = 3
 COVERAGE = 0.95  # a replica mean's band is the one-sided Student-t quantile at this level times its standard error
-SUSPECT_SEQUENCES = ("oscillatory", "divergent")
+SUSPECT_SEQUENCES = ("oscillatory", "divergent", "scattered")
 VERDICT_COLUMNS = ("study", "claim", "statement", "case", "solver", "reference", "metric", "value", "target",
                    "target_from", "error", "uncertainty", "tolerance", "sense", "verdict", "basis", "note", "command",
                    "tolerance_basis", "slack")
