@@ -152,8 +152,11 @@ def test_a_self_convergence_study(tmp_path, capsys):
         records["analytic-as-self"]["note"]
     figure = json.loads((folder / "space.json").read_text())
     labels = " | ".join(s["label"] for s in figure["axes"][0]["series"])
-    assert "fipy self-convergence front_top_edge=nodes.l2 (fitted order 1.97)" in labels, labels
+    assert "fipy successive differences front_top_edge=nodes.l2 (fitted order 1.97)" in labels, labels
     assert ".linf" not in labels
+    drawn = next(s for s in figure["axes"][0]["series"] if "successive differences" in s["label"])
+    np.testing.assert_allclose(drawn["y"], levels["self.nodes.l2_next"].dropna().to_numpy()[::-1], rtol=1e-6)
+    assert figure["axes"][0]["ylabel"] == "error or difference (absolute, field units)"
     html = (tmp_path / "out" / "index.html").read_text()
     assert "self-convergence: the solver against its own finest level" in html
 

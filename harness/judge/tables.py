@@ -174,9 +174,10 @@ def convergence(results: list[dict[str, Any]], quantities: list[str],
 def self_fits(levels: pd.DataFrame, results: list[dict[str, Any]]) -> list[dict[str, Any]]:
     """Self-convergence of every sequence (solver + params, its ok levels coarse to fine): for each sample set all
     its levels have and each norm, the levels' difference from the finest level (written into `levels` as
-    self.<set>.<norm>, nan at the finest) and a fit of reference "self" (`metrics.self_convergence`: the order
-    of the successive differences, the finest level's GCI); a set the levels cannot be compared on is a fit
-    row whose kind says why."""
+    self.<set>.<norm>, nan at the finest), from the next finer one (self.<set>.<norm>_next) and a fit of
+    reference "self" (`metrics.self_convergence`: the order of the successive differences, the finest level's
+    GCI, and its kind: self, or why the sequence is not asymptotic); a set the levels cannot be compared on is
+    a fit row whose kind says why."""
     fits = []
     for (solver, params), whole in levels.groupby(["solver", "params"], sort=False):
         refined = whole["refine"].nunique() > 1 or bool((whole["refine"] != 1).any())
@@ -197,6 +198,7 @@ def self_fits(levels: pd.DataFrame, results: list[dict[str, Any]]) -> list[dict[
                     fits.append(head | {"quantity": column, "kind": f"undefined ({exc})"})
                     continue
                 levels.loc[seq.index, column] = sc.to_finest
+                levels.loc[seq.index, f"{column}_next"] = sc.to_next  # what the order is fitted on
                 fits.append(head | {"quantity": column, "order": sc.order, "order_unc": sc.order_se,
                                     "finest": sc.to_next[-2], "extrapolated": np.nan, "gci_fine": sc.gci_fine,
                                     "kind": sc.kind, "monotone": sc.monotone})
