@@ -15,8 +15,7 @@ from pcverify.harness.study.claims import parse_claims
 from pcverify.scene import SceneError
 
 REPO = Path(__file__).resolve().parents[1]
-STUDY_FILES = sorted((REPO / "harness" / "studies").glob("*.toml")) + [REPO / "examples" / "fd-heat-plugin" /
-                                                                      "study.toml"]
+STUDY_FILES = (sorted((REPO / "harness" / "studies").glob("*.toml")) + sorted((REPO / "examples").glob("*/*.toml")))
 TABLE = {"g-cells": pd.DataFrame({"solver": ["a", "a"], "n": [2, 3], "err": [1e-4, 2e-5]})}
 
 

@@ -333,7 +333,7 @@ def test_a_suspect_reference_sequence_is_named_and_never_passes():
 
 def test_a_chaotic_run_is_judged_on_replicas_or_not_at_all():
     """A run in the defect regime: one trajectory's digits are at best inconclusive; the mean of three
-    replicas with its standard error is judged; a status the claim does not allow fails it."""
+    replicas with its Student-t band is judged; a status the claim does not allow fails it."""
     one = pd.DataFrame({"n": [4], "status": ["defect"], "reason": ["hops"], "v": [0.31]})
     v = verdicts("s", _claim(per="n", statuses=["ok", "defect"]), {"t": one})
     assert v["verdict"].item() == "inconclusive" and "chaotic" in v["note"].item()
@@ -342,7 +342,8 @@ def test_a_chaotic_run_is_judged_on_replicas_or_not_at_all():
     three = pd.DataFrame({"n": [4] * 3, "status": ["defect"] * 3, "v": [0.301, 0.299, 0.300]})
     v = verdicts("s", _claim(per="n", statuses=["ok", "defect"], aggregate="mean", uncertainty="spread"),
                  {"t": three})
-    assert v["verdict"].item() == "pass" and v["uncertainty"].item() == pytest.approx(0.001 / math.sqrt(3))
+    t95 = 2.919986  # Student's t, one-sided 95 %, 2 degrees of freedom
+    assert v["verdict"].item() == "pass" and v["uncertainty"].item() == pytest.approx(t95 * 0.001 / math.sqrt(3))
     wide = three.assign(v=[0.2, 0.3, 0.4])
     v = verdicts("s", _claim(per="n", statuses=["ok", "defect"], aggregate="mean", uncertainty="spread"),
                  {"t": wide})

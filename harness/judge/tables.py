@@ -174,9 +174,10 @@ def convergence(results: list[dict[str, Any]], quantities: list[str],
 def self_fits(levels: pd.DataFrame, results: list[dict[str, Any]]) -> list[dict[str, Any]]:
     """Self-convergence of every sequence (solver + params, its ok levels coarse to fine): for each sample set all
     its levels have and each norm, the levels' difference from the finest level (written into `levels` as
-    self.<set>.<norm>, nan at the finest) and a fit of reference "self" (`metrics.self_convergence`: the order
-    of the successive differences, the finest level's GCI); a set the levels cannot be compared on is a fit
-    row whose kind says why."""
+    self.<set>.<norm>, nan at the finest), from the next finer one (self.<set>.<norm>_next) and a fit of
+    reference "self" (`metrics.self_convergence`: the order of the successive differences, the finest level's
+    GCI, and its kind: self, or why the sequence is not asymptotic); a set the levels cannot be compared on is
+    a fit row whose kind says why."""
     fits = []
     for (solver, params), whole in levels.groupby(["solver", "params"], sort=False):
         refined = whole["refine"].nunique() > 1 or bool((whole["refine"] != 1).any())
@@ -197,9 +198,10 @@ def self_fits(levels: pd.DataFrame, results: list[dict[str, Any]]) -> list[dict[
                     fits.append(head | {"quantity": column, "kind": f"undefined ({exc})"})
                     continue
                 levels.loc[seq.index, column] = sc.to_finest
+                levels.loc[seq.index, f"{column}_next"] = sc.to_next  # what the order is fitted on
                 fits.append(head | {"quantity": column, "order": sc.order, "order_unc": sc.order_se,
                                     "finest": sc.to_next[-2], "extrapolated": np.nan, "gci_fine": sc.gci_fine,
-                                    "kind": "self", "monotone": sc.monotone})
+                                    "kind": sc.kind, "monotone": sc.monotone})
     return fits
 
 
@@ -210,14 +212,18 @@ def _not_ok_row(r: dict[str, Any]) -> dict[str, Any]:
 
 
 def cost_columns(result: dict[str, Any]) -> dict[str, Any]:
-    """The cost of a cell as the timing tables write it: `cpu_s` (the solve's CPU seconds), `kernel_s` and
+    """The cost of a cell as the timing tables write it: `cpu_s` (the solve's CPU seconds) and `cpu_s_unc` (the
+    range of a timed cell's repeats, max - min; NaN from one solve), `kernel_s` and
     `setup_s` (its time loop or linear solve, and the rest), and for a timed cell its pass (`run`, `machine`,
     `started`), the solves it took (`repeats`: the least CPU time is the cost) and `timing` (how it was timed:
     "serial after warm-up", or "parallel pass" for a cell of an untimed group)."""
     cost = result.get("cost") or {}
     timing = result.get("timing")
     timing = timing if isinstance(timing, dict) else {"kind": timing or "parallel pass"}
-    return {"cpu_s": cost.get("cpu_s", np.nan), "kernel_s": cost.get("kernel_s", np.nan),
+    samples = [float(s) for s in timing.get("cpu_s_samples") or []]
+    return {"cpu_s": cost.get("cpu_s", np.nan),
+            "cpu_s_unc": max(samples) - min(samples) if len(samples) > 1 else np.nan,
+            "kernel_s": cost.get("kernel_s", np.nan),
             "setup_s": cost.get("setup_s", np.nan), "cold": cost.get("cold", np.nan),
             "timing": timing.get("kind", "parallel pass"),
             "repeats": timing.get("repeats", 1), "run": timing.get("run", "unknown"),

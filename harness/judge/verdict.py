@@ -17,15 +17,18 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
+from scipy.stats import t as student_t
 
-from pcverify.harness.study.claims import SPREAD, Claim
+from pcverify.harness.judge.cost import cost_at, error_column
+from pcverify.harness.study.claims import SPREAD, Claim, bound
 from pcverify.harness.study.schema import AGGREGATES as AGGREGATE_NAMES
 
 STATES = ("fail", "inconclusive", "not-applicable", "pass")  # worst first
 AGGREGATES = dict(zip(AGGREGATE_NAMES, (np.max, np.min, np.median, np.mean), strict=True))
 CHAOTIC = ("defect",)  # statuses of runs whose digits are a property of the arithmetic, not of the model
 MIN_REPLICAS = 3
-SUSPECT_SEQUENCES = ("oscillatory", "divergent")
+COVERAGE = 0.95  # a replica mean's band is the one-sided Student-t quantile at this level times its standard error
+SUSPECT_SEQUENCES = ("oscillatory", "divergent", "scattered")
 VERDICT_COLUMNS = ("study", "claim", "statement", "case", "solver", "reference", "metric", "value", "target",
                    "target_from", "error", "uncertainty", "tolerance", "sense", "verdict", "basis", "note", "command",
                    "tolerance_basis", "slack")
@@ -116,13 +119,16 @@ def _suspect(rows: pd.DataFrame) -> list[str]:
 
 
 def _uncertainty(rows: pd.DataFrame, spec: float | str, metric: str, values: np.ndarray) -> tuple[float, bool]:
-    """(uncertainty, named): the claim's number or column (max over the rows), the standard error of the mean
-    of the rows (`spread`), else the table's `<metric>_unc` column; `named` says the claim or table asks for
-    one, so an unknown value cannot be read as zero."""
+    """(uncertainty, named): the claim's number or column (max over the rows), the band of the mean of the rows
+    (`spread`: Student's t at COVERAGE, one-sided, for their number, times the standard error, so a claim
+    whose true value lies on its bound passes at most 1 - COVERAGE of the time), else the table's
+    `<metric>_unc` column; `named` says the claim or table asks for one, so an unknown value cannot be read as
+    zero."""
     if isinstance(spec, str) and spec == SPREAD:
         if values.size < MIN_REPLICAS:
             return math.nan, True
-        return float(np.std(values, ddof=1) / math.sqrt(values.size)), True
+        t = float(student_t.ppf(COVERAGE, values.size - 1))
+        return t * float(np.std(values, ddof=1) / math.sqrt(values.size)), True
     if isinstance(spec, str):
         u = _values(rows, spec)
         return (float(np.max(u)) if u.size and np.all(np.isfinite(u)) else math.nan), True
@@ -151,9 +157,11 @@ def decide(value: float, target: float, tolerance: float, sense: str, uncertaint
 def slack(value: float, target: float, tolerance: float, sense: str, uncertainty: float = math.nan) -> float:
     """The tolerance over the far edge of the value's band, the deviation measured in the direction the claim
     bounds plus the uncertainty (a deviation below the round-off of the numbers compared counts as that
-    round-off; NaN: a zero tolerance, or an at-least claim, whose target is its own bound).  Above LOOSE, a
-    tenfold worse value would still pass."""
-    if not (tolerance > 0 and math.isfinite(value) and math.isfinite(target)) or sense == "at-least":
+    round-off; NaN: a zero tolerance, an at-least claim, whose target is its own bound, or an at-most value
+    at or below its target, which the tolerance does not pass).  Above LOOSE, a tenfold worse value would still
+    pass."""
+    if not (tolerance > 0 and math.isfinite(value) and math.isfinite(target)) or sense == "at-least" or (
+            sense == "at-most" and value <= target):
         return math.nan
     deviation = (abs(value - target) if sense == "within" else value - target) + (
         uncertainty if math.isfinite(uncertainty) else 0.0)
@@ -216,7 +224,7 @@ def judge(study: str, claim: Claim, tables: dict[str, pd.DataFrame], command: Co
         skip_state = "not-applicable" if claim.allow_skipped else "fail"
         want = claim.select.get("solver")
         left = [w for w in (want if isinstance(want, list) else [want]) if w not in hit] if want is not None else None
-        if claim.per == "solver":
+        if claim.per == ("solver",):
             rows = [r for s, why in sorted(hit.items())
                     for r in whole(f"its cells are not planned ({s}: {why})", skip_state, f"solver={s}")]
             if left == []:
@@ -231,9 +239,10 @@ def judge(study: str, claim: Claim, tables: dict[str, pd.DataFrame], command: Co
     df = tables.get(claim.table)
     if df is None or df.empty:
         return whole(f"table {claim.table} has no rows: the claim is judged on nothing")
-    missing = [c for c in (claim.metric, claim.per, *claim.select) if c and c not in df.columns]
+    missing = [c for c in (claim.metric, *claim.per, *claim.select) if c and c not in df.columns]
     if missing:
-        return whole(f"column {missing[0]} is not in table {claim.table} (columns: {', '.join(map(str, df.columns))})")
+        return whole(f"column {missing[0]} is not in table {claim.table} (columns: {', '.join(map(str, df.columns))}"
+                     f"{'; per may list several of them' if missing[0] in claim.per else ''})")
     absent = _absent(df, claim.select)
     if absent:
         return whole(f"no row of table {claim.table} has {', '.join(absent)}: a case the claim names is missing")
@@ -246,18 +255,37 @@ def judge(study: str, claim: Claim, tables: dict[str, pd.DataFrame], command: Co
             return whole(f"no row of table {claim.against_table or claim.table} has {', '.join(absent)}: the "
                          "target's rows are missing")
         others = _rows(table, claim.against)
-    cases = sorted(rows[claim.per].dropna().unique().tolist()) if claim.per else []
+    per = list(claim.per)
+    cases = sorted(tuple(c) for c in rows[per].dropna().drop_duplicates().itertuples(index=False)) if per else []
     return [_judge_case(claim, base, rows, others, case, command) for case in cases or [None]]
+
+
+def _where(df: pd.DataFrame, values: dict[str, Any]) -> pd.DataFrame:
+    """The rows of `df` with every column of `values` at its value."""
+    keep = np.ones(len(df), dtype=bool)
+    for column, value in values.items():
+        keep &= (df[column] == value).to_numpy()
+    return df[keep]
+
+
+def _target_rows(claim: Claim, others: pd.DataFrame, case: dict[str, Any]) -> tuple[pd.DataFrame, str]:
+    """The target's rows for a case: `against`'s rows, filtered by each per column the target's table has and
+    `against` does not name (so per = "solver" compares each solver with its own rows of the target's table);
+    and the filters that left none, named for the note."""
+    filters = {c: v for c, v in case.items() if c not in claim.against and c in others.columns}
+    ref = _where(others, filters)
+    emptied = "" if not ref.empty or others.empty else (
+        f" (the target's rows of {claim.against_table or claim.table} filtered by the case's "
+        f"{', '.join(f'{c}={v}' for c, v in filters.items())}; name a column in against to keep all its values)")
+    return ref, emptied
 
 
 def _judge_case(claim: Claim, base: dict[str, Any], rows: pd.DataFrame, others: pd.DataFrame | None, case: Any,
                 command: Command | None) -> dict[str, Any]:
-    part = rows if case is None else rows[rows[claim.per] == case]
-    label = "" if case is None else f"{claim.per}={case}"
-    ref = None
-    if others is not None:
-        matched = case is None or claim.per in claim.against or claim.per not in others
-        ref = others if matched else others[others[claim.per] == case]
+    at = {} if case is None else dict(zip(claim.per, case, strict=True))
+    part = _where(rows, at)
+    label = ", ".join(f"{c}={v}" for c, v in at.items())
+    ref, emptied = (None, "") if others is None else _target_rows(claim, others, at)
     row = base | {"case": label, "solver": _solvers(part), "basis": _basis(part),
                   "command": command(claim, label, part, ref) if command else ""}
     bad, skipped = _problems(part, claim)
@@ -275,25 +303,39 @@ def _judge_case(claim: Claim, base: dict[str, Any], rows: pd.DataFrame, others: 
     if skipped:
         return row | {"verdict": "fail", "note": "some of its cells were skipped: " + "; ".join(skipped)}
     if part.empty or (ref is not None and ref.empty):
-        return row | {"verdict": "fail", "note": "no rows for this case" + (" in the target" if not part.empty else "")}
-    values = _values(part, claim.metric)
-    value = _aggregate(values, claim.aggregate)
-    target, target_u = _target(claim, part), 0.0
+        return row | {"verdict": "fail", "note": "no rows for this case" + (f" in the target{emptied}"
+                                                                             if not part.empty else "")}
     metric = claim.against_metric or claim.metric
-    if ref is not None:
-        target = _aggregate(_values(ref, metric), claim.aggregate)
-        if f"{metric}_unc" in ref.columns:
-            target_u = _aggregate(_values(ref, f"{metric}_unc"), "max")
-    if not (math.isfinite(value) and math.isfinite(target)):
-        which = claim.metric if not math.isfinite(value) else f"target {metric}"
-        return row | {"verdict": "fail", "note": f"no finite {which} in every selected row"}
-    value_u, own = _uncertainty(part, claim.uncertainty, claim.metric, values)
-    ref_named = ref is not None and f"{metric}_unc" in ref.columns
+    if claim.at_error:
+        measured = _cost_case(claim, part, ref, metric)
+        if isinstance(measured, str):
+            return row | {"verdict": "fail", "note": measured}
+        value, value_u, target, target_u = measured
+        values, own, ref_named = np.array([value]), True, ref is not None
+        if not isinstance(claim.uncertainty, str) and math.isfinite(claim.uncertainty):
+            value_u = claim.uncertainty  # the claim's own number replaces the repeats' spread
+    else:
+        values = _values(part, claim.metric)
+        value = _aggregate(values, claim.aggregate)
+        target, target_u = _target(claim, part), 0.0
+        if ref is not None:
+            target = _aggregate(_values(ref, metric), claim.aggregate)
+            if f"{metric}_unc" in ref.columns:
+                target_u = _aggregate(_values(ref, f"{metric}_unc"), "max")
+        if not (math.isfinite(value) and math.isfinite(target)):
+            which = claim.metric if not math.isfinite(value) else f"target {metric}"
+            return row | {"verdict": "fail", "note": f"no finite {which} in every selected row"}
+        value_u, own = _uncertainty(part, claim.uncertainty, claim.metric, values)
+        ref_named = ref is not None and f"{metric}_unc" in ref.columns
     named = own or ref_named
     unc = math.hypot(value_u if own else 0.0, target_u if ref_named else 0.0) if named else math.nan
     value = abs(value) if claim.absolute else value
-    verdict = decide(value, target, claim.tolerance, claim.sense, unc)
+    tolerance = bound(claim, target)
+    verdict = decide(value, target, tolerance, claim.sense, unc)
     notes = [] if claim.sense == "within" else [f"{claim.sense} target"]
+    if claim.tolerance_rel:
+        notes.append(f"tolerance {claim.tolerance_rel:g} x |target|" + (f" + {claim.tolerance:g}" if claim.tolerance
+                                                                        else ""))
     if verdict == "inconclusive":
         notes.append("its uncertainty band straddles the bound")
     downgrade = []
@@ -315,7 +357,23 @@ def _judge_case(claim: Claim, base: dict[str, Any], rows: pd.DataFrame, others: 
                      "is not yet the asymptotic rate")
     return row | {"value": value, "target": target, "error": abs(value - target), "uncertainty": unc,
                   "verdict": verdict, "note": "; ".join(notes),
-                  "slack": slack(value, target, claim.tolerance, claim.sense, unc)}
+                  "tolerance": tolerance, "slack": slack(value, target, tolerance, claim.sense, unc)}
+
+
+def _cost_case(claim: Claim, part: pd.DataFrame, ref: pd.DataFrame | None, metric: str
+               ) -> tuple[float, float, float, float] | str:
+    """(cost, its uncertainty, target, its uncertainty) of a cost claim's case, or why it has none."""
+    column, why = error_column(part, claim.error_metric)
+    if why:
+        return why
+    value, value_u, why = cost_at(part, claim.metric, column, claim.at_error)
+    if why:
+        return why
+    if ref is None:
+        return value, value_u, _target(claim, part), 0.0
+    target, target_u, why = cost_at(ref, metric, column, claim.at_error) if column in ref else (
+        math.nan, math.nan, f"error column {column} is not in the target's table")
+    return f"target: {why}" if why else (value, value_u, target, target_u)
 
 
 def verdicts(study: str, claims: list[Claim], tables: dict[str, pd.DataFrame], command: Command | None = None,

@@ -231,8 +231,9 @@ def convergence(levels: pd.DataFrame, columns: list[str], path: Path, title: str
 
     Columns of one sequence with the same values (e.g. the edges' error equal to the nodes' on a 1-D
     solution) are one line, labelled with all their names.  A line draws the levels where its column is finite
-    and positive (two or more): a self-convergence column (self.*, against the sequence's own finest level)
-    has no value at the finest level, and is labelled "self-convergence"."""
+    and positive (two or more).  A self-convergence column (self.*) is drawn as what its order is fitted on, the
+    successive differences |u_k - u_k+1| (its `_next` column, at the coarser level's h), labelled "successive
+    differences"; the values are absolute, in the field's own units (T/t_max for heat)."""
     orders = {}
     if fits is not None and not fits.empty and "order" in fits:
         orders = {(r.solver, r.params, r.quantity): r.order for r in fits.itertuples() if pd.notna(r.order)}
@@ -243,7 +244,8 @@ def convergence(levels: pd.DataFrame, columns: list[str], path: Path, title: str
         for col in columns:
             if col not in seq:
                 continue
-            y = pd.to_numeric(seq[col], errors="coerce").abs().to_numpy(float)
+            drawn_col = f"{col}_next" if col.startswith("self.") and f"{col}_next" in seq else col
+            y = pd.to_numeric(seq[drawn_col], errors="coerce").abs().to_numpy(float)
             shown = np.isfinite(y) & (y > 0)
             if shown.sum() < 2 or (not col.startswith("self.") and not shown.all()):
                 continue
@@ -256,13 +258,13 @@ def convergence(levels: pd.DataFrame, columns: list[str], path: Path, title: str
         for cols, y in drawn:
             order = orders.get((solver, params, cols[0]))
             slope = f" (fitted order {order:.2f})" if order is not None else ""
-            kind = "self-convergence " if cols[0].startswith("self.") else ""
+            kind = "successive differences " if cols[0].startswith("self.") else ""
             shown = np.isfinite(y)
             plot_once(ax, seq["h"].to_numpy(float)[shown], y[shown], "o--" if kind else "o-",
                       f"{solver} {params} {kind}{_columns([c.removeprefix('self.') for c in cols])}{slope}"
                       .replace("  ", " "))
     errors = any(c.endswith(("l2", "linf")) or c.startswith("err.") for c in columns)
-    log_axes(ax, "h [m]", "error (relative for err.*)" if errors else "|value|")
+    log_axes(ax, "h [m]", "error or difference (absolute, field units)" if errors else "|value|")
     return _save(fig, path, title)
 
 

@@ -47,7 +47,7 @@ def calibration_not_rebuilt(study: Study, cal: Calibration, why: str) -> tuple[d
             keys = list(select)
             for combo in itertools.product(*[v if isinstance(v, list) else [v] for v in select.values()]):
                 rows.setdefault(table, []).append({**dict(zip(keys, combo, strict=True)), metric: np.nan,
-                                                   **({claim.per: np.nan} if claim.per else {}),
+                                                   **dict.fromkeys(claim.per, np.nan),
                                                    "solver": cal.solver, "missing": lost})
     title = (f"Calibration {cal.id} ({cal.solver}): {cal.title}. NOT REBUILT: {why}; its claims fail. Rerun the "
              "study to compute the missing cells")

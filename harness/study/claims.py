@@ -38,19 +38,22 @@ class Claim:
     table: str
     metric: str
     reference: str
-    tolerance: float
+    tolerance: float = 0.0  # absolute, added to tolerance_rel x |target|
+    tolerance_rel: float = 0.0  # relative to the target
     tolerance_basis: str = ""  # "derived: ..." or "measured: ... (Nx)": where the tolerance comes from
     target: float | str = CLAIM.field("target").default  # a number, "reference:NAME" or an expression (above)
     select: dict[str, Any] = field(default_factory=dict)
     aggregate: str = CLAIM.field("aggregate").default  # the defaults of a claim built here are the schema's
     absolute: bool = CLAIM.field("absolute").default  # compare |value| (e.g. signed differences) with the target
-    per: str = ""
+    per: tuple[str, ...] = ()  # the columns whose combinations of values make the cases
     against: dict[str, Any] = field(default_factory=dict)
     against_table: str = ""  # default: the claim's own table
     against_metric: str = ""  # default: the claim's metric
     uncertainty: float | str = math.nan  # a number, a column aggregated like the metric, or "spread"
     sense: str = CLAIM.field("sense").default  # within: |value - target| <= tol; at-most: <= target + tol; ...
     statuses: tuple[str, ...] = tuple(CLAIM.field("statuses").default)  # cell statuses a case may stand on
+    at_error: float = 0.0  # a cost claim: the metric (a cost) at this error, log-log interpolated (judge/cost.py)
+    error_metric: str = ""  # the error column at_error reads (default: the table's only err.* column)
     allow_skipped: bool = CLAIM.field("allow_skipped").default  # all cells skipped: not-applicable, not fail
     targets: tuple[tuple[int, int, float], ...] = ()  # a text target's value at each (n, refine) of its group
 
@@ -66,12 +69,22 @@ def parse_claims(items: list[dict[str, Any]], where: str, levels: Callable[[str]
         if item.get("uncertainty") == SPREAD and item["aggregate"] != "mean":
             raise SceneError(f"{at}: uncertainty=\"spread\" is the standard error of a mean; allowed: it with "
                              "aggregate = \"mean\"")
-        claim = Claim(**item | {"statuses": tuple(item["statuses"])})
+        if "tolerance" not in item and "tolerance_rel" not in item:
+            raise SceneError(f"{at}: tolerance is missing; allowed: a tolerance (absolute), a tolerance_rel "
+                             "(relative to the target) or both")
+        per = item.get("per", ())
+        claim = Claim(**item | {"statuses": tuple(item["statuses"]), "per": (per,) if isinstance(per, str) else
+                                tuple(per)})
         if isinstance(claim.target, str):
             chosen = {k: v for k, v in claim.select.items() if is_real(v)}  # a value the claim's rows all have
             claim = dataclasses.replace(claim, targets=_targets(claim.target, levels(claim.table), chosen, at))
         claims.append(claim)
     return claims
+
+
+def bound(claim: Claim, target: float) -> float:
+    """The claim's tolerance at a target: the absolute one plus the relative one times |target|."""
+    return claim.tolerance + claim.tolerance_rel * abs(target)
 
 
 def _targets(text: str, levels: Levels | None, chosen: dict[str, float], at: str

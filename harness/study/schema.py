@@ -339,7 +339,9 @@ CLAIM = Table("[[claim]]", (
     Field("table", "text", "the table it reads: a group's or calibration's table name, e.g. G-fits", required=True),
     Field("metric", "text", "the column judged", required=True),
     Field("reference", "text", "the kind of reference the number stands on", choices=REFERENCE_KINDS, required=True),
-    Field("tolerance", "real", "the bound around the target", low=0.0, required=True),
+    Field("tolerance", "real", "the bound around the target (absolute; with tolerance_rel, the two add up)", low=0.0),
+    Field("tolerance_rel", "real", "a bound relative to the target: tolerance_rel x |target| (3 % of 8 413 Hz: "
+          "tolerance_rel = 0.03); one of tolerance and tolerance_rel is required", low=0.0),
     Field("tolerance_basis", "text", "why the tolerance is what it is: \"derived: <the bound: discretisation, "
           "round-off, GCI>\" or \"measured: <the value or spread measured> (<factor>x)\"; the report flags a "
           "tolerance above 10x the deviation measured as loose unless it is derived",
@@ -352,15 +354,20 @@ CLAIM = Table("[[claim]]", (
     Field("select", "table", "the rows read: { column = value or [values] }", values=TEXT_TABLE, default={}),
     Field("aggregate", "text", "how the rows of a case combine", choices=AGGREGATES, default="max"),
     Field("absolute", "bool", "judge |value| (e.g. a signed difference)", default=False),
-    Field("per", "text", "a column that splits the claim into one case per value (e.g. n, solver); default: one "
-          "case"),
+    Field("per", "text", "the column(s) that split the claim into one case per value, or per combination of values "
+          "(\"n\", [\"solver\", \"n\"]); default: one case", shape="value or list"),
     Field("against", "table", "rows whose value is the target: { column = value or [values] }, matched by the per "
           "value unless it names that column", values=TEXT_TABLE, default={}),
     Field("against_table", "text", "the table against reads (default: the claim's table)"),
     Field("against_metric", "text", "the column against reads (default: the metric)"),
-    Field("uncertainty", "any", "a number, a column (the largest over the rows) or \"spread\" (the standard error "
-          "of the mean over a case's rows, with aggregate = \"mean\"); default: the table's <metric>_unc column",
+    Field("uncertainty", "any", "a number, a column (the largest over the rows) or \"spread\" (the band of the "
+          "mean over a case's rows, with aggregate = \"mean\": one-sided Student-t at 95 % for their number times "
+          "the standard error); default: the table's <metric>_unc column",
           alternatives=(Field("uncertainty", "real"), Field("uncertainty", "text", hint="a column name"))),
+    Field("at_error", "real", "a cost claim: the metric (e.g. cpu_s) at this error, interpolated log-log between "
+          "the case's levels that bracket it (never extrapolated); with against, the target is the other rows' cost "
+          "at the same error", low=0.0, low_open=True),
+    Field("error_metric", "text", "the error column at_error reads (default: the table's only err.* column)"),
     Field("sense", "text", "within: |value - target| <= tolerance; at-most: value <= target + tolerance; at-least: "
           "value >= target - tolerance", choices=SENSES, default="within"),
     Field("statuses", "text", "cell statuses a case may stand on", choices=CELL_STATUSES, shape="list",
