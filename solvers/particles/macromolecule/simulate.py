@@ -143,7 +143,9 @@ def run_status(run: RunResult, H: np.ndarray, free: np.ndarray, p: dict[str, Any
     hmax = H[free].max() if free.any() else 0.0
     stat = float(np.max(np.abs(run.hot[1] - run.hot[2])[free]) / hmax) if hmax > 0 else math.nan
     hops = int(run.counters[codes.K_HOP_EVENTS])
+    balance = energy_balance_error(run)
     flags = {
+        "energy_check_failed": int(not balance <= ENERGY_TOL),  # the check's own verdict, as a number to judge
         "stationarity": stat, "hops": hops, "hopped_pairs": int(run.counters[codes.K_HOP_PAIRS]),
         "first_hop_step": int(run.counters[codes.K_FIRST_HOP]),
         "stopped_at_step": int(run.counters[codes.K_STOP_STEP]) if code != codes.DONE else -1,
@@ -159,8 +161,7 @@ def run_status(run: RunResult, H: np.ndarray, free: np.ndarray, p: dict[str, Any
     if hops:
         return "defect", (f"{flags['hopped_pairs']} pairs left their root interval ({hops} hop events, first at "
                           f"step {flags['first_hop_step']}): lattice defects, chaotic regime"), flags
-    balance = energy_balance_error(run)
-    if not balance <= ENERGY_TOL:  # also a balance that cannot be formed (NaN): never ok unchecked
+    if flags["energy_check_failed"]:  # also a balance that cannot be formed (NaN): never ok unchecked
         return "failed", (f"energy balance off by {balance:.3g} of the largest energy flow (tolerance "
                           f"{ENERGY_TOL:g}): the time step does not integrate this run accurately (not a "
                           "blow-up); sums kept"), flags
