@@ -143,7 +143,8 @@ def _checks_raised(cell: Cell, exc: BaseException) -> str:
 def _base(cell: Cell) -> dict[str, Any]:
     """The identity fields of a cell's result: the cell's, whatever the solver says of itself."""
     base = {"group": cell.group, "scene": cell.scene.name, "solver": cell.solver, "n": cell.n,
-            "refine": cell.refine, "scene_params": dict(cell.scene_params), "solver_params": dict(cell.solver_params)}
+            "refine": cell.refine, "scene_params": dict(cell.scene_params), "solver_params": dict(cell.solver_params),
+            "quantity": cell.scene.quantity}
     return base | ({"expressions": dict(cell.expressions)} if cell.expressions else {})
 
 
