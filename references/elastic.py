@@ -81,13 +81,25 @@ def lowest_eigenvalue(diag: np.ndarray, off: np.ndarray) -> float:
     return mid
 
 
+def _strain_sign(scene: Scene) -> int:
+    """The sign of the bar's axial strain: its `strain` (negative in compression), pulled (+1) when it is
+    stretched at a strain rate, else either (0)."""
+    p = scene.param_dict
+    if "strain" in p:
+        return int(np.sign(p["strain"]))
+    return 1 if "strain_rate" in p else 0
+
+
 SCALARS = (
-    Scalar("reaction_force", "N", "axial force the support on face zL applies to the bar (negative in compression)"),
-    Scalar("E_eff", "Pa", "reaction_force / (W H) / axial strain: positive for both signs of the strain"),
+    Scalar("reaction_force", "N", "axial force the support on face zL applies to the bar (negative in compression)",
+           sign=_strain_sign),
+    Scalar("E_eff", "Pa", "reaction_force / (W H) / axial strain: positive for both signs of the strain",
+           sign=lambda scene: 1),
     Scalar("nu_eff", "", "-lateral strain / axial strain (face-averaged lateral displacements)"),
-    Scalar("failure_stress", "Pa", "peak reaction / (W H) of the bar pulled to fracture (positive in tension)"),
+    Scalar("failure_stress", "Pa", "peak reaction / (W H) of the bar pulled to fracture (positive in tension)",
+           sign=lambda scene: 1),
     Scalar("f_bending_x_hz", "Hz", "lowest bending frequency along x (also f_bending_y_hz, f_torsion_hz, f_axial_hz, "
-           "f_rotational_hz; the list frequencies_hz: f1_hz, f2_hz, ... in tables)"),
+           "f_rotational_hz; the list frequencies_hz: f1_hz, f2_hz, ... in tables)", sign=lambda scene: 1),
 )
 
 

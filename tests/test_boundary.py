@@ -9,6 +9,7 @@ the field: through `pcverify run --solver module:Class --json` (exit 1) and in a
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import subprocess
@@ -21,9 +22,12 @@ import pytest
 
 from pcverify.harness.cli import main
 from pcverify.harness.judge.metrics import field_errors
-from pcverify.harness.study.catalogue import make_scene
+from pcverify.harness.study.boundary import Inadmissible, admitted
+from pcverify.harness.study.catalogue import get_spec, make_scene
 from pcverify.references.heat import analytic
 from pcverify.scene import Resolution
+from pcverify.solvers.continuum.skfem_elastic import SkfemElastic
+from pcverify.solvers.protocol import Solution
 
 REPO = Path(__file__).resolve().parent.parent
 ENV = {**os.environ, "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MPLBACKEND": "Agg"}
@@ -331,3 +335,33 @@ def test_a_correct_plugin_is_unaffected(study) -> None:
             expected = field_errors(np.asarray(s["values"], dtype=float), analytic(scene, pts))
             assert r["errors"][name] == expected | {"reference": "analytic"}
     assert 1e-4 < fd[3]["errors"]["nodes"]["linf"] < fd[2]["errors"]["nodes"]["linf"] < 0.1
+
+
+def test_a_summary_scalar_against_its_familys_sign_convention_is_named():
+    """The elastic family says reaction_force has the sign of the imposed strain: scikit-fem's compression gives
+    a negative reaction and passes; the same solution with the reaction reported positive (as a plugin once did)
+    fails, naming the scalar and the convention (the fracture scene, pulled, expects it positive)."""
+    solver = SkfemElastic()
+    for strain in (-1e-3, -5e-3):
+        scene = make_scene("bar-compression", strain=strain)
+        sol = solver.solve(scene, Resolution(2))
+        assert np.sign(sol.summary["reaction_force"]) == np.sign(strain) and sol.summary["E_eff"] > 0
+        assert admitted(sol, solver, scene, Resolution(2))["summary"]["reaction_force"] == sol.summary["reaction_force"]
+        flipped = dataclasses.replace(sol, summary=sol.summary | {"reaction_force": -sol.summary["reaction_force"]})
+        with pytest.raises(Inadmissible, match=r"summary\['reaction_force'\] = .*, positive; allowed: negative on "
+                           r"this scene \(axial force the support on face zL applies"):
+            admitted(flipped, solver, scene, Resolution(2))
+    pulled = make_scene("bar-tension-fracture")
+    assert [s.sign(pulled) for s in get_spec(pulled.name).scalars if s.name == "reaction_force"] == [1]
+
+
+def test_a_record_without_a_field_names_the_scenes_quantity():
+    """A failed solution on an elastic scene says its quantity is the displacement, not the default T/t_max."""
+    solver = SkfemElastic()
+    scene = make_scene("bar-compression")
+    failed = Solution(scene=scene.name, solver=solver.name, params={}, resolution={}, samples={}, unknowns=0,
+                      wall_s=0.0, status="failed", reason="stopped")
+    assert failed.quantity == "T/t_max"  # the protocol's default, for heat
+    assert admitted(failed, solver, scene, Resolution(2))["quantity"] == "u (m)" == scene.quantity
+    assert make_scene("bar-modes").quantity == "mode-1 shape (max |u| = 1)"
+    assert make_scene("bar-heat-faces").quantity == "T/t_max"

@@ -79,3 +79,20 @@ def test_timings_of_two_passes_are_not_drawn_together(tmp_path):
     assert work_precision(df, "err.nodes.l2", tmp_path / "wp2", "mixed", mix_runs=True)
     drawn = json.loads((tmp_path / "wp2.json").read_text())
     assert drawn["axes"][0]["series"][0]["x"] == [1.0, 2.0]
+
+
+def test_two_studies_in_one_out_folder_each_time_their_cells_in_their_own_pass(tmp_path):
+    """A timed cell is keyed by the study that times it: a second study sharing the first one's cells and cache
+    times them again in its own pass, so both draw their work-precision figures (sharing them split a group's
+    timings over two passes and the figure refused to draw)."""
+    first = tmp_path / "cost.toml"
+    first.write_text(STUDY)
+    second = tmp_path / "cost2.toml"
+    second.write_text(STUDY.replace('name = "cost"', 'name = "cost2"').replace("n = [2, 3]", "n = [3, 4]"))
+    for path in (first, second):
+        assert main(["study", str(path), "--out", str(tmp_path / "out"), "--json"]) == 0
+    for name in ("cost", "cost2"):
+        wp = pd.read_csv(tmp_path / "out" / name / "wp-work-precision.csv")
+        assert wp["run"].nunique() == 1, wp[["solver", "n", "run"]]
+        figure = json.loads((tmp_path / "out" / name / "wp.json").read_text())
+        assert {s["label"] for s in figure["axes"][0]["series"]} == {"fipy", "skfem"}

@@ -76,6 +76,7 @@ def cell_identity(cell: Cell) -> tuple[dict[str, Any], str | None]:
                                "refine": cell.refine, "task": cell.task.name}
     if cell.serial:
         payload["timing"] = "serial-after-warm-up" + (f", least of {cell.repeats}" if cell.repeats > 1 else "")
+        payload["timed_by"] = cell.timed_by  # two studies' timed passes never share a timing
     if cell.expressions:  # the same value from another expression is another cell of the tables
         payload["expressions"] = dict(cell.expressions)
     try:
@@ -102,7 +103,7 @@ def cell_identity(cell: Cell) -> tuple[dict[str, Any], str | None]:
 def untimed_key(cell: Cell) -> str:
     """The cache key `cell` would have outside a timed group: a cell of another group with this key computes
     the same solution, so it takes the timed cell's result instead of being solved twice."""
-    payload = {k: v for k, v in cell_identity(cell)[0].items() if k != "timing"}
+    payload = {k: v for k, v in cell_identity(cell)[0].items() if k not in ("timing", "timed_by")}
     return cell_key(payload)
 
 
@@ -142,7 +143,8 @@ def _checks_raised(cell: Cell, exc: BaseException) -> str:
 def _base(cell: Cell) -> dict[str, Any]:
     """The identity fields of a cell's result: the cell's, whatever the solver says of itself."""
     base = {"group": cell.group, "scene": cell.scene.name, "solver": cell.solver, "n": cell.n,
-            "refine": cell.refine, "scene_params": dict(cell.scene_params), "solver_params": dict(cell.solver_params)}
+            "refine": cell.refine, "scene_params": dict(cell.scene_params), "solver_params": dict(cell.solver_params),
+            "quantity": cell.scene.quantity}
     return base | ({"expressions": dict(cell.expressions)} if cell.expressions else {})
 
 

@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from pcverify.harness.study.catalogue import get_spec
 from pcverify.scene import Resolution, Scene, SceneError, shown
 from pcverify.solvers.protocol import STATUSES, Solution, Solver
 
@@ -46,6 +47,7 @@ def admitted(solution: Any, solver: Solver, scene: Scene, resolution: Resolution
     _samples(solution, scene, resolution, who)
     for part, labels in (("summary", True), ("work", False), ("resolution", False)):
         _scalars(getattr(solution, part), part, labels, who)
+    _signs(solution.summary, scene, who)
     h = solution.resolution.get("h")
     if h is not None and not (isinstance(h, (int, float, np.integer, np.floating)) and math.isfinite(h) and h > 0):
         raise Inadmissible(f"{who} resolution['h'] = {shown(h)}; allowed: the grid or lattice spacing, a positive "
@@ -55,12 +57,30 @@ def admitted(solution: Any, solver: Solver, scene: Scene, resolution: Resolution
         out = solution.to_dict()
     except Exception as exc:  # noqa: BLE001 - a plugin's own Solution subclass: its failure is the cell's
         raise Inadmissible(f"{who} a Solution whose to_dict raised {type(exc).__name__}: {exc}") from None
+    if out["status"] != "ok":  # no field: the record names the scene's quantity, whatever the solver left
+        out["quantity"] = scene.quantity
     for key, value in out.items():
         try:
             json.dumps(value, allow_nan=False)
         except (TypeError, ValueError) as exc:
             raise Inadmissible(f"{who} {key} that JSON cannot hold ({type(exc).__name__}: {exc})") from None
     return out
+
+
+def _signs(summary: dict[str, Any], scene: Scene, who: str) -> None:
+    """Each summary scalar whose scene family fixes its sign on this scene has that sign (a plugin that reports
+    a compressive reaction as positive is named, with the convention)."""
+    try:
+        contract = get_spec(scene.name).scalars
+    except SceneError:  # a scene no family declares: no contract to hold it to
+        return
+    for scalar in contract:
+        value = summary.get(scalar.name)
+        want = scalar.sign(scene) if scalar.sign is not None else 0
+        if want and isinstance(value, (int, float)) and math.isfinite(value) and value and np.sign(value) != want:
+            have, need = ("positive" if value > 0 else "negative"), ("positive" if want > 0 else "negative")
+            raise Inadmissible(f"{who} summary[{scalar.name!r}] = {shown(value)}, {have}; allowed: {need} on this "
+                               f"scene ({scalar.description})")
 
 
 def _identity(solution: Solution, scene: Scene, who: str) -> None:

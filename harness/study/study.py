@@ -62,6 +62,7 @@ class Cell:
     plugin_folder: str | None = None
     expressions: tuple[tuple[str, str], ...] = ()  # parameters given as expressions of the resolution ("scene." ...)
     repeats: int = 1  # a timed cell: solved up to this many times in the timed worker, the least CPU time kept
+    timed_by: str = ""  # a timed cell: the study whose timed pass times it (part of the key: each study's own pass)
 
     def describe(self) -> str:
         given = dict(self.expressions)
@@ -127,7 +128,7 @@ def load_study(name_or_path: str, allow_large: bool = False) -> Study:
         register_scene(spec_from_table(table, row_where(f"study file {path.name}", "scene", number, table, SCENE)),
                        f"study file {path}")
     check_groups(normal, path)
-    groups = [_group(g, gi, plugins, str(path.resolve().parent)) for gi, g in enumerate(normal.get("group", []))]
+    groups = [_group(g, gi, plugins, str(path.resolve().parent), name) for gi, g in enumerate(normal.get("group", []))]
     by_id = {group.id: g for group, g in zip(groups, normal.get("group", []), strict=True)}
 
     def levels(table: str) -> Any:
@@ -189,7 +190,7 @@ def cell_count(doc: dict[str, Any], path: Path) -> int:
     return total
 
 
-def _group(g: dict[str, Any], gi: int, plugins: tuple[str, ...], folder: str) -> Group:
+def _group(g: dict[str, Any], gi: int, plugins: tuple[str, ...], folder: str, study: str) -> Group:
     gid = g.get("id", f"group{gi + 1}")
     analysis = ANALYSES[g["analysis"]]
     options = {k: v for k, v in g.items() if k not in ("id", "title", "scene", "scene_params", "solvers", "n",
@@ -221,7 +222,7 @@ def _group(g: dict[str, Any], gi: int, plugins: tuple[str, ...], folder: str) ->
                           int(refine), tuple(sorted(params.items())), task=task, plugins=plugins,
                           plugin_folder=folder if plugins else None, expressions=tuple(sorted(expressions.items()))))
     if bool(g.get("serial", analysis.serial)):  # a timed cell: its least CPU time of `repeats` solves is its cost
-        cells = [dataclasses.replace(c, serial=True, repeats=int(g["repeats"])) for c in cells]
+        cells = [dataclasses.replace(c, serial=True, repeats=int(g["repeats"]), timed_by=study) for c in cells]
     return Group(gid, g.get("title", gid), analysis.name, cells, options, unplanned)
 
 

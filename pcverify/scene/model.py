@@ -201,6 +201,14 @@ class Scene:
     def param_dict(self) -> dict[str, Any]:
         return dict(self.params)
 
+    @property
+    def quantity(self) -> str:
+        """What a solution of the scene samples: the displacement (a mode's shape) of an elastic scene, else the
+        relative temperature; a record without a solution (failed, skipped) says this."""
+        if self.elasticity is not None:
+            return "mode-1 shape (max |u| = 1)" if self.elasticity.modes else "u (m)"
+        return "T/t_max"
+
     def sample_sets(self, n: int) -> dict[str, np.ndarray]:
         """Sample points at resolution n: lattice nodes and the paper's two edges (front top: x = 0, y = H;
         bottom back: x = W, y = 0), the edges at the lattice's z levels.  Only points in the material: a

@@ -22,11 +22,13 @@ from .params import Param, resolve_params
 @dataclass(frozen=True)
 class Scalar:
     """A summary scalar a scene family defines: the name a solver reports it under, its unit, and what it
-    is (with its sign convention)."""
+    is (with its sign convention); `sign(scene)`, where given, is the sign (+1 or -1, 0: either) every
+    non-zero value must have on that scene, which the harness checks on every solution."""
 
     name: str
     unit: str
     description: str
+    sign: Callable[[Scene], int] | None = None
 
 
 @dataclass(frozen=True)
