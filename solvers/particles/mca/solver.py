@@ -373,6 +373,8 @@ def _fracture(scene: Scene, aut: Automata, p: dict[str, Any]) -> dict[str, Any]:
             rise = h[(stress > 0.1 * peak_r / area) & (stress < 0.6 * peak_r / area) & before]
             if len(rise) >= MIN_RISE_ROWS:
                 summary["E_eff"] = float(np.polyfit(rise[:, mk.H_U1] / length, rise[:, mk.H_R1] / area, 1)[0])
+            if resp is not None and resp.kind != "elastic":  # an elastic bar's ringing would read as a knee
+                summary.update(bilinear_fit(h[before, mk.H_U1] / length, stress[before], peak_r / area))
     summary["unlink_events"] = int(st.counters[mk.C_UNLINK])
     summary["relink_events"] = int(st.counters[mk.C_RELINK])
     summary["pair_list_rebuilds"] = rebuilds
@@ -478,6 +480,30 @@ def _modes(scene: Scene, aut: Automata, p: dict[str, Any]) -> dict[str, Any]:
     work = {"unknowns": int(free.size), "kernel_s": time.perf_counter() - t0}
     return {"field": None, "unknowns": int(free.size), "quantity": "frequencies (Hz)", "summary": summary,
             "work": work}
+
+
+def bilinear_fit(strain: np.ndarray, stress: np.ndarray, peak: float) -> dict[str, float]:
+    """The yield stress and the post-linear modulus of a measured rise to the peak stress `peak`, read off the
+    curve alone (not the response's parameters): the elastic line fitted on 10-60 % of the peak, the post-linear
+    line on the rows past the departure from it (1 % of the peak below it) between 30 and 90 % of the rest of the
+    rise, the yield stress where the two lines meet.  {} when the curve keeps to its elastic line (an elastic
+    response) or either part has fewer than MIN_RISE_ROWS rows."""
+    linear = (stress > 0.1 * peak) & (stress < 0.6 * peak)
+    if np.count_nonzero(linear) < MIN_RISE_ROWS:
+        return {}
+    e, b = np.polyfit(strain[linear], stress[linear], 1)
+    below = (e * strain + b - stress > 0.01 * peak) & (stress > 0.6 * peak)
+    if not below.any():
+        return {}
+    first = int(np.argmax(below))
+    s_dep = float(stress[first])
+    upper = (np.arange(stress.size) >= first) & (stress >= s_dep + 0.3 * (peak - s_dep)) & \
+        (stress <= s_dep + 0.9 * (peak - s_dep))
+    if np.count_nonzero(upper) < MIN_RISE_ROWS:
+        return {}
+    hard, c = np.polyfit(strain[upper], stress[upper], 1)
+    eps_y = (c - b) / (e - hard)
+    return {"yield_stress": float(e * eps_y + b), "post_linear_modulus": float(hard)}
 
 
 def failure_strain(resp, youngs: float) -> float:
