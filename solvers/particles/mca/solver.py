@@ -337,10 +337,14 @@ def _fracture(scene: Scene, aut: Automata, p: dict[str, Any]) -> dict[str, Any]:
     code = mk.OK
     chunk = max(every, 2000 // every * every)
     rebuilds = added = 0
+    first: dict[str, Any] = {}
     while done < steps_total:
+        before = copied(st) if st.counters[mk.C_UNLINK] == 0 else None
         code = model.advance(st, min(chunk, steps_total - done), every)
         rows.append(st.hist[: st.counters[mk.C_ROWS], :mk.H_LOAD].copy())
         done = int(st.counters[mk.C_STEPS])
+        if before is not None and st.counters[mk.C_UNLINK] > 0:
+            first = first_unlink(model, before, length)
         if code == mk.MOVED:
             st, more = rebuild_pairs(model, st)
             added += more
@@ -375,6 +379,7 @@ def _fracture(scene: Scene, aut: Automata, p: dict[str, Any]) -> dict[str, Any]:
                 summary["E_eff"] = float(np.polyfit(rise[:, mk.H_U1] / length, rise[:, mk.H_R1] / area, 1)[0])
             if resp is not None and resp.kind != "elastic":  # an elastic bar's ringing would read as a knee
                 summary.update(bilinear_fit(h[before, mk.H_U1] / length, stress[before], peak_r / area))
+    summary.update(first)
     summary["unlink_events"] = int(st.counters[mk.C_UNLINK])
     summary["relink_events"] = int(st.counters[mk.C_RELINK])
     summary["pair_list_rebuilds"] = rebuilds
@@ -480,6 +485,33 @@ def _modes(scene: Scene, aut: Automata, p: dict[str, Any]) -> dict[str, Any]:
     work = {"unknowns": int(free.size), "kernel_s": time.perf_counter() - t0}
     return {"field": None, "unknowns": int(free.size), "quantity": "frequencies (Hz)", "summary": summary,
             "work": work}
+
+
+def copied(value: Any) -> Any:
+    """A deep copy of a kernel state (NamedTuples of arrays, nested; scalars and None as they are)."""
+    if isinstance(value, np.ndarray):
+        return value.copy()
+    if isinstance(value, tuple) and hasattr(value, "_fields"):
+        return type(value)(*(copied(v) for v in value))
+    return value
+
+
+def first_unlink(model: Model, st: mk.State, length: float) -> dict[str, Any]:
+    """Where the first pairs unlinked: the run replayed from the state `st` (a copy taken before the chunk in
+    which the first unlink came) one step at a time up to that step, which is the same run (the steps do not
+    depend on the chunking).  first_unlink_z: the mean rest z of the unlinked pairs' midpoints over the bar's
+    length; first_unlink_pairs: how many unlinked in that step.  {} if the replay stops on another status."""
+    linked = st.linked.copy()
+    kernel_s = model.kernel_s
+    while st.counters[mk.C_UNLINK] == 0:
+        if model.advance(st, 1) != mk.OK:
+            model.kernel_s = kernel_s
+            return {}
+    model.kernel_s = kernel_s  # the replay is not the run's work
+    broken = np.flatnonzero((linked == 1) & (st.linked == 0))
+    z = 0.5 * (st.x0[st.pi[broken], 2] + st.x0[st.pj[broken], 2]) / length
+    return {"first_unlink_z": float(z.mean()), "first_unlink_pairs": int(broken.size), "first_unlink_step":
+            int(st.counters[mk.C_STEPS])}
 
 
 def bilinear_fit(strain: np.ndarray, stress: np.ndarray, peak: float) -> dict[str, float]:
