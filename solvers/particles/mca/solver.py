@@ -344,7 +344,7 @@ def _fracture(scene: Scene, aut: Automata, p: dict[str, Any]) -> dict[str, Any]:
         rows.append(st.hist[: st.counters[mk.C_ROWS], :mk.H_LOAD].copy())
         done = int(st.counters[mk.C_STEPS])
         if before is not None and st.counters[mk.C_UNLINK] > 0:
-            first = first_unlink(model, before, length)
+            first = first_unlink(model, before, length, int(st.counters[mk.C_STEPS]))
         if code == mk.MOVED:
             st, more = rebuild_pairs(model, st)
             added += more
@@ -496,18 +496,20 @@ def copied(value: Any) -> Any:
     return value
 
 
-def first_unlink(model: Model, st: mk.State, length: float) -> dict[str, Any]:
+def first_unlink(model: Model, st: mk.State, length: float, until: int) -> dict[str, Any]:
     """Where the first pairs unlinked: the run replayed from the state `st` (a copy taken before the chunk in
-    which the first unlink came) one step at a time up to that step, which is the same run (the steps do not
-    depend on the chunking).  first_unlink_z: the mean rest z of the unlinked pairs' midpoints over the bar's
-    length; first_unlink_pairs: how many unlinked in that step.  {} if the replay stops on another status."""
+    which the first unlink came, which ended at step `until`) one step at a time up to that unlink, which is the
+    same run (the steps do not depend on the chunking).  first_unlink_z: the mean rest z of the unlinked pairs'
+    midpoints over the bar's length; first_unlink_pairs: how many unlinked in that step.  {} if the replay stops
+    on another status or reaches `until` without an unlink."""
     linked = st.linked.copy()
     kernel_s = model.kernel_s
-    while st.counters[mk.C_UNLINK] == 0:
-        if model.advance(st, 1) != mk.OK:
-            model.kernel_s = kernel_s
-            return {}
+    code = mk.OK
+    while st.counters[mk.C_UNLINK] == 0 and st.counters[mk.C_STEPS] < until and code == mk.OK:
+        code = model.advance(st, 1)
     model.kernel_s = kernel_s  # the replay is not the run's work
+    if st.counters[mk.C_UNLINK] == 0:
+        return {}
     broken = np.flatnonzero((linked == 1) & (st.linked == 0))
     z = 0.5 * (st.x0[st.pi[broken], 2] + st.x0[st.pj[broken], 2]) / length
     return {"first_unlink_z": float(z.mean()), "first_unlink_pairs": int(broken.size), "first_unlink_step":
