@@ -152,6 +152,8 @@ SCALARS = (
     Scalar("contact_pressure_uniformity", "", "(max - min) / mean of the closed contacts' pressure"),
     Scalar("mu_dr_mean", "", "friction coefficient F_dr / F_N over the sliding window (eq. 17; also mu_dr_error)"),
     Scalar("energy_balance_error", "", "largest energy imbalance over the sliding window per the drive's work"),
+    Scalar("energy_balance_start_error", "", "largest energy imbalance from the drive's start (ramp included: "
+           "every energy term changes) per the drive's and the load's work there"),
     Scalar("spring_peak_N", "N", "spring force at breakaway, mean over the cycles after the first (also "
            "spring_trough_N, force_drop_N, spring_max_N; stick_s, slip_s, period_s in s; slip_velocity_peak in m/s)"),
     Scalar("slide_acceleration", "m/s^2", "the slider's acceleration down an incline (0 while it sticks)"),

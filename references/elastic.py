@@ -90,6 +90,20 @@ def _strain_sign(scene: Scene) -> int:
     return 1 if "strain_rate" in p else 0
 
 
+def fracture_scalars(resp: Response, youngs: float) -> dict[str, float]:
+    """The bar pulled in uniaxial tension, in closed form: it fails at sigma_t = sigma_c / k (the Drucker-Prager
+    stress of uniaxial tension is k sigma).  A plastic response (linear isotropic hardening) leaves the elastic
+    line at sigma_y, a degradation response at sigma_d (damage 1 - g(kappa)/kappa with g = sigma_d + H/E (kappa -
+    sigma_d) transmits sigma = sigma_d + H (eps - sigma_d / E)); both then rise with the uniaxial tangent H, the
+    hardening, and fail at the strain where that line reaches sigma_t."""
+    out = {"failure_stress": resp.sigma_c / resp.k}
+    knee = {"plastic": resp.sigma_y, "degradation": resp.sigma_d}.get(resp.kind)
+    if knee is not None and knee < out["failure_stress"] and resp.hardening > 0:
+        out.update(yield_stress=knee, post_linear_modulus=resp.hardening,
+                   failure_strain=knee / youngs + (out["failure_stress"] - knee) / resp.hardening)
+    return out
+
+
 SCALARS = (
     Scalar("reaction_force", "N", "axial force the support on face zL applies to the bar (negative in compression)",
            sign=_strain_sign),
@@ -98,6 +112,13 @@ SCALARS = (
     Scalar("nu_eff", "", "-lateral strain / axial strain (face-averaged lateral displacements)"),
     Scalar("failure_stress", "Pa", "peak reaction / (W H) of the bar pulled to fracture (positive in tension)",
            sign=lambda scene: 1),
+    Scalar("failure_strain", "", "the driven face's displacement / L at the peak reaction"),
+    Scalar("first_unlink_z", "", "mean rest z / L of the pairs' midpoints that unlinked in the first step with an "
+           "unlink (also first_unlink_pairs, first_unlink_step)"),
+    Scalar("yield_stress", "Pa", "where the pulled bar's stress-strain curve leaves its elastic line: the meeting "
+           "point of the lines fitted to its elastic and its post-linear part (plastic and degradation responses)"),
+    Scalar("post_linear_modulus", "Pa", "slope of the stress-strain curve after the yield stress (the uniaxial "
+           "tangent H)"),
     Scalar("f_bending_x_hz", "Hz", "lowest bending frequency along x (also f_bending_y_hz, f_torsion_hz, f_axial_hz, "
            "f_rotational_hz; the list frequencies_hz: f1_hz, f2_hz, ... in tables)", sign=lambda scene: 1),
 )
@@ -155,6 +176,7 @@ FRACTURE = SceneSpec(
         Param("k", 1.0, "", "sigma_c / sigma_t (Drucker-Prager)", low=0.1, high=20.0),
         Param("strain_rate", 10.0, "1/s", "nominal axial strain rate", low=0.0, high=1e4, low_open=True),
     ),
-    _fracture, Reference(scalars=lambda scene, summary: {"failure_stress": scene.elasticity.response.sigma_c
-                                                         / scene.elasticity.response.k}, kind="theory"), SCALARS)
+    _fracture, Reference(scalars=lambda scene, summary: fracture_scalars(scene.elasticity.response,
+                                                                         scene.material.youngs_modulus),
+                         kind="theory"), SCALARS)
 SCENES = (COMPRESSION, MODES, FRACTURE)

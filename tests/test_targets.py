@@ -119,6 +119,12 @@ PASTED = {
     **{("elasticity", f"{c}-hooke-{q}"): (v, None) for c in ("continuum", "mca", "mca-cells")
        for q, v in (("E", "70e9"), ("nu", "0.33"))},
     ("elasticity", "mca-fracture-strength"): ("400e6", None),
+    ("elasticity", "mca-fracture-strength-k2"): ("200e6", None),  # sigma_c / k of the group's k = 2
+    **{("elasticity", f"mca-{c}-strength"): ("400e6", None) for c in ("plastic", "degradation")},
+    ("elasticity", "mca-plastic-yield"): ("300e6", None),
+    ("elasticity", "mca-degradation-knee"): ("320e6", None),
+    **{("elasticity", c): ("7e9", None) for c in ("mca-plastic-hardening", "mca-degradation-slope")},
+    **{("contact-friction", f"sliding-mu-rough-seeds-{w}"): ("0.3477464829275686", None) for w in ("drive", "clamp")},
     ("contact-friction", "contact-pressure"): ("70e6", None),
     ("contact-friction", "heating-dissimilar-share"): ("0.41421356237309503", None),
     ("stick-slip", "stick-slip-breakaway"): ("40.0", None),

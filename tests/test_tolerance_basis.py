@@ -35,7 +35,7 @@ def test_every_shipped_tolerance_says_whether_it_is_derived_or_measured_and_a_me
         if not basis:
             unstated.append(f"{name}:{claim['id']}")
         elif basis.startswith("measured:"):
-            factors = [float(f) for f in re.findall(r"\(([0-9.e+-]+)x\)", basis)]
+            factors = [float(f) for f in re.findall(r"\(([0-9.e+-]+)[x×]\)", basis)]
             if not factors or max(factors) > LOOSE:
                 too_loose.append(f"{name}:{claim['id']}: {basis}")
     assert not unstated, f"claims without a tolerance_basis: {unstated}"

@@ -337,10 +337,14 @@ def _fracture(scene: Scene, aut: Automata, p: dict[str, Any]) -> dict[str, Any]:
     code = mk.OK
     chunk = max(every, 2000 // every * every)
     rebuilds = added = 0
+    first: dict[str, Any] = {}
     while done < steps_total:
+        before = copied(st) if st.counters[mk.C_UNLINK] == 0 else None
         code = model.advance(st, min(chunk, steps_total - done), every)
         rows.append(st.hist[: st.counters[mk.C_ROWS], :mk.H_LOAD].copy())
         done = int(st.counters[mk.C_STEPS])
+        if before is not None and st.counters[mk.C_UNLINK] > 0:
+            first = first_unlink(model, before, length, int(st.counters[mk.C_STEPS]))
         if code == mk.MOVED:
             st, more = rebuild_pairs(model, st)
             added += more
@@ -373,6 +377,9 @@ def _fracture(scene: Scene, aut: Automata, p: dict[str, Any]) -> dict[str, Any]:
             rise = h[(stress > 0.1 * peak_r / area) & (stress < 0.6 * peak_r / area) & before]
             if len(rise) >= MIN_RISE_ROWS:
                 summary["E_eff"] = float(np.polyfit(rise[:, mk.H_U1] / length, rise[:, mk.H_R1] / area, 1)[0])
+            if resp is not None and resp.kind != "elastic":  # an elastic bar's ringing would read as a knee
+                summary.update(bilinear_fit(h[before, mk.H_U1] / length, stress[before], peak_r / area))
+    summary.update(first)
     summary["unlink_events"] = int(st.counters[mk.C_UNLINK])
     summary["relink_events"] = int(st.counters[mk.C_RELINK])
     summary["pair_list_rebuilds"] = rebuilds
@@ -478,6 +485,59 @@ def _modes(scene: Scene, aut: Automata, p: dict[str, Any]) -> dict[str, Any]:
     work = {"unknowns": int(free.size), "kernel_s": time.perf_counter() - t0}
     return {"field": None, "unknowns": int(free.size), "quantity": "frequencies (Hz)", "summary": summary,
             "work": work}
+
+
+def copied(value: Any) -> Any:
+    """A deep copy of a kernel state (NamedTuples of arrays, nested; scalars and None as they are)."""
+    if isinstance(value, np.ndarray):
+        return value.copy()
+    if isinstance(value, tuple) and hasattr(value, "_fields"):
+        return type(value)(*(copied(v) for v in value))
+    return value
+
+
+def first_unlink(model: Model, st: mk.State, length: float, until: int) -> dict[str, Any]:
+    """Where the first pairs unlinked: the run replayed from the state `st` (a copy taken before the chunk in
+    which the first unlink came, which ended at step `until`) one step at a time up to that unlink, which is the
+    same run (the steps do not depend on the chunking).  first_unlink_z: the mean rest z of the unlinked pairs'
+    midpoints over the bar's length; first_unlink_pairs: how many unlinked in that step.  {} if the replay stops
+    on another status or reaches `until` without an unlink."""
+    linked = st.linked.copy()
+    kernel_s = model.kernel_s
+    code = mk.OK
+    while st.counters[mk.C_UNLINK] == 0 and st.counters[mk.C_STEPS] < until and code == mk.OK:
+        code = model.advance(st, 1)
+    model.kernel_s = kernel_s  # the replay is not the run's work
+    if st.counters[mk.C_UNLINK] == 0:
+        return {}
+    broken = np.flatnonzero((linked == 1) & (st.linked == 0))
+    z = 0.5 * (st.x0[st.pi[broken], 2] + st.x0[st.pj[broken], 2]) / length
+    return {"first_unlink_z": float(z.mean()), "first_unlink_pairs": int(broken.size), "first_unlink_step":
+            int(st.counters[mk.C_STEPS])}
+
+
+def bilinear_fit(strain: np.ndarray, stress: np.ndarray, peak: float) -> dict[str, float]:
+    """The yield stress and the post-linear modulus of a measured rise to the peak stress `peak`, read off the
+    curve alone (not the response's parameters): the elastic line fitted on 10-60 % of the peak, the post-linear
+    line on the rows past the departure from it (1 % of the peak below it) between 30 and 90 % of the rest of the
+    rise, the yield stress where the two lines meet.  {} when the curve keeps to its elastic line (an elastic
+    response) or either part has fewer than MIN_RISE_ROWS rows."""
+    linear = (stress > 0.1 * peak) & (stress < 0.6 * peak)
+    if np.count_nonzero(linear) < MIN_RISE_ROWS:
+        return {}
+    e, b = np.polyfit(strain[linear], stress[linear], 1)
+    below = (e * strain + b - stress > 0.01 * peak) & (stress > 0.6 * peak)
+    if not below.any():
+        return {}
+    first = int(np.argmax(below))
+    s_dep = float(stress[first])
+    upper = (np.arange(stress.size) >= first) & (stress >= s_dep + 0.3 * (peak - s_dep)) & \
+        (stress <= s_dep + 0.9 * (peak - s_dep))
+    if np.count_nonzero(upper) < MIN_RISE_ROWS:
+        return {}
+    hard, c = np.polyfit(strain[upper], stress[upper], 1)
+    eps_y = (c - b) / (e - hard)
+    return {"yield_stress": float(e * eps_y + b), "post_linear_modulus": float(hard)}
 
 
 def failure_strain(resp, youngs: float) -> float:
