@@ -39,7 +39,7 @@ def mark(changes: list[dict[str, Any]]) -> str:
 def sensitivity_document(study: str, step: float, claims: list[str], entries: list[dict[str, Any]],
                          wall_s: float) -> dict[str, Any]:
     """sensitivity.json: per input its entry with the claims that see it, the blind spots, the inputs not
-    perturbed."""
+    perturbed (zero, out of range both ways, or refused by a solver's checks)."""
     for entry in entries:
         entry["seen_by"] = [c for c, changes in entry.get("claims", {}).items() if mark(changes)]
     perturbed = [x for x in entries if x["status"] == "perturbed"]

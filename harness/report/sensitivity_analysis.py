@@ -60,8 +60,8 @@ def print_sensitivity(doc: dict[str, Any], where: Path) -> None:
     for x in doc["inputs"]:
         about = (x["reason"] if x["status"] != "perturbed" else blind.get(x["input"])
                  or f"seen by {', '.join(x['seen_by'])}")
-        state = "blind" if x["input"] in blind else "seen" if x["status"] == "perturbed" else "skipped"
-        print(f"  {state:<7} {x['input']:<{width}} {x['cells']:>4} cells {x['changed_cells']:>4} changed  {about}")
+        state = "blind" if x["input"] in blind else "seen" if x["status"] == "perturbed" else x["status"]
+        print(f"  {state:<13} {x['input']:<{width}} {x['cells']:>4} cells {x['changed_cells']:>4} changed  {about}")
     n = doc["counts"]
     print(f"{doc['study']}: {n['inputs']} inputs, {n['perturbed']} perturbed by 1 + {doc['step']:g}: {n['seen']} seen, "
           f"{n['blind']} blind spots, in {doc['wall_s']:.0f} s -> {where}")

@@ -23,9 +23,9 @@ from pcverify.harness.report import figures, page
 from pcverify.harness.report.findings import STATES, findings, summary_lines
 from pcverify.harness.report.group_figures import group_report
 from pcverify.harness.report.mutation import mutation_section
-from pcverify.harness.report.sensitivity import sensitivity_section
 from pcverify.harness.report.provenance import code_origin, command, provenance
 from pcverify.harness.report.reproduce import study_command, table_group, verdict_commands
+from pcverify.harness.report.sensitivity import sensitivity_section
 from pcverify.harness.report.vtu import write_vtu
 from pcverify.harness.run.files import atomic_write, exclusive, read_json, remove_stray_files
 from pcverify.harness.study.claims import Claim

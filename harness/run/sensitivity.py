@@ -259,6 +259,10 @@ def perturb(study: Study, results: list[dict[str, Any]], baseline: list[dict[str
     mixed = list(results)
     for i, res in zip(todo, ran, strict=True):
         mixed[i] = res
+    refused = [mixed[i].get("reason") for i in todo if mixed[i].get("status") == "failed" != results[i].get("status")]
+    if refused:  # the solver's own checks refuse the value (a box that no longer fits the lattice, say)
+        return entry | {"status": "refused", "reason": f"{len(refused)} of {len(todo)} cells failed: "
+                        f"{' '.join(str(refused[0]).split())[:300]}", "changed_cells": 0, "claims": {}}
     moves = [output_change(results[i], mixed[i]) for i in todo]
     claims = claim_changes(baseline, judged(study, mixed))
     return entry | {"status": "perturbed", "reason": "; ".join(reasons),
