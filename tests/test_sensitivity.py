@@ -1,6 +1,6 @@
-"""`pcverify sensitivity` on a tiny steady heat study: a perturbed conductivity moves the temperature by -dk/k, the
-heat capacity and the density of a steady cell are blind spots, a box that no longer fits the lattice is refused,
-and bad input is one line."""
+"""`pcverify sensitivity` on a tiny steady heat study: a perturbed conductivity moves the temperature by -dk/k,
+the box's size by (1 + step)^2, the heat capacity and the density of a steady cell are blind spots, a box
+extent that no longer fits the lattice is refused, and bad input is one line."""
 
 from __future__ import annotations
 
@@ -52,7 +52,7 @@ def doc(tmp_path_factory: pytest.TempPathFactory) -> dict:
     (folder / "sens.toml").write_text(STUDY, encoding="utf-8")
     out = folder / "out"
     args = ["sensitivity", str(folder / "sens.toml"), "--out", str(out), "--json", "--input", "*:material.*",
-            "--input", "sens-slab:box.width", "--input", "skfem:*"]
+            "--input", "sens-slab:box*", "--input", "skfem:*"]
     buffer = io.StringIO()
     with contextlib.redirect_stdout(buffer):
         assert main(args) == 0
@@ -72,6 +72,11 @@ def test_conductivity_moves_the_steady_temperature_by_minus_dk_over_k(doc: dict)
     assert k["factor"] == pytest.approx(1.01) and k["seen_by"] == ["slab-mean"] and case["moved"]
     assert case["relative"] == pytest.approx(1 / 1.01 - 1, rel=1e-6)  # T ~ s / k, exactly so for the linear solve
     assert not case["verdict_changed"]
+
+
+def test_the_box_size_moves_it_by_the_square_of_the_scale(doc: dict) -> None:
+    (case,) = entry(doc, "sens-slab:box")["claims"]["slab-mean"]
+    assert case["relative"] == pytest.approx(1.01 ** 2 - 1, rel=1e-6)  # T ~ s L^2 / k
 
 
 def test_an_input_a_steady_cell_does_not_read_is_a_blind_spot(doc: dict) -> None:

@@ -2,11 +2,12 @@
 the study's claims judged again, and per input the claims whose values moved.
 
 An input is a real number a solver is handed: a leaf of a cell's scene value (its box, material constants,
-held values, loads, by path: `heat-manufactured:material.conductivity`) or a number parameter its solver
-declares (`mca:cfl`).  Only the solver sees the perturbed value (a `Perturbed` task hands it a perturbed copy):
-the reference, the claims' targets and the tables' columns keep the study's values, so a perturbation is the
-defect "the solver reads this input `step` off", and a claim that sees it would see that defect.  The rules
-of "moved" and "inert" are in docs/sensitivity.md.
+held values, loads, by path: `heat-manufactured:material.conductivity`), the box's size at fixed shape
+(`heat-manufactured:box`) or a number parameter its solver declares (`mca:cfl`).  Only the solver sees the
+perturbed value (a `Perturbed` task hands it a perturbed copy): the reference, the claims' targets and the
+tables' columns keep the study's values, so a perturbation is the defect "the solver reads this input `step`
+off", and a claim that sees it would see that defect.  The rules of "moved" and "inert" are in
+docs/sensitivity.md.
 """
 
 from __future__ import annotations
@@ -38,6 +39,7 @@ MAX_STEP = 0.5
 ROUND_OFF = 1e-9  # a move below this share of the value is round-off
 TOLERANCE_SHARE = 1e-3  # a move below this share of the claim's tolerance is one it could never notice
 NOT_SOLVER_INPUTS = ("name", "description", "params", "physics")  # a scene's labels and provenance
+BOX = "box"  # the input that scales the whole box (its size at fixed shape: a lattice fits it as before)
 OUTPUTS = ("status", "samples", "summary")  # what a cell's result says of the physics (`output_change`)
 TIMINGS = ("wall_s", "kernel_s", "kernel_wall_s", "assembly_s", "solve_s", "postprocess_s")  # not physics
 
@@ -71,8 +73,12 @@ def scene_leaves(obj: Any, path: str = "") -> dict[str, float]:
 
 
 def _replaced(obj: Any, parts: list[str], value: float) -> Any:
-    """`obj` with the leaf at `parts` (field names and "[i]") set to `value` (each part validated anew)."""
+    """`obj` with the leaf at `parts` (field names and "[i]") set to `value` (each part validated anew); the
+    path `box` scales the whole box to the width `value`."""
     head, *rest = parts
+    if parts == [BOX]:
+        return dataclasses.replace(obj, box=dataclasses.replace(obj.box, **{
+            k: v * value / obj.box.width for k, v in scene_leaves(obj.box).items()}))
     if head.startswith("["):
         i = int(head[1:-1])
         return obj[:i] + (_replaced(obj[i], rest, value) if rest else value,) + obj[i + 1:]
@@ -99,7 +105,8 @@ def inputs_of(cell: Cell) -> dict[Input, float]:
     """Every input of a cell that is solved, with its value there."""
     if identify(cell).skip is not None:
         return {}
-    scene = {Input("scene", cell.scene.name, k): v for k, v in scene_leaves(cell.scene).items()}
+    leaves = {BOX: cell.scene.box.width} | scene_leaves(cell.scene)
+    scene = {Input("scene", cell.scene.name, k): v for k, v in leaves.items()}
     return scene | {Input("solver", cell.solver, k): v for k, v in solver_numbers(cell).items()}
 
 
