@@ -43,7 +43,8 @@ def sensitivity_document(study: str, step: float, claims: list[str], entries: li
     for entry in entries:
         entry["seen_by"] = [c for c, changes in entry.get("claims", {}).items() if mark(changes)]
     perturbed = [x for x in entries if x["status"] == "perturbed"]
-    blind = [{"input": x["input"], "why": f"inert: no cell's result moved beyond round-off (largest relative change "
+    blind = [{"input": x["input"], "kind": "unseen" if x["changed_cells"] else "inert",
+              "why": f"inert: no cell's result moved beyond round-off (largest relative change "
               f"{x['largest_change']:.1e})" if not x["changed_cells"] else f"unseen: {x['changed_cells']} of "
               f"{x['cells']} cells' results moved (up to {x['largest_change'] or math.inf:.1e} relative), no claim "
               "did"} for x in perturbed if not x["seen_by"]]
