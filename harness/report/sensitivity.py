@@ -4,7 +4,8 @@ page.
 `sensitivity.json` holds per input the cells that have it, the factor it was scaled by, how many cells' results
 changed and, per claim case, the value before and after, the change, the scale it was held against, whether it
 moved and whether its verdict changed; then the blind spots (inputs no claim sees: *inert* where no cell's
-result changed, *unseen* where results changed and no claim moved) and the inputs that could not be perturbed.
+result changed, *unseen* where results changed and no claim moved, *unread* where only cells of groups no claim
+reads have it) and the inputs that could not be perturbed.
 `sensitivity-matrix.csv` is the matrix inputs x claims.
 """
 
@@ -48,10 +49,13 @@ def sensitivity_document(study: str, step: float, claims: list[str], entries: li
               f"{x['largest_change']:.1e})" if not x["changed_cells"] else f"unseen: {x['changed_cells']} of "
               f"{x['cells']} cells' results moved (up to {x['largest_change'] or math.inf:.1e} relative), no claim "
               "did"} for x in perturbed if not x["seen_by"]]
+    blind += [{"input": x["input"], "kind": "unread", "why": f"unread: {x['reason']}"} for x in entries
+              if x["status"] == "unread"]
     return {"study": study, "step": step, "claims": claims, "inputs": entries, "blind_spots": blind,
-            "not_perturbed": [{"input": x["input"], "reason": x["reason"]} for x in entries if x not in perturbed],
-            "counts": {"inputs": len(entries), "perturbed": len(perturbed), "seen": len(perturbed) - len(blind),
-                       "blind": len(blind)}, "wall_s": round(wall_s, 3)}
+            "not_perturbed": [{"input": x["input"], "reason": x["reason"]} for x in entries
+                              if x["status"] in ("not perturbed", "refused")],
+            "counts": {"inputs": len(entries), "perturbed": len(perturbed),
+                       "seen": sum(bool(x["seen_by"]) for x in perturbed), "blind": len(blind)}, "wall_s": round(wall_s, 3)}
 
 
 def matrix(doc: dict[str, Any]) -> pd.DataFrame:
