@@ -55,7 +55,8 @@ def sensitivity_document(study: str, step: float, claims: list[str], entries: li
             "not_perturbed": [{"input": x["input"], "reason": x["reason"]} for x in entries
                               if x["status"] in ("not perturbed", "refused")],
             "counts": {"inputs": len(entries), "perturbed": len(perturbed),
-                       "seen": sum(bool(x["seen_by"]) for x in perturbed), "blind": len(blind)}, "wall_s": round(wall_s, 3)}
+                       "seen": sum(bool(x["seen_by"]) for x in perturbed), "blind": len(blind)},
+            "wall_s": round(wall_s, 3)}
 
 
 def matrix(doc: dict[str, Any]) -> pd.DataFrame:
