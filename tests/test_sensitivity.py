@@ -1,6 +1,7 @@
 """`pcverify sensitivity` on a tiny steady heat study: a perturbed conductivity moves the temperature by -dk/k,
 the box's size by (1 + step)^2, the heat capacity and the density of a steady cell are blind spots, a box
-extent that no longer fits the lattice is refused, and bad input is one line."""
+extent that no longer fits the lattice is refused, an input of groups no claim reads is unread, and bad input is
+one line."""
 
 from __future__ import annotations
 
@@ -35,6 +36,14 @@ scene = "sens-slab"
 solvers = ["skfem"]
 n = [3]
 
+[[group]]
+id = "extra"
+title = "no claim reads this group"
+analysis = "table"
+scene = "sens-slab"
+solvers = ["fipy"]
+n = [2]
+
 [[claim]]
 id = "slab-mean"
 text = "the volume mean is s L^2 / (12 k) = 1.27 K within 0.1"
@@ -52,7 +61,7 @@ def doc(tmp_path_factory: pytest.TempPathFactory) -> dict:
     (folder / "sens.toml").write_text(STUDY, encoding="utf-8")
     out = folder / "out"
     args = ["sensitivity", str(folder / "sens.toml"), "--out", str(out), "--json", "--input", "*:material.*",
-            "--input", "sens-slab:box*", "--input", "skfem:*"]
+            "--input", "sens-slab:box*", "--input", "skfem:*", "--input", "fipy:rtol"]
     buffer = io.StringIO()
     with contextlib.redirect_stdout(buffer):
         assert main(args) == 0
@@ -85,6 +94,12 @@ def test_an_input_a_steady_cell_does_not_read_is_a_blind_spot(doc: dict) -> None
         assert blind[name].startswith("inert"), blind
         assert entry(doc, name)["changed_cells"] == 0
     assert "sens-slab:material.conductivity" not in blind
+
+
+def test_an_input_only_groups_no_claim_reads_have_is_unread(doc: dict) -> None:
+    blind = {b["input"]: b for b in doc["blind_spots"]}
+    assert blind["fipy:rtol"]["kind"] == "unread" and "extra" in blind["fipy:rtol"]["why"]
+    assert entry(doc, "fipy:rtol")["cells"] == 0  # never run
 
 
 def test_a_value_the_solver_refuses_is_not_perturbed_nor_a_blind_spot(doc: dict) -> None:
