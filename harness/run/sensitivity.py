@@ -41,7 +41,8 @@ TOLERANCE_SHARE = 1e-3  # a move below this share of the claim's tolerance is on
 NOT_SOLVER_INPUTS = ("name", "description", "params", "physics")  # a scene's labels and provenance
 BOX = "box"  # the input that scales the whole box (its size at fixed shape: a lattice fits it as before)
 OUTPUTS = ("status", "samples", "summary")  # what a cell's result says of the physics (`output_change`)
-TIMINGS = ("wall_s", "kernel_s", "kernel_wall_s", "assembly_s", "solve_s", "postprocess_s")  # not physics
+TIMINGS = ("wall_s", "kernel_s", "kernel_wall_s", "kernel_cpu_s", "assembly_s", "solve_s", "postprocess_s",
+           "calibrated_wall_s", "cpu_s", "setup_s")  # seconds measured by a clock: not physics
 
 
 @dataclass(frozen=True)
@@ -266,10 +267,11 @@ def perturb(study: Study, results: list[dict[str, Any]], baseline: list[dict[str
     mixed = list(results)
     for i, res in zip(todo, ran, strict=True):
         mixed[i] = res
-    refused = [mixed[i].get("reason") for i in todo if mixed[i].get("status") == "failed" != results[i].get("status")]
-    if refused:  # the solver's own checks refuse the value (a box that no longer fits the lattice, say)
-        return entry | {"status": "refused", "reason": f"{len(refused)} of {len(todo)} cells failed: "
-                        f"{' '.join(str(refused[0]).split())[:300]}", "changed_cells": 0, "claims": {}}
+    refused = [(mixed[i]["status"], mixed[i].get("reason")) for i in todo
+               if mixed[i].get("status") in ("failed", "skipped") and mixed[i]["status"] != results[i].get("status")]
+    if refused:  # the solver refuses the value (a box that no longer fits the lattice, a held value it cannot do)
+        return entry | {"status": "refused", "reason": f"{len(refused)} of {len(todo)} cells {refused[0][0]}: "
+                        f"{' '.join(str(refused[0][1]).split())[:300]}", "changed_cells": 0, "claims": {}}
     moves = [output_change(results[i], mixed[i]) for i in todo]
     claims = claim_changes(baseline, judged(study, mixed))
     return entry | {"status": "perturbed", "reason": "; ".join(reasons),
