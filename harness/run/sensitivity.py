@@ -121,6 +121,7 @@ class Perturbed:
     scene: Scene | None = None
     param: str = ""
     value: float = math.nan
+    original: float = math.nan  # the parameter's value in the cell
 
     @property
     def name(self) -> str:
@@ -136,7 +137,13 @@ class Perturbed:
         return self.inner.check(solver, self._params(params))
 
     def run(self, solver: Solver, scene: Scene, resolution: Resolution, params: dict[str, Any]) -> dict[str, Any]:
-        return self.inner.run(solver, self.scene or scene, resolution, self._params(params))
+        """The inner task's result; a summary scalar that echoes the perturbed parameter (a row a claim selects
+        by it) reports the cell's value, so the claim's cases stay the same rows."""
+        out = self.inner.run(solver, self.scene or scene, resolution, self._params(params))
+        for part in ("summary", "params"):
+            if self.param and self.param in (out.get(part) or {}):
+                out[part] = out[part] | {self.param: self.original}
+        return out
 
 
 def perturbed_cell(cell: Cell, values: dict[Input, float], item: Input, step: float
@@ -156,7 +163,7 @@ def perturbed_cell(cell: Cell, values: dict[Input, float], item: Input, step: fl
             if item.kind == "scene":
                 task = Perturbed(cell.task, label, scene=_replaced(cell.scene, _split(item.path), value * factor))
             else:
-                task = Perturbed(cell.task, label, param=item.path, value=value * factor)
+                task = Perturbed(cell.task, label, param=item.path, value=value * factor, original=value)
                 task.check(get_solver(cell.solver), dict(cell.solver_params))
             return dataclasses.replace(cell, task=task), factor, ""
         except (SceneError, TypeError, ValueError) as exc:
