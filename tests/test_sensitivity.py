@@ -114,6 +114,9 @@ def test_a_case_moves_beyond_its_uncertainty_or_a_thousandth_of_its_tolerance() 
     assert not case_change(base, base | {"value": 1.005})["moved"]
     assert case_change(base, base | {"value": 1.02})["moved"]
     assert not case_change(base | {"uncertainty": None}, base | {"value": 1.0005, "uncertainty": None})["moved"]
+    bound = {"case": "", "value": 0.01, "target": 0.02, "tolerance": 0.0, "verdict": "pass"}  # at most 0.02
+    assert not case_change(bound, bound | {"value": 0.010001})["moved"]
+    assert case_change(bound, bound | {"value": 0.0101})["moved"]
     lost = case_change(base, {"value": None, "verdict": "inconclusive"})
     assert lost["moved"] and lost["verdict_changed"]
 
