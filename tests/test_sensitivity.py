@@ -93,7 +93,7 @@ def test_an_input_a_steady_cell_does_not_read_is_a_blind_spot(doc: dict) -> None
     for name in ("sens-slab:material.heat_capacity", "sens-slab:material.density"):
         assert blind[name].startswith("inert"), blind
         assert entry(doc, name)["changed_cells"] == 0
-    assert "sens-slab:material.conductivity" not in blind
+    assert "sens-slab:material.conductivity" not in blind and doc["claims_seeing_nothing"] == []
 
 
 def test_an_input_only_groups_no_claim_reads_have_is_unread(doc: dict) -> None:

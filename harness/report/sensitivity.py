@@ -5,7 +5,7 @@ page.
 changed and, per claim case, the value before and after, the change, the scale it was held against, whether it
 moved and whether its verdict changed; then the blind spots (inputs no claim sees: *inert* where no cell's
 result changed, *unseen* where results changed and no claim moved, *unread* where only cells of groups no claim
-reads have it) and the inputs that could not be perturbed.
+reads have it), the claims no perturbed input moves and the inputs that could not be perturbed.
 `sensitivity-matrix.csv` is the matrix inputs x claims.
 """
 
@@ -51,7 +51,9 @@ def sensitivity_document(study: str, step: float, claims: list[str], entries: li
               "did"} for x in perturbed if not x["seen_by"]]
     blind += [{"input": x["input"], "kind": "unread", "why": f"unread: {x['reason']}"} for x in entries
               if x["status"] == "unread"]
+    seeing = {c for x in perturbed for c in x["seen_by"]}
     return {"study": study, "step": step, "claims": claims, "inputs": entries, "blind_spots": blind,
+            "claims_seeing_nothing": [c for c in claims if c not in seeing],
             "not_perturbed": [{"input": x["input"], "reason": x["reason"]} for x in entries
                               if x["status"] in ("not perturbed", "refused")],
             "counts": {"inputs": len(entries), "perturbed": len(perturbed),
@@ -97,6 +99,9 @@ def sensitivity_section(folder: Path, name: str, doc: Any) -> str:
         parts.append("<p class='meta'>Blind spots: inputs no claim sees</p><ul>" + "".join(
             f"<li><code>{e(str(b.get('input')))}</code>: {e(str(b.get('why')))}</li>" for b in doc["blind_spots"])
                      + "</ul>")
+    if doc.get("claims_seeing_nothing"):
+        parts.append("<p class='meta'>Claims no perturbed input moves: " + ", ".join(
+            f"<code>{e(str(c))}</code>" for c in doc["claims_seeing_nothing"]) + "</p>")
     if doc.get("not_perturbed"):
         parts.append("<details><summary>Inputs not perturbed</summary><ul>" + "".join(
             f"<li><code>{e(str(b.get('input')))}</code>: {e(str(b.get('reason')))}</li>" for b in doc["not_perturbed"])

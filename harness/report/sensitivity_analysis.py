@@ -84,5 +84,7 @@ def print_sensitivity(doc: dict[str, Any], where: Path) -> None:
         state = "blind" if x["input"] in blind else "seen" if x["status"] == "perturbed" else x["status"]
         print(f"  {state:<13} {x['input']:<{width}} {x['cells']:>4} cells {x['changed_cells']:>4} changed  {about}")
     n = doc["counts"]
+    if doc["claims_seeing_nothing"]:
+        print(f"  claims no perturbed input moves: {', '.join(doc['claims_seeing_nothing'])}")
     print(f"{doc['study']}: {n['inputs']} inputs, {n['perturbed']} perturbed by 1 + {doc['step']:g}: {n['seen']} seen, "
           f"{n['blind']} blind spots, in {doc['wall_s']:.0f} s -> {where}")
