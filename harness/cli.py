@@ -44,6 +44,7 @@ COMMANDS = {  # command -> "module:function" that runs it, given the parsed argu
     "study": "pcverify.harness.report.studies:run_studies",
     "verdict": "pcverify.harness.report.claim_verdict:judge_claim",
     "mutate": "pcverify.harness.report.mutation_testing:run_mutants",
+    "sensitivity": "pcverify.harness.report.sensitivity_analysis:run_sensitivity",
     "report": "pcverify.harness.report.rebuild:rebuild_reports",
     "bench": "pcverify.harness.report.benchmarks:run_benchmarks",
 }
@@ -63,6 +64,8 @@ examples:
   pcverify verdict heat-particles mca-steady-line   judge one claim, print its value (from the cache)
   pcverify mutate my.toml --strict                  run the claims on the study's mutants: exit 1 unless all
                                                     are killed
+  pcverify sensitivity manufactured                 which claim sees which input (scene numbers, solver
+                                                    parameters scaled by 1 %): the matrix and the blind spots
   pcverify report                                   rebuild reports/index.html from the cache
   pcverify bench                                    benchmarks, saved and compared with the previous run
 
@@ -125,6 +128,22 @@ def seconds_in(name: str, low: float, high: float) -> Callable[[str], float]:
         if value is None or not low < value <= high:
             raise argparse.ArgumentTypeError(f"{name}={shown(text)} is not valid; allowed: seconds in "
                                              f"({low:g}, {high:g}]")
+        return value
+
+    return convert
+
+
+def fraction_in(name: str, low: float, high: float) -> Callable[[str], float]:
+    """argparse type: a number in (low, high], else a one-line error naming it and the range."""
+
+    def convert(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            value = None
+        if value is None or not low < value <= high:
+            raise argparse.ArgumentTypeError(f"{name}={shown(text)} is not valid; allowed: number in ({low:g}, "
+                                             f"{high:g}]")
         return value
 
     return convert
@@ -233,6 +252,28 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--strict", action="store_true", help="exit 1 when a mutant survives, is invalid, crashed or "
                    "was killed only incidentally (a CI gate)")
 
+    p = sub.add_parser("sensitivity", help="which claim sees which model input: each input scaled by 1 + step, "
+                       "the claims judged again", description="Run the study (the baseline), then scale each model "
+                       "input its cells hand their solvers (the scene's numbers: box, material constants, held values, "
+                       "loads; the solvers' number parameters) by 1 + STEP in every cell that has it, in the solver "
+                       "only, and judge the claims again.  Writes OUT/STUDY/sensitivity.json, the matrix inputs x "
+                       "claims and a section of the report listing the blind spots (inputs no claim sees).")
+    p.add_argument("name", help="study name or a path to a .toml file")
+    p.add_argument("--input", action="append", metavar="NAME", help="perturb only this input, OWNER:PATH as the "
+                   "matrix names it, or a glob (e.g. 'mca:*', '*:material.*'; repeatable)")
+    p.add_argument("--step", type=fraction_in("step", 0, 0.5), default=0.01,
+                   help="relative step (default 0.01; 1 - step where 1 + step leaves an input's range)")
+    p.add_argument("--jobs", type=int_in("jobs", 1, 256), default=1, help="parallel cells on local cores (default 1)")
+    p.add_argument("--out", default="reports", help="output folder (default reports/)")
+    p.add_argument("--cache", default=None, help="cache folder (default OUT/cache); perturbed cells are cached "
+                   "under CACHE/sensitivity/STUDY/")
+    p.add_argument("--allow-large", action="store_true", help=f"run a study of more than {MAX_CELLS} cells, or cells "
+                   "beyond the work and memory limits")
+    p.add_argument("--time-limit", type=seconds_in("time-limit", 0, MAX_TIME_LIMIT), default=DEFAULT_TIME_LIMIT,
+                   metavar="SECONDS", help=TIME_LIMIT_HELP)
+    p.add_argument("--json", action="store_true", help="print sensitivity.json, nothing else on stdout")
+    p.add_argument("--strict", action="store_true", help="exit 1 when an input is a blind spot (a CI gate)")
+
     p = sub.add_parser("bench", help="run the benchmarks, save them, compare with the previous saved run")
     p.add_argument("--tests", default="tests/bench", help="benchmark folder (default tests/bench)")
     p.add_argument("--storage", default="reports/benchmarks", help="where runs are saved (default reports/benchmarks)")
@@ -256,6 +297,8 @@ def check_input(args: argparse.Namespace) -> None:
             split_settings(args.set or [], spec.parameters, solver_params)
     elif args.command == "verdict":
         study_path(args.study)
+    elif args.command == "sensitivity":
+        study_path(args.name)
     elif args.command in ("study", "mutate") and args.name != "default":
         study_path(args.name)
     elif args.command in ("study", "mutate"):

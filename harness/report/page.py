@@ -122,8 +122,8 @@ def navigation(manifests: list[tuple[Path, dict[str, Any]]], has_benchmarks: boo
                          f"{e(sec['id'])}</a>")
             parts += [f"<a class='figure' href='#{figure_id(man['name'], f)}'>▸ {e(Path(f).stem)}</a>"
                       for f in sec["figures"]]
-        if man.get("mutants"):
-            parts.append(f"<a class='group' href='#{anchor(man['name'], 'mutants')}'>mutants</a>")
+        parts += [f"<a class='group' href='#{anchor(man['name'], key)}'>{key}</a>" for key in ("mutants", "sensitivity")
+                  if man.get(key)]
     if has_benchmarks:
         parts.append("<a class='study' href='#benchmarks'>Benchmarks</a>")
     parts.append("<a class='study' href='#provenance'>Provenance</a></nav>")
@@ -288,7 +288,7 @@ def figure(folder: Path, study: str, name: str) -> str:
 
 def study_section(folder: Path, man: dict[str, Any], records: list[dict[str, Any]], read: Any, extra: str = "") -> str:
     """A study: its verdict counts and command, then per group its figures and collapsed tables, then `extra` (the
-    HTML of its mutants, if `pcverify mutate` ran)."""
+    HTML of its mutants and sensitivity, if `pcverify mutate` or `pcverify sensitivity` ran)."""
     name = man["name"]
     mine = [r for r in records if r["study"] == name]
     counts = ", ".join(f"{n} {s}" for s, n in state_counts(mine).items())

@@ -25,6 +25,7 @@ from pcverify.harness.report.group_figures import group_report
 from pcverify.harness.report.mutation import mutation_section
 from pcverify.harness.report.provenance import code_origin, command, provenance
 from pcverify.harness.report.reproduce import study_command, table_group, verdict_commands
+from pcverify.harness.report.sensitivity import sensitivity_section
 from pcverify.harness.report.vtu import write_vtu
 from pcverify.harness.run.files import atomic_write, exclusive, read_json, remove_stray_files
 from pcverify.harness.study.claims import Claim
@@ -335,7 +336,7 @@ def _manifest_problem(doc: Any, folder: str) -> str:
     if doc.get("name") != folder:
         return f"names study {str(doc.get('name'))[:80]!r}, not its folder {folder!r}"
     wrong = [k for k, kind in (("title", str), ("sections", list), ("verdicts", (str, type(None))),
-                               ("mutants", (str, type(None))),
+                               ("mutants", (str, type(None))), ("sensitivity", (str, type(None))),
                                ("rerun", (str, type(None))), ("study_file", (str, type(None))),
                                ("command", (str, type(None))))
              if k in doc and not isinstance(doc[k], kind)] + [k for k in ("title", "sections") if k not in doc]
@@ -366,20 +367,23 @@ def _files_inside(doc: dict[str, Any], path: Path, root: Path, quiet: bool) -> d
 
     doc = {**doc, "sections": [{**sec, "figures": [f for f in sec.get("figures", []) if inside(f)],
                                 "tables": [t for t in sec.get("tables", []) if inside(t)]} for sec in doc["sections"]]}
-    for key in ("verdicts", "mutants"):
+    for key in ("verdicts", "mutants", "sensitivity"):
         if doc.get(key) and not inside(doc[key]):
             doc[key] = None
     return doc
 
 
-def _mutants(folder: Path, man: dict[str, Any]) -> str:
-    """The HTML of a study's mutants (`pcverify mutate`), if its manifest names their file."""
-    if not man.get("mutants"):
-        return ""
-    doc, why = read_json(folder / man["mutants"])
-    if why:
-        warn(f"{folder / man['mutants']} {why}; its mutants are left out")
-    return mutation_section(folder, man["name"], doc)
+def _extras(folder: Path, man: dict[str, Any]) -> str:
+    """The HTML of a study's mutants (`pcverify mutate`) and sensitivity (`pcverify sensitivity`), where its
+    manifest names their files."""
+    parts = []
+    for key, section in (("mutants", mutation_section), ("sensitivity", sensitivity_section)):
+        if man.get(key):
+            doc, why = read_json(folder / man[key])
+            if why:
+                warn(f"{folder / man[key]} {why}; its {key} section is left out")
+            parts.append(section(folder, man["name"], doc))
+    return "".join(parts)
 
 
 def write_index(out: Path) -> Path:
@@ -402,7 +406,7 @@ def _write_index(out: Path) -> Path:
     meta = f"generated {prov['generated']} · commit {prov['git commit']} · {len(found)} studies"
     body = [page.summary_section(summary_lines(studies, records), records, meta),
             page.findings_section(findings(records)), page.verdicts_section(records)]
-    body += [page.study_section(folder, man, records, _read_csv, _mutants(folder, man)) for folder, man in found]
+    body += [page.study_section(folder, man, records, _read_csv, _extras(folder, man)) for folder, man in found]
     bench = _benchmarks(out)
     body += bench
     body.append(page.provenance_section(prov))

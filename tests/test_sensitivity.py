@@ -1,0 +1,135 @@
+"""`pcverify sensitivity` on a tiny steady heat study: a perturbed conductivity moves the temperature by -dk/k,
+the box's size by (1 + step)^2, the heat capacity and the density of a steady cell are blind spots, a box
+extent that no longer fits the lattice is refused, an input of groups no claim reads is unread, and bad input is
+one line."""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+from pathlib import Path
+
+import pytest
+
+from pcverify.harness.cli import main
+from pcverify.harness.run.sensitivity import case_change
+
+STUDY = """
+name = "sens"
+title = "a steady slab heated throughout"
+
+[[scene]]
+name = "sens-slab"
+description = "faces z = 0 and z = L at 0 K, a uniform source: T = s z (L - z) / (2 k)"
+box = { width = 0.01, height = 0.01, length = 0.06 }
+material = "aluminium"
+t_max = 1.0
+source = 1e6
+held = [{ face = "z0", temperature = 0.0 }, { face = "zL", temperature = 0.0 }]
+
+[[group]]
+id = "slab"
+title = "steady source"
+analysis = "table"
+scene = "sens-slab"
+solvers = ["skfem"]
+n = [3]
+
+[[group]]
+id = "extra"
+title = "no claim reads this group"
+analysis = "table"
+scene = "sens-slab"
+solvers = ["fipy"]
+n = [2]
+
+[[claim]]
+id = "slab-mean"
+text = "the volume mean is s L^2 / (12 k) = 1.27 K within 0.1"
+table = "slab-cells"
+metric = "volume_mean"
+reference = "analytic"
+target = 1.27
+tolerance = 0.1
+"""
+
+
+@pytest.fixture(scope="module")
+def doc(tmp_path_factory: pytest.TempPathFactory) -> dict:
+    folder = tmp_path_factory.mktemp("sens")
+    (folder / "sens.toml").write_text(STUDY, encoding="utf-8")
+    out = folder / "out"
+    args = ["sensitivity", str(folder / "sens.toml"), "--out", str(out), "--json", "--input", "*:material.*",
+            "--input", "sens-slab:box*", "--input", "skfem:*", "--input", "fipy:rtol"]
+    buffer = io.StringIO()
+    with contextlib.redirect_stdout(buffer):
+        assert main(args) == 0
+    found = json.loads(buffer.getvalue())
+    assert (out / "sens" / "sensitivity-matrix.csv").is_file()
+    assert "Which claim sees which input" in (out / "index.html").read_text(encoding="utf-8")
+    return found
+
+
+def entry(doc: dict, name: str) -> dict:
+    return next(x for x in doc["inputs"] if x["input"] == name)
+
+
+def test_conductivity_moves_the_steady_temperature_by_minus_dk_over_k(doc: dict) -> None:
+    k = entry(doc, "sens-slab:material.conductivity")
+    (case,) = k["claims"]["slab-mean"]
+    assert k["factor"] == pytest.approx(1.01) and k["seen_by"] == ["slab-mean"] and case["moved"]
+    assert case["relative"] == pytest.approx(1 / 1.01 - 1, rel=1e-6)  # T ~ s / k, exactly so for the linear solve
+    assert not case["verdict_changed"]
+
+
+def test_the_box_size_moves_it_by_the_square_of_the_scale(doc: dict) -> None:
+    (case,) = entry(doc, "sens-slab:box")["claims"]["slab-mean"]
+    assert case["relative"] == pytest.approx(1.01 ** 2 - 1, rel=1e-6)  # T ~ s L^2 / k
+
+
+def test_an_input_a_steady_cell_does_not_read_is_a_blind_spot(doc: dict) -> None:
+    blind = {b["input"]: b["why"] for b in doc["blind_spots"]}
+    for name in ("sens-slab:material.heat_capacity", "sens-slab:material.density"):
+        assert blind[name].startswith("inert"), blind
+        assert entry(doc, name)["changed_cells"] == 0
+    assert "sens-slab:material.conductivity" not in blind and doc["claims_seeing_nothing"] == []
+
+
+def test_an_input_only_groups_no_claim_reads_have_is_unread(doc: dict) -> None:
+    blind = {b["input"]: b for b in doc["blind_spots"]}
+    assert blind["fipy:rtol"]["kind"] == "unread" and "extra" in blind["fipy:rtol"]["why"]
+    assert entry(doc, "fipy:rtol")["cells"] == 0  # never run
+
+
+def test_a_value_the_solver_refuses_is_not_perturbed_nor_a_blind_spot(doc: dict) -> None:
+    width = entry(doc, "sens-slab:box.width")
+    assert width["status"] == "refused" and "cells failed" in width["reason"]
+    assert "sens-slab:box.width" in {x["input"] for x in doc["not_perturbed"]}
+    assert "sens-slab:box.width" not in {b["input"] for b in doc["blind_spots"]}
+
+
+def test_a_case_moves_beyond_its_uncertainty_or_a_thousandth_of_its_tolerance() -> None:
+    base = {"case": "", "value": 1.0, "uncertainty": 0.01, "tolerance": 1.0, "verdict": "pass"}
+    assert not case_change(base, base | {"value": 1.005})["moved"]
+    assert case_change(base, base | {"value": 1.02})["moved"]
+    assert not case_change(base | {"uncertainty": None}, base | {"value": 1.0005, "uncertainty": None})["moved"]
+    bound = {"case": "", "value": 0.01, "target": 0.02, "tolerance": 0.0, "verdict": "pass"}  # at most 0.02
+    assert not case_change(bound, bound | {"value": 0.010001})["moved"]
+    assert case_change(bound, bound | {"value": 0.0101})["moved"]
+    lost = case_change(base, {"value": None, "verdict": "inconclusive"})
+    assert lost["moved"] and lost["verdict_changed"]
+
+
+@pytest.mark.parametrize("args, words", [
+    (["sensitivity", "no-such-study"], "study='no-such-study' is unknown"),
+    (["sensitivity", "manufactured", "--step", "0"], "step='0' is not valid; allowed: number in (0, 0.5]"),
+    (["sensitivity", "manufactured", "--step", "0.7"], "step='0.7' is not valid"),
+    (["sensitivity", "manufactured", "--input", "nothing:*"], "--input 'nothing:*' matches no input of study "
+                                                                "manufactured"),
+])
+def test_bad_input_is_one_line(args: list[str], words: str, capsys: pytest.CaptureFixture[str],
+                               tmp_path: Path) -> None:
+    assert main([*args, "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert words in err and err.count("\n") == 1, err
