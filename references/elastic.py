@@ -124,6 +124,15 @@ SCALARS = (
 )
 
 
+def uniaxial_displacement(scene: Scene, points: np.ndarray) -> np.ndarray:
+    """The exact displacement (m) of the bar in uniaxial stress, (-nu eps x, -nu eps y, eps z): face z = 0 on its
+    supports, the corner (0, 0, 0) held and (W, 0, 0) kept on the x axis (no rigid motion), as the solvers hold
+    them; linear, so it lies in every discrete space."""
+    eps, nu = scene.param_dict["strain"], scene.material.poisson_ratio
+    p = np.asarray(points, dtype=float).reshape(-1, 3)
+    return np.column_stack([-nu * eps * p[:, 0], -nu * eps * p[:, 1], eps * p[:, 2]])
+
+
 def _compression(p: dict[str, Any]) -> Scene:
     box = box_of(p)
     cons = (FaceSupport("z0"), FaceSupport("zL", p["strain"] * box.length))
@@ -154,7 +163,8 @@ COMPRESSION = SceneSpec(
     "lateral strain -nu eps)",
     (*DIMENSIONS, Param("strain", -1e-3, "", "nominal axial strain (negative = compression; below 1e-12 in "
                         "magnitude the loads underflow in floating point)", low=-0.01, high=-1e-12)),
-    _compression, Reference(scalars=lambda scene, summary: {"E_eff": scene.material.youngs_modulus,
+    _compression, Reference(field=lambda scene, points: uniaxial_displacement(scene, points),
+                            scalars=lambda scene, summary: {"E_eff": scene.material.youngs_modulus,
                                                             "nu_eff": scene.material.poisson_ratio}), SCALARS)
 MODES = SceneSpec(
     "bar-modes",

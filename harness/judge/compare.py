@@ -1,8 +1,9 @@
 """The comparison of a cell's solution with its scene's reference (`catalogue.reference_of`: the scene spec's),
 once, right after the solve; stored with the cell, so tables, calibrations and `pcverify run` read these numbers.
 
-`errors`: per sample set of one scalar per point, the absolute L2 (RMS) and L-infinity errors against the
-reference field, with the reference's kind.  `scalar_errors`: per scalar the reference expects, the summary's
+`errors`: per sample set, the absolute L2 (RMS) and L-infinity errors against the reference field (of a scalar
+per point, or of a displacement by the length of its difference), in the solution's quantity, with the
+reference's kind.  `scalar_errors`: per scalar the reference expects, the summary's
 value under that name (NAME_given_CONDITION: the expected NAME given what the reference read from the summary),
 the expected value and the relative error.  `fingerprint`: what the cell key holds of both.
 """
@@ -31,10 +32,10 @@ def errors(scene: Scene, samples: dict[str, Any] | None) -> dict[str, dict[str, 
     out: dict[str, dict[str, Any]] = {}
     for name, entry in (samples or {}).items():
         values = np.asarray(entry["values"], dtype=float)
-        if values.size == 0 or values.ndim != 1:
+        if values.size == 0 or values.ndim > 2:
             continue
         exact = ref.field(scene, np.asarray(entry["points"], dtype=float))
-        if exact is None:
+        if exact is None or np.shape(exact) != values.shape:
             continue
         found = field_errors(values, exact)
         out[name] = {k: v if math.isfinite(v) else None for k, v in found.items()} | {"reference": ref.kind}

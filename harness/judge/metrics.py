@@ -17,10 +17,13 @@ from scipy.spatial import cKDTree
 
 
 def field_errors(values: np.ndarray, reference: np.ndarray) -> dict[str, float]:
-    """L2 (root mean square) and L-infinity error of sampled values against a reference."""
+    """L2 (root mean square) and L-infinity error of sampled values against a reference: of a scalar per point,
+    or of a vector per point (k, 3), by the length of its difference."""
     d = np.asarray(values, dtype=float) - np.asarray(reference, dtype=float)
     if d.size == 0:
         raise ValueError("field_errors: no sample values")
+    if d.ndim == 2:
+        d = np.linalg.norm(d, axis=1)
     return {"l2": float(np.sqrt(np.mean(d * d))), "linf": float(np.max(np.abs(d)))}
 
 

@@ -29,6 +29,7 @@ class Analysis:
     description: str
     options: tuple[Field, ...] = ()  # the group keys it reads (`schema`: a group's fields by its analysis)
     serial: bool = False
+    needs_field: bool = False  # its table's error column is the scene's reference field against each solution
     task: Callable[[dict[str, Any]], CellTask] = field(default=lambda options: SOLVE)
 
 
@@ -51,10 +52,10 @@ ANALYSES: dict[str, Analysis] = {a.name: a for a in (
     Analysis("timing", "CPU time of the solve against unknowns per solver (timed serially after a warm-up)",
              serial=True, options=(MIX_RUNS,)),
     Analysis("work-precision", "error against the solve's CPU time per solver (timed serially after a warm-up)",
-             serial=True, options=(Field("error", "text", "the error column (err.<error> of the cells)",
-                                         default="nodes.l2"), MIX_RUNS,
-                                   Field("beside", "text", "earlier work-precision groups drawn as panels beside this "
-                                         "one on the same CPU-seconds axis", shape="value or list"))),
+             serial=True, needs_field=True,
+             options=(Field("error", "text", "the error column (err.<error> of the cells)", default="nodes.l2"),
+                      MIX_RUNS, Field("beside", "text", "earlier work-precision groups drawn as panels beside this one "
+                                      "on the same CPU-seconds axis", shape="value or list"))),
     Analysis("stability", "measured time-step limits (probe = limit) or a stability map (probe = map)",
              options=(Field("probe", "text", "a limit per case, or a map over dt and the swept parameters",
                             choices=PROBE_KINDS, default="limit"),),

@@ -19,7 +19,7 @@ from typing import Any
 
 from pcverify.harness.study.analyses import ANALYSES
 from pcverify.harness.study.calibspec import Calibration, parse_calibrations
-from pcverify.harness.study.catalogue import register_scene, spec_from_table
+from pcverify.harness.study.catalogue import reference_of, register_scene, spec_from_table
 from pcverify.harness.study.claims import Claim, parse_claims
 from pcverify.harness.study.mutants import Mutant, parse_mutants
 from pcverify.harness.study.plugins import load_plugins
@@ -199,6 +199,11 @@ def _group(g: dict[str, Any], gi: int, plugins: tuple[str, ...], folder: str, st
     task = analysis.task(options)
     scene_params = g.get("scene_params", {})
     scene = scene_at(g["scene"], scene_params, *resolutions(g)[0])[0]
+    reference = reference_of(scene.name)
+    if analysis.needs_field and (reference is None or reference.field is None):
+        raise SceneError(f"group {gid}: analysis {analysis.name} draws err.{options.get('error', 'nodes.l2')} against "
+                         f"the scene's reference field, and scene {scene.name} has none, so its error column would be "
+                         "empty; allowed: a scene whose reference gives a field (pcverify scenes NAME says which)")
     sweep = g.get("sweep", {})
     keys = sorted(sweep)
     combos = list(itertools.product(*[as_list(sweep[k]) for k in keys])) or [()]
