@@ -117,8 +117,9 @@ def int_in(name: str, low: int, high: int) -> Callable[[str], int]:
     return convert
 
 
-def seconds_in(name: str, low: float, high: float) -> Callable[[str], float]:
-    """argparse type: a number of seconds in (low, high], else a one-line error naming it and the range."""
+def real_in(name: str, low: float, high: float, what: str = "number") -> Callable[[str], float]:
+    """argparse type: a number (`what`: seconds, ...) in (low, high], else a one-line error naming it and the
+    range."""
 
     def convert(text: str) -> float:
         try:
@@ -126,27 +127,16 @@ def seconds_in(name: str, low: float, high: float) -> Callable[[str], float]:
         except ValueError:
             value = None
         if value is None or not low < value <= high:
-            raise argparse.ArgumentTypeError(f"{name}={shown(text)} is not valid; allowed: seconds in "
-                                             f"({low:g}, {high:g}]")
-        return value
-
-    return convert
-
-
-def fraction_in(name: str, low: float, high: float) -> Callable[[str], float]:
-    """argparse type: a number in (low, high], else a one-line error naming it and the range."""
-
-    def convert(text: str) -> float:
-        try:
-            value = float(text)
-        except ValueError:
-            value = None
-        if value is None or not low < value <= high:
-            raise argparse.ArgumentTypeError(f"{name}={shown(text)} is not valid; allowed: number in ({low:g}, "
+            raise argparse.ArgumentTypeError(f"{name}={shown(text)} is not valid; allowed: {what} in ({low:g}, "
                                              f"{high:g}]")
         return value
 
     return convert
+
+
+def seconds_in(name: str, low: float, high: float) -> Callable[[str], float]:
+    """argparse type: a number of seconds in (low, high] (`real_in`)."""
+    return real_in(name, low, high, "seconds")
 
 
 TIME_LIMIT_HELP = (f"kill a computed cell after SECONDS, failing it with that reason (default {DEFAULT_TIME_LIMIT:g}: "
@@ -261,7 +251,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("name", help="study name or a path to a .toml file")
     p.add_argument("--input", action="append", metavar="NAME", help="perturb only this input, OWNER:PATH as the "
                    "matrix names it, or a glob (e.g. 'mca:*', '*:material.*'; repeatable)")
-    p.add_argument("--step", type=fraction_in("step", 0, 0.5), default=0.01,
+    p.add_argument("--step", type=real_in("step", 0, 0.5), default=0.01,
                    help="relative step (default 0.01; 1 - step where 1 + step leaves an input's range)")
     p.add_argument("--jobs", type=int_in("jobs", 1, 256), default=1, help="parallel cells on local cores (default 1)")
     p.add_argument("--out", default="reports", help="output folder (default reports/)")
