@@ -201,7 +201,7 @@ def _group(g: dict[str, Any], gi: int, plugins: tuple[str, ...], folder: str, st
     scene = scene_at(g["scene"], scene_params, *resolutions(g)[0])[0]
     reference = reference_of(scene.name)
     if analysis.needs_field and (reference is None or reference.field is None):
-        raise SceneError(f"group {gid}: analysis {analysis.name} draws err.{options.get('error', 'nodes.l2')} against "
+        raise SceneError(f"group {gid}: analysis {analysis.name} draws err.{options['error']} against "
                          f"the scene's reference field, and scene {scene.name} has none, so its error column would be "
                          "empty; allowed: a scene whose reference gives a field (pcverify scenes NAME says which)")
     sweep = g.get("sweep", {})
