@@ -143,6 +143,13 @@ TIME_LIMIT_HELP = (f"kill a computed cell after SECONDS, failing it with that re
                    "six times the ten minutes the work limits allow a cell)")
 
 
+def add_limits(p: argparse.ArgumentParser, allow_large: str) -> None:
+    """The options every command that computes cells has: --allow-large (what it allows) and --time-limit."""
+    p.add_argument("--allow-large", action="store_true", help=allow_large)
+    p.add_argument("--time-limit", type=seconds_in("time-limit", 0, MAX_TIME_LIMIT), default=DEFAULT_TIME_LIMIT,
+                   metavar="SECONDS", help=TIME_LIMIT_HELP)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The parser of every command, its options and their ranges (checked as they are parsed)."""
     parser = OneLineParser(
@@ -174,9 +181,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--refine", type=int_in("refine", 1, 1000), default=1,
                    help="grid refinement factor of continuum solvers (default 1)")
     p.add_argument("--set", action="append", metavar="KEY=VALUE", help="scene or solver parameter (repeatable)")
-    p.add_argument("--allow-large", action="store_true", help="run a solve beyond the work and memory limits")
-    p.add_argument("--time-limit", type=seconds_in("time-limit", 0, MAX_TIME_LIMIT), default=DEFAULT_TIME_LIMIT,
-                   metavar="SECONDS", help=TIME_LIMIT_HELP)
+    add_limits(p, "run a solve beyond the work and memory limits")
     p.add_argument("--json", action="store_true", help="one JSON object on stdout")
 
     p = sub.add_parser("study", help="run a study (a grid of scenes x solvers x resolutions) and write reports/",
@@ -189,10 +194,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="parallel cells on local cores (default 1)")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="hand the cells to a Dask cluster (e.g. tcp://host:8786; needs pcverify[dask])")
-    p.add_argument("--allow-large", action="store_true", help=f"run a study of more than {MAX_CELLS} cells, or cells "
-                   "beyond the work and memory limits")
-    p.add_argument("--time-limit", type=seconds_in("time-limit", 0, MAX_TIME_LIMIT), default=DEFAULT_TIME_LIMIT,
-                   metavar="SECONDS", help=TIME_LIMIT_HELP)
+    add_limits(p, f"run a study of more than {MAX_CELLS} cells, or cells beyond the work and memory limits")
     p.add_argument("--rerun", nargs="*", default=None, metavar="SOLVER",
                    help="recompute cached cells: all of them, or those of the named solvers (put it last)")
     p.add_argument("--json", action="store_true", help="print a JSON summary per study with its verdicts (the records "
@@ -212,9 +214,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default="reports", help="where the study's cache is (default reports/: reports/cache)")
     p.add_argument("--cache", default=None, help="cache folder (default OUT/cache)")
     p.add_argument("--jobs", type=int_in("jobs", 1, 256), default=1, help="parallel cells on local cores (default 1)")
-    p.add_argument("--allow-large", action="store_true", help="run cells beyond the work and memory limits")
-    p.add_argument("--time-limit", type=seconds_in("time-limit", 0, MAX_TIME_LIMIT), default=DEFAULT_TIME_LIMIT,
-                   metavar="SECONDS", help=TIME_LIMIT_HELP)
+    add_limits(p, "run cells beyond the work and memory limits")
     p.add_argument("--json", action="store_true", help="print the verdict records as JSON")
 
     p = sub.add_parser("mutate", help="run a study's claims on deliberate defects of the code: which claims catch "
@@ -230,10 +230,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default="reports", help="output folder (default reports/)")
     p.add_argument("--cache", default=None, help="cache folder (default OUT/cache); mutants keep theirs under "
                    "CACHE/mutants/")
-    p.add_argument("--allow-large", action="store_true", help=f"run a study of more than {MAX_CELLS} cells, or cells "
-                   "beyond the work and memory limits")
-    p.add_argument("--time-limit", type=seconds_in("time-limit", 0, MAX_TIME_LIMIT), default=DEFAULT_TIME_LIMIT,
-                   metavar="SECONDS", help=TIME_LIMIT_HELP)
+    add_limits(p, f"run a study of more than {MAX_CELLS} cells, or cells beyond the work and memory limits")
     p.add_argument("--mutant-time-limit", type=seconds_in("mutant-time-limit", 0, MAX_TIME_LIMIT),
                    default=DEFAULT_MUTANT_TIME_LIMIT, metavar="SECONDS", help="stop a mutant's whole run after SECONDS "
                    f"(status crashed; its finished cells are kept; default {DEFAULT_MUTANT_TIME_LIMIT:g})")
@@ -257,10 +254,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default="reports", help="output folder (default reports/)")
     p.add_argument("--cache", default=None, help="cache folder (default OUT/cache); perturbed cells are cached "
                    "under CACHE/sensitivity/STUDY/")
-    p.add_argument("--allow-large", action="store_true", help=f"run a study of more than {MAX_CELLS} cells, or cells "
-                   "beyond the work and memory limits")
-    p.add_argument("--time-limit", type=seconds_in("time-limit", 0, MAX_TIME_LIMIT), default=DEFAULT_TIME_LIMIT,
-                   metavar="SECONDS", help=TIME_LIMIT_HELP)
+    add_limits(p, f"run a study of more than {MAX_CELLS} cells, or cells beyond the work and memory limits")
     p.add_argument("--json", action="store_true", help="print sensitivity.json, nothing else on stdout")
     p.add_argument("--strict", action="store_true", help="exit 1 when an input is a blind spot (a CI gate)")
 
