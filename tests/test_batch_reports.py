@@ -3,10 +3,12 @@ one writer for all, and an interrupted run still writes the reports of the studi
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pytest
 
+import pcverify.harness.report.batch as batch
 import pcverify.harness.report.studies as studies
 from pcverify.harness.cli import main
 
@@ -69,3 +71,21 @@ def test_a_report_that_cannot_be_written_is_one_error_line(tmp_path, capsys, mon
     code = main(["study", "default", "--out", str(out), "--jobs", jobs])
     err = capsys.readouterr().err
     assert code == 2 and "Traceback" not in err and "beta" in err.strip().splitlines()[-1]
+
+
+def test_a_writer_that_dies_leaves_its_report_to_this_process(tmp_path, monkeypatch):
+    """A forked writer killed before it writes (here: it exits at once for beta) never leaves the run waiting:
+    beta's report is written by the process that ran the studies, alpha's by its writer."""
+    paths = [_study(tmp_path, "alpha", [2]), _study(tmp_path, "beta", [2])]
+    monkeypatch.setattr(studies, "study_files", lambda: {str(p): p for p in paths})
+    parent, write = os.getpid(), batch._write
+
+    def dies_in_a_writer(job, out):
+        if os.getpid() != parent and job.study.name == "beta":
+            os._exit(9)
+        return write(job, out)
+
+    monkeypatch.setattr(batch, "_write", dies_in_a_writer)
+    assert main(["study", "default", "--out", str(tmp_path / "out"), "--jobs", "2"]) == 0
+    for name in ("alpha", "beta"):
+        assert (tmp_path / "out" / name / "verdicts.json").is_file()

@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import multiprocessing
 import time
+from concurrent.futures import Future, ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -41,17 +43,28 @@ def _write_job(k: int, out: Path) -> float:
 def write_reports(jobs: list[ReportJob], out: Path, processes: int = 1) -> list[float]:
     """Write each job's report into out/<study>/ and return the seconds each took: in this process when
     `processes` is 1 or there is one job, else in up to `processes` forked processes (an exception in one is
-    raised here)."""
+    raised here).  A writer that dies (a signal, a crash of a forked process) never leaves the run waiting: the
+    reports it did not write are written here."""
     if processes <= 1 or len(jobs) <= 1:
         return [_write(job, out) for job in jobs]
     _JOBS[:] = jobs
     try:
         with deferred_interrupts():  # the writers are forked here: a signal meanwhile stops us after the forks
-            writers = multiprocessing.get_context("fork").Pool(min(processes, len(jobs)), _writer_start)
+            writers = ProcessPoolExecutor(min(processes, len(jobs)), multiprocessing.get_context("fork"),
+                                          _writer_start)
+            futures = [writers.submit(_write_job, k, out) for k in range(len(jobs))]
         with writers:
-            return writers.starmap(_write_job, [(k, out) for k in range(len(jobs))], chunksize=1)
+            return [_outcome(future, job, out) for future, job in zip(futures, jobs, strict=True)]
     finally:
         _JOBS.clear()
+
+
+def _outcome(future: Future, job: ReportJob, out: Path) -> float:
+    """A forked writer's seconds, or the report written here when its writer died before writing it."""
+    try:
+        return future.result()
+    except BrokenProcessPool:
+        return _write(job, out)
 
 
 def _writer_start() -> None:
