@@ -19,6 +19,7 @@ from pcverify.harness.study.catalogue import make_scene
 from pcverify.harness.study.mutants import read_mutants_file
 from pcverify.harness.study.shipped import study_files
 from pcverify.harness.study.study import load_study
+from pcverify.references import lattice  # the specification, written apart from the solver
 from pcverify.scene import Resolution
 from pcverify.solvers.particles.macromolecule import checks, codes
 from pcverify.solvers.particles.macromolecule.setup import prepare
@@ -189,8 +190,6 @@ def test_the_specification_sees_what_the_self_checks_cannot() -> None:
     """The force law and lattice as built equal the lattice family's specification to round-off at the defaults;
     an unstable root off the midpoint (unstable_fraction 0.45: force and Hessian change together) still gives the
     50 Hz asked for by the model's own Hessian, but its roots, A and forces leave the specification."""
-    from pcverify.references import lattice  # the specification, written apart from the solver
-
     scene = make_scene("bar-heat-lattice")
     for given, apart in (({}, False), ({"unstable_fraction": 0.45}, True)):
         s = prepare(scene, 2, effective_params(SOLVER, given))
