@@ -224,6 +224,8 @@ def build_parser() -> argparse.ArgumentParser:
                        "not pass on it.  Writes OUT/STUDY/mutants.json, the kill matrix and a section of the report.")
     p.add_argument("name", help="study name (`default`: every shipped study with mutants) or a path to a .toml file")
     p.add_argument("--mutant", action="append", metavar="NAME", help="run only this mutant (repeatable)")
+    p.add_argument("--group", action="append", metavar="ID", help="judge only the claims of this group (repeatable; "
+                   "the groups it reads tables from are included); without it, every group a claim reads runs")
     p.add_argument("--jobs", type=int_in("jobs", 1, 256), default=1,
                    help="mutants run at once, each running its study on one worker, and the baseline's cells run "
                    "at once (default 1)")
@@ -286,9 +288,9 @@ def check_input(args: argparse.Namespace) -> None:
     elif args.command in ("study", "mutate") and args.name != "default":
         study_path(args.name)
     elif args.command in ("study", "mutate"):
-        option = "--group" if args.command == "study" else "--mutant"
-        if getattr(args, option[2:]):
-            raise SceneError(f"{option} needs one study; allowed: a study name or a .toml file, not default")
+        for option in ("--group", "--mutant")[: 1 if args.command == "study" else 2]:
+            if getattr(args, option[2:]):
+                raise SceneError(f"{option} needs one study; allowed: a study name or a .toml file, not default")
     if args.command == "bench" and not Path(args.tests).exists():  # the benchmarks come with a checkout only
         raise SceneError(f"bench runs the benchmarks of a checkout of the project (its tests/bench), which an "
                          f"installed pcverify does not have; --tests {args.tests}: no such folder in {Path.cwd()}; "

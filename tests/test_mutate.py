@@ -184,6 +184,33 @@ def test_one_mutant_is_killed_one_survives_and_the_real_cache_is_untouched(plugi
     assert _files(cache, skip="mutants") == before
 
 
+def test_only_the_groups_a_claim_reads_run_and_group_narrows_them(plugin_path, tmp_path, capsys) -> None:
+    """A group no claim reads cannot catch a mutant: neither the baseline nor a mutant runs its cells.  --group
+    keeps that group's claims (and the groups they read) only."""
+    extra = '''
+[[group]]
+id = "unclaimed"
+scene = "bar-heat-faces"
+solvers = ["fd-heat"]
+n = [5]
+'''
+    study = _study(tmp_path, extra)
+    code, docs, _ = _mutate(str(study), "--out", str(tmp_path / "out"), "--mutant", "rate-doubled", capsys=capsys)
+    assert code == 0
+    assert docs[0]["baseline"]["cells"] == 4  # not the unclaimed group's fifth cell
+    (killed,) = docs[0]["mutants"]
+    assert (killed["status"], killed["cells"]["cells"], killed["recomputed"]) == ("killed", 4, 3)
+
+    code, docs, _ = _mutate(str(study), "--out", str(tmp_path / "out"), "--group", "steady", capsys=capsys)
+    assert code == 0
+    assert docs[0]["baseline"]["cells"] == 1
+    assert set(docs[0]["claims"]) == {"skfem-exact"}
+    assert [(m["name"], m["status"]) for m in docs[0]["mutants"]] == [("rate-doubled", "survived"),
+                                                                      ("dt-reported-twice", "survived")]
+    assert main(["mutate", "default", "--group", "steady"]) == 2
+    assert "--group needs one study" in capsys.readouterr().err
+
+
 def test_an_invalid_mutant_is_never_killed(plugin_path, tmp_path, capsys) -> None:
     """An edit that is not Python is invalid without running; a module that raises on import is invalid with
     its error; neither is counted as killed, and --strict fails on them."""
@@ -265,7 +292,8 @@ def test_the_overlay_changes_the_number_and_the_keys_it_reaches(plugin_path, tmp
 
 
 def test_numba_recompiles_only_what_the_mutant_reaches_and_never_in_the_real_cache(tmp_path) -> None:
-    """A mutant of the MCA heat kernel (heat.py) on a study with an MCA heat cell and an MCA compression cell:
+    """A mutant of the MCA heat kernel (heat.py) on a study with an MCA heat cell and an MCA compression cell (each
+    read by a claim, so both run):
     numba compiles heat.py's kernels in the mutant's copy of the numba cache and loads those of kernel.py,
     which does not import heat.py; the real numba cache and the real result cache are byte for byte unchanged.
     A mutant whose kernel numba cannot type is invalid, not killed.
@@ -300,6 +328,16 @@ metric = "volume_mean"
 reference = "theory"
 target = 0.2287
 tolerance = 0.001
+
+[[claim]]
+id = "compression-modulus"
+text = "the effective Young's modulus of the compressed bar"
+table = "compression-cells"
+select = { solver = "mca" }
+metric = "E_eff"
+reference = "theory"
+target = 70e9
+tolerance_rel = 1e-6
 
 [[mutant]]
 name = "heat-flow-half"

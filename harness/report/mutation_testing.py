@@ -1,6 +1,7 @@
 """`pcverify mutate`: a study's claims run against deliberate defects of the code.
 
-The study runs as `study` runs it (the baseline), then once per mutant in a process of its own on the
+Only the groups the claims read run (a cell no claim reads cannot catch a mutant); the study runs so as
+`study --group` runs them (the baseline), then once per mutant in a process of its own on the
 mutated code (`run.mutation`); each study gets mutants.json, the kill matrix and a section of its page
 (`report.mutation`).  Every mutant's edit is checked before anything runs.
 """
@@ -16,6 +17,7 @@ from typing import Any
 
 from pcverify.harness.report.gates import mutant_gate
 from pcverify.harness.report.mutation import mutation_document, write_mutation_report
+from pcverify.harness.report.reproduce import claimed, select_groups
 from pcverify.harness.report.studies import run_study
 from pcverify.harness.report.write import write_index
 from pcverify.harness.run.cache import Cache
@@ -35,7 +37,9 @@ def run_mutants(args: argparse.Namespace) -> int:
     with remember_sigint(), cell_time_limit(args.time_limit):
         names = sorted(study_files()) if args.name == "default" else [args.name]
         with output_to_stderr():
-            studies = [load_study(n, args.allow_large) for n in names]
+            studies = [claimed(load_study(n, args.allow_large)) for n in names]
+            if args.group:  # one study (the command line checks it)
+                studies = [claimed(select_groups(studies[0], args.group))]
             found = [catalogue(s.mutants, s.path, solver_packages(s)) for s in studies]
         out = Path(args.out)
         cache = Cache(args.cache or out / "cache")
@@ -48,11 +52,12 @@ def run_mutants(args: argparse.Namespace) -> int:
                 continue
             t0 = time.perf_counter()
             baseline = run_study(study, args, cache, out)
-            runner = Runner(study, baseline["verdicts"], cache, args.time_limit, args.mutant_time_limit,
-                            args.allow_large)
+            judged = {c.id for c in study.claims}  # a report of some groups also keeps the other claims' verdicts
+            verdicts = [r for r in baseline["verdicts"] if r["claim"] in judged]
+            runner = Runner(study, verdicts, cache, args.time_limit, args.mutant_time_limit, args.allow_large)
             with output_to_stderr():
                 outcomes = runner.run(todo, args.jobs, progress=not args.json)
-            doc = mutation_document(study.name, baseline["verdicts"], outcomes, time.perf_counter() - t0)
+            doc = mutation_document(study.name, verdicts, outcomes, time.perf_counter() - t0)
             doc["baseline"] = {k: baseline.get(k) for k in ("cells", "cached", "done", "failed", "wall_s")}
             where = write_mutation_report(out, study.name, doc)
             docs.append(doc)

@@ -144,6 +144,19 @@ def claim_groups(study: Study, claim: Claim) -> list[str]:
     return list(dict.fromkeys(ids))
 
 
+def claimed(study: Study, calibrations: bool = True) -> Study:
+    """The study restricted to the groups (and, with `calibrations`, the calibrations) its claims read and those
+    these read tables from: a cell outside them cannot move a claim.  The study itself when that is all of it."""
+    skip = set() if calibrations else {c.id for c in study.calibrations}
+    ids = sorted({g for c in study.claims for g in claim_groups(study, c)} - skip)
+    if not ids:
+        return dataclasses.replace(study, groups=[], claims=[])
+    every = {g.id for g in study.groups} | {c.id for c in study.calibrations} - skip
+    part = select_groups(study, ids)
+    whole = {g.id for g in part.groups} | {c.id for c in part.calibrations} == every and not skip
+    return study if whole and len(part.claims) == len(study.claims) else part
+
+
 def _printed_by_run(metric: str, result: dict[str, Any]) -> bool:
     """Whether `pcverify run` prints this metric of this cell by its name: a summary scalar, or an error
     `err.SET.NORM` against the scene's reference."""

@@ -10,13 +10,12 @@ input (an unknown --input) is one line before anything runs.
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import time
 from pathlib import Path
 from typing import Any
 
-from pcverify.harness.report.reproduce import claim_groups, select_groups
+from pcverify.harness.report.reproduce import claimed
 from pcverify.harness.report.sensitivity import sensitivity_document, write_sensitivity_report
 from pcverify.harness.report.studies import run_study
 from pcverify.harness.report.write import write_index
@@ -35,7 +34,7 @@ def run_sensitivity(args: argparse.Namespace) -> int:
         with output_to_stderr():
             study = load_study(args.name, args.allow_large)
             items = select_inputs(study_inputs(study), args.input, study.name)
-            read = claimed(study)
+            read = claimed(study, calibrations=False)
             inside = set(study_inputs(read))
         out = Path(args.out)
         cache = Cache(args.cache or out / "cache")
@@ -56,13 +55,6 @@ def run_sensitivity(args: argparse.Namespace) -> int:
         else:
             print_sensitivity(doc, where)
         return 1 if args.strict and doc["blind_spots"] else 0
-
-
-def claimed(study: Study) -> Study:
-    """The study restricted to the groups its claims read (and those these read tables from): a cell outside them
-    cannot move a claim, so it is never perturbed."""
-    ids = sorted({g for c in study.claims for g in claim_groups(study, c)} - {c.id for c in study.calibrations})
-    return select_groups(study, ids) if ids else dataclasses.replace(study, groups=[], claims=[])
 
 
 def unread(study: Study, read: Study, item: Input) -> dict[str, Any]:

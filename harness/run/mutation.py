@@ -251,6 +251,7 @@ class Runner:
         outcome_file = p.folder / "outcome.json"
         common = [str(self.study.path), "--out", str(p.folder / "report"), "--cache", str(results), "--json",
                   "--time-limit", f"{self.time_limit:g}"] + (["--allow-large"] if self.allow_large else [])
+        common += [arg for gid in self.study.selected for arg in ("--group", gid)]
         code, timed_out = overlaid(m.module(), source, p.original, [["study", *common, "--dry-run"],
                                                                     ["study", *common, "--jobs", "1"]],
                                    p.folder, self.mutant_time_limit, self.live, self.lock)
