@@ -542,6 +542,7 @@ def _advance(st, par, rot, inel, load, con, frame, peak, spring, nsteps):
         st.clock[0] = t + dt
         _forces(st, par, rot, inel, load, con, nvec, rr, theta_new)
         _spring_force(f, x, st.x0, st.clock[0], spring)
+        _track_frame(v, f, inv_m, dt, spring, frame)
         ke = 0.0
         kerot = 0.0
         moved = False
@@ -579,7 +580,7 @@ def _advance(st, par, rot, inel, load, con, frame, peak, spring, nsteps):
             st.energy[E_FRIC] += ct.after_step(con, dt)
         counters[C_STEPS] += 1
         counters[C_PAIRSTEPS] += n_pair
-        _spring_after(v, st.clock[0], dt, counters[C_STEPS], spring, frame)
+        _spring_after(v, st.clock[0], dt, counters[C_STEPS], spring)
         if peak is not None:
             _track_peak(peak, f, x, st.x0, st.group, counters[C_STEPS])
         hist = st.hist
@@ -617,9 +618,8 @@ def _spring_force(f, x, x0, t, spring):
 
 
 @njit(cache=True)
-def _spring_after(v, t, dt, step, spring, frame):
-    """The drive spring over the step just taken: its work, its history row, and with a damping frame the driven
-    body's reference velocity set to its mean (the damping's resultant on the body is then zero)."""
+def _spring_after(v, t, dt, step, spring):
+    """The drive spring over the step just taken: its work and its history row."""
     if spring is None:
         return
     d = spring.axis
@@ -634,10 +634,23 @@ def _spring_after(v, t, dt, step, spring, frame):
         spring.hist[row, 2] = vel
         spring.hist[row, 3] = spring.out[1]
         spring.rows[0] = row + 1
-    if frame is not None:
-        for i in range(v.shape[0]):
-            if spring.weight[i] > 0.0:
-                frame.vel[i, d] = vel
+
+
+@njit(cache=True)
+def _track_frame(v, f, inv_m, dt, spring, frame):
+    """With a drive spring and a damping frame: the driven body's reference velocity set to its mean velocity
+    after this step's second half kick, before the damping acts on it.  The damping then keeps that mean, so its
+    resultant on the body is zero in both half steps (the mean of the step before would drag an accelerating
+    body by its mass x acceleration x gamma dt / 2)."""
+    if spring is None or frame is None:
+        return
+    d = spring.axis
+    vel = 0.0
+    for i in range(v.shape[0]):
+        vel += spring.weight[i] * (v[i, d] + 0.5 * dt * f[i, d] * inv_m[i])
+    for i in range(v.shape[0]):
+        if spring.weight[i] > 0.0:
+            frame.vel[i, d] = vel
 
 
 @njit(cache=True)
