@@ -304,6 +304,14 @@ def command(name: str) -> Callable[[argparse.Namespace], int]:
     return getattr(importlib.import_module(module), function)
 
 
+def _exit_site(exc: BaseException) -> str:
+    """Where sys.exit was called: the innermost frame of its traceback (file:line)."""
+    tb = exc.__traceback__
+    while tb is not None and tb.tb_next is not None:
+        tb = tb.tb_next
+    return f"{tb.tb_frame.f_code.co_filename}:{tb.tb_lineno}" if tb is not None else "an unknown place"
+
+
 def main(argv: list[str] | None = None) -> int:
     """`pcverify ARGS`: parse, check, run the command; its exit code (2 and one line for bad input)."""
     parser = build_parser()
@@ -327,6 +335,12 @@ def main(argv: list[str] | None = None) -> int:
         if args.debug:
             raise
         report_error(str(exc))
+        return 2
+    except SystemExit as exc:  # sys.exit inside the command: a plugin's code (ours return their exit codes)
+        if args.debug:
+            raise
+        report_error(f"the command was ended by sys.exit({exc.code!r}) in {_exit_site(exc)}, before it finished; "
+                     "allowed: a plugin that raises an exception or returns")
         return 2
     except BrokenPipeError:  # the reader of stdout has gone (`pcverify scenes | head`): not an error of ours
         with contextlib.suppress(OSError):

@@ -37,10 +37,11 @@ def run_mutants(args: argparse.Namespace) -> int:
     with remember_sigint(), cell_time_limit(args.time_limit):
         names = sorted(study_files()) if args.name == "default" else [args.name]
         with output_to_stderr():
-            studies = [claimed(load_study(n, args.allow_large)) for n in names]
+            whole = [load_study(n, args.allow_large) for n in names]
+            found = [catalogue(s.mutants, s.path, solver_packages(s), [c.id for c in s.claims]) for s in whole]
+            studies = [claimed(s) for s in whole]
             if args.group:  # one study (the command line checks it)
-                studies = [claimed(select_groups(studies[0], args.group))]
-            found = [catalogue(s.mutants, s.path, solver_packages(s)) for s in studies]
+                studies = [claimed(select_groups(whole[0], args.group))]
         out = Path(args.out)
         cache = Cache(args.cache or out / "cache")
         chosen = [select_mutants(ms, args.mutant, s.name) for s, ms in zip(studies, found, strict=True)]

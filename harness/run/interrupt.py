@@ -60,9 +60,14 @@ def _exit_at_start_up(signum, frame):  # noqa: ARG001 - the signal-handler signa
     os._exit(TERMINATED)
 
 
+def _exit_at_the_end(signum, frame):  # noqa: ARG001 - the signal-handler signature
+    os.write(2, b"pcverify: terminated (after the command had ended: what it wrote is complete)\n")
+    os._exit(TERMINATED)
+
+
 def _ours(handler: object) -> bool:
     """Whether SIGTERM's current handler may be replaced: the default action, or one of this module's."""
-    return handler in (signal.SIG_DFL, _interrupt, _exit_at_start_up)
+    return handler in (signal.SIG_DFL, _interrupt, _exit_at_start_up, _exit_at_the_end)
 
 
 def exit_on_sigterm_at_start_up() -> None:
@@ -76,8 +81,9 @@ def exit_on_sigterm_at_start_up() -> None:
 @contextlib.contextmanager
 def sigterm_interrupts() -> Iterator[None]:
     """Within the block (a whole command), SIGTERM raises KeyboardInterrupt and is remembered (`received`), so
-    the command stops cleanly wherever it is: start-up, plugin imports, writing a report.  A SIGTERM handler
-    installed by someone else (a test runner) is left alone."""
+    the command stops cleanly wherever it is: start-up, plugin imports, writing a report.  After it, in the
+    command line's process, SIGTERM prints its line and exits 143 (not the silent default death).  A SIGTERM
+    handler installed by someone else (a test runner) is left alone."""
     INTERRUPTED.clear()
     _RECEIVED.clear()
     if threading.current_thread() is not threading.main_thread() or not _ours(signal.getsignal(signal.SIGTERM)):
@@ -87,7 +93,8 @@ def sigterm_interrupts() -> Iterator[None]:
     try:
         yield
     finally:
-        signal.signal(signal.SIGTERM, previous if previous is not _exit_at_start_up else signal.SIG_DFL)
+        signal.signal(signal.SIGTERM, _exit_at_the_end if previous in (_exit_at_start_up, _exit_at_the_end)
+                      else previous)
         INTERRUPTED.clear()
 
 

@@ -22,7 +22,9 @@ from pcverify.solvers.protocol import Solver
 MAX_WORK = 1e11  # unknowns x time steps of one cell
 MEMORY_SHARE = 0.5  # of this machine's physical memory
 DEFAULT_TIME_LIMIT = 3600.0  # seconds one computed cell may run
-MAX_TIME_LIMIT = 30 * 24 * 3600.0  # the longest --time-limit: 30 days
+# the longest --time-limit: 24 days; the wait on a worker is a poll() in milliseconds, whose longest timeout,
+# 2^31 - 1 ms, is 24.86 days (a longer one raises OverflowError)
+MAX_TIME_LIMIT = 24 * 24 * 3600.0
 DEFAULT_MUTANT_TIME_LIMIT = 7200.0  # seconds a mutant's whole run may take (`pcverify mutate`)
 
 

@@ -65,7 +65,9 @@ def get_spec(name: str) -> SceneSpec:
     module_name, _, attr = str(entry.target).partition(":")
     try:
         spec = getattr(importlib.import_module(module_name), attr)
-    except Exception as exc:  # noqa: BLE001 - a plugin's own import-time error, shown as one line
+    except KeyboardInterrupt:
+        raise
+    except BaseException as exc:  # noqa: BLE001 - a plugin's own import-time error (SystemExit too), one line
         raise SceneError(f"scene {name!r} ({entry.origin}) is unavailable: {type(exc).__name__}: {exc}") from None
     if not isinstance(spec, SceneSpec):
         raise SceneError(f"scene {name!r} ({entry.origin}): {entry.target} is not a SceneSpec")

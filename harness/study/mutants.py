@@ -222,7 +222,9 @@ def entry_point_mutants(packages: Iterable[str]) -> list[Mutant]:
         try:
             value = ep.load()
             value = value() if callable(value) else value
-        except Exception as exc:  # noqa: BLE001 - a plugin's own error, shown as one line
+        except KeyboardInterrupt:
+            raise
+        except BaseException as exc:  # noqa: BLE001 - a plugin's own error (SystemExit too), shown as one line
             raise SceneError(f"{where} failed to load: {type(exc).__name__}: {' '.join(str(exc).split())}") from None
         if isinstance(value, (str, Path)):
             path = Path(value)
@@ -239,12 +241,22 @@ def entry_point_mutants(packages: Iterable[str]) -> list[Mutant]:
     return out
 
 
-def catalogue(declared: list[Mutant], study_path: Path | None, packages: Iterable[str]) -> list[Mutant]:
+def catalogue(declared: list[Mutant], study_path: Path | None, packages: Iterable[str],
+              claims: Iterable[str] | None = None) -> list[Mutant]:
     """Every mutant of a study: its `[[mutant]]` tables (`declared`), its mutants file, the plugins' entry points;
-    a name declared twice is an error naming both places."""
+    a name declared twice is an error naming both places.  With the study's `claims`, an `expect` of its own
+    mutants (tables and file) that names no claim of it is an error (a plugin's entry-point mutants may expect
+    the claims of the plugin's own study)."""
     found = list(declared)
     if study_path is not None and beside_file(study_path).is_file():
         found += read_mutants_file(beside_file(study_path))
+    if claims is not None:
+        known = set(claims)
+        for m in found:
+            unknown = [c for c in m.expect if c not in known]
+            if unknown:
+                raise SceneError(f"mutant {m.name!r} ({m.origin}): expect = {unknown[0]!r} is not a claim of the "
+                                 f"study; allowed: one of {', '.join(sorted(known)) or '(the study has no claims)'}")
     found += entry_point_mutants(packages)
     seen: dict[str, Mutant] = {}
     for m in found:
