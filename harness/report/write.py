@@ -27,7 +27,7 @@ from pcverify.harness.report.provenance import code_origin, command, provenance
 from pcverify.harness.report.reproduce import study_command, table_group, verdict_commands
 from pcverify.harness.report.sensitivity import sensitivity_section
 from pcverify.harness.report.vtu import write_vtu
-from pcverify.harness.run.files import atomic_write, exclusive, read_json, remove_stray_files
+from pcverify.harness.run.files import atomic_write, exclusive, read_json, remove_stray_files, safe_stem
 from pcverify.harness.study.claims import Claim
 from pcverify.scene import is_real
 from pcverify.solvers.protocol import model_notes
@@ -45,8 +45,10 @@ def _markdown(df: pd.DataFrame) -> str:
 
 
 def _vtu_name(r: dict[str, Any]) -> str:
+    """A cell's VTU file name: its group, solver, resolution and key, each a safe stem (a plugin's solver name
+    may hold anything)."""
     tag = r.get("cache_key") or "cell"
-    return f"{r['group']}-{r['solver']}-n{r['n']}-r{r['refine']}-{tag}.vtu"
+    return f"{safe_stem(r['group'])}-{safe_stem(r['solver'])}-n{r['n']}-r{r['refine']}-{safe_stem(tag)}.vtu"
 
 
 def _write_vtus(results: list[dict[str, Any]], folder: Path) -> list[str]:

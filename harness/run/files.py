@@ -5,15 +5,17 @@ flushes it and renames it over the target: readers see the old file or the new o
 that fails leaves the target as it was.  `remove_stray_files` removes the temporary files of dead writers.
 `parse_json` treats a document nested too deeply for the parser as invalid JSON, never a RecursionError.
 `exclusive` serialises a short critical section between processes with flock(2), which the kernel releases
-when its holder dies.
+when its holder dies.  `safe_stem` makes any name (a plugin's solver name, say) a bounded file name.
 """
 
 from __future__ import annotations
 
 import contextlib
 import fcntl
+import hashlib
 import json
 import os
+import re
 import socket
 import tempfile
 import time
@@ -22,6 +24,19 @@ from pathlib import Path
 from typing import IO
 
 HOST = socket.gethostname()
+UNSAFE = re.compile(r"[^A-Za-z0-9_.+-]+")
+STEM_LIMIT = 48  # characters of a name kept in a file name (a file name may have 255 bytes)
+
+
+def safe_stem(name: str, limit: int = STEM_LIMIT) -> str:
+    """`name` as a part of a file name: itself when it is short and only letters, digits and _ . + - (not
+    starting with a dot); otherwise those characters of it (others become _), cut to `limit`, and a hash of the
+    whole name, so two names never share a stem and no name becomes a path (no separator, no "..")."""
+    text = str(name)
+    if len(text) <= limit and not UNSAFE.search(text) and not text.startswith(".") and text:
+        return text
+    kept = UNSAFE.sub("_", text).lstrip(".")[:limit]
+    return f"{kept}-{hashlib.sha256(text.encode('utf-8', 'surrogatepass')).hexdigest()[:10]}"
 
 
 def process_alive(pid: int, host: str = HOST) -> bool:
