@@ -110,3 +110,20 @@ def test_a_bad_expression_in_a_study_is_one_line(tmp_path, capsys, line, words):
     assert main(["study", str(path), "--dry-run"]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and all(w in err for w in words), err
+
+
+@pytest.mark.parametrize("line, words", [
+    # an extent of the box from an expression: a and h would come from another box than the cell's
+    ('width = "0.005 + 0 * n"', ["scene parameter width = '0.005 + 0 * n' is an expression of the "
+                                                    "resolution and sets the box (at n=2, refine=1)",
+                                                    "allowed: a number for a parameter of the box's extent"]),
+    ('width = "a"', ["scene parameter width = 'a' is an expression", "sets the box"]),
+    # a scene parameter out of range from an expression names the expression and the resolution
+    ('t_max = "-1 * n"', ["t_max=-2", "out of range", "t_max = '-1 * n' at n=2, refine=1"]),
+])
+def test_a_scene_expression_that_sets_the_box_or_leaves_its_range_is_one_line(tmp_path, capsys, line, words):
+    path = tmp_path / "bad.toml"
+    path.write_text(STUDY.replace('dt = "10 * h" }', f'dt = "10 * h", {line} }}'))
+    assert main(["study", str(path), "--dry-run"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and all(w in err for w in words), err

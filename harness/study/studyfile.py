@@ -89,7 +89,20 @@ def scene_at(scene: str, scene_params: dict[str, Any], n: int, refine: int
     """The scene at (n, refine), the scene parameters' values there and the expressions among them."""
     names = resolution_names(scene, scene_params, n, refine)
     values, expressions = resolve(scene_params, get_spec(scene).parameters, names)
-    return make_scene(scene, **values), values, expressions
+    given = f" (given as {', '.join(f'{k} = {v!r}' for k, v in expressions.items())} at n={n}, refine={refine})"
+    try:
+        built = make_scene(scene, **values)
+    except SceneError as exc:
+        raise SceneError(f"{exc}{given if expressions else ''}") from None
+    if expressions:  # a, h and every expression are computed from the box of the parameters that are numbers
+        fixed = {k: v for k, v in values.items() if k not in expressions}
+        box = make_scene(scene, **fixed).box
+        for k in expressions:
+            if make_scene(scene, **fixed, **{k: values[k]}).box != box:
+                raise SceneError(f"scene parameter {k} = {expressions[k]!r} is an expression of the resolution and "
+                                 f"sets the box (at n={n}, refine={refine}), whose spacing a and h every expression "
+                                 "is computed from; allowed: a number for a parameter of the box's extent")
+    return built, values, expressions
 
 
 MATERIAL_NAMES = ("density", "conductivity", "heat_capacity", "youngs_modulus", "poisson_ratio")
