@@ -7,7 +7,10 @@ from this process when first needed and serves task after task, so compiled kern
 timed pass warms up and times in one process (`Pool.run_one` takes the first idle worker).  A dead worker
 names its one task; only when other workers were busy beside it (the OOM killer picks the largest process) is
 the task run again alone before it is called the culprit.  A worker prints to stderr, ignores Ctrl-C and exits
-when the study's process has gone.
+when the study's process has gone.  Each task starts from the worker's state as it was forked: its working
+folder, environment and file descriptors 0-2 are put back after every task (a worker whose state cannot be put
+back ends once it has replied), and the processes a task started end with it: a worker leads a process group of
+its own, whose other members are killed when a task ends and with the worker when it is retired.
 """
 
 from __future__ import annotations
@@ -170,7 +173,11 @@ class Pool:
                                       f"({exit_description(w.process.exitcode)})")
 
     def _retire(self, w: _Worker) -> None:
-        """Kill a worker (no-op if it has ended) and forget it."""
+        """Kill a worker and the processes of its group (its tasks' children; no-op if they have ended) and forget
+        it."""
+        with contextlib.suppress(Exception):
+            if w.process.pid is not None and os.getpgid(w.process.pid) == w.process.pid:
+                os.killpg(w.process.pid, signal.SIGKILL)
         with contextlib.suppress(Exception):
             if w.process.is_alive():
                 w.process.kill()
@@ -241,11 +248,14 @@ def _serve(conn: Connection, mine: Connection, others: list[Connection], parent:
     for other in others:  # the parent's ends of the other workers' pipes: theirs alone
         with contextlib.suppress(OSError):
             other.close()
+    with contextlib.suppress(OSError):
+        os.setpgid(0, 0)  # a group of its own: the processes its tasks start are found and ended by it
     _output_to_stderr()
     signal.signal(signal.SIGTERM, signal.SIG_DFL)  # not the study's handler, inherited by the fork
     os.environ[STUDY_PID] = str(parent)
     ignore_sigint_in_worker()  # Ctrl-C is the study's to handle; exit when the study's process is gone
     signal.pthread_sigmask(signal.SIG_UNBLOCK, STOP_SIGNALS)  # blocked by the study's process for the fork
+    state = _State.now()
     while True:
         try:
             seq, blob = conn.recv()
@@ -256,6 +266,8 @@ def _serve(conn: Connection, mine: Connection, others: list[Connection], parent:
             reply = (seq, "ok", fn(*args))
         except BaseException as exc:  # noqa: BLE001 - whatever a task raises is its outcome, the worker goes on
             reply = (seq, "error", describe_exception(exc))
+        end_group()  # the task's own processes end with it (they may hold the study's stderr)
+        clean = state.restore()
         try:
             conn.send(reply)
         except (EOFError, OSError):
@@ -265,6 +277,75 @@ def _serve(conn: Connection, mine: Connection, others: list[Connection], parent:
         for stream in (sys.stdout, sys.stderr):
             with contextlib.suppress(Exception):
                 stream.flush()
+        if not clean:
+            os._exit(0)  # retired: the pool starts a fresh worker for the next task
+
+
+@dataclass
+class _State:
+    """What a task may change in its worker and the next task must not see: the working folder, the environment,
+    file descriptors 0-2 (copies kept on descriptors of their own) and Python's std streams."""
+
+    cwd: str
+    environ: dict[str, str]
+    fds: list[int]
+    streams: tuple[Any, Any, Any]
+
+    @classmethod
+    def now(cls) -> _State:
+        return cls(os.getcwd(), dict(os.environ), [os.dup(fd) for fd in (0, 1, 2)], (sys.stdin, sys.stdout, sys.stderr))
+
+    def restore(self) -> bool:
+        """Put the worker back as it was; False when that failed (a copy of a descriptor closed by the task)."""
+        try:
+            os.chdir(self.cwd)
+            if dict(os.environ) != self.environ:
+                os.environ.clear()
+                os.environ.update(self.environ)
+            for fd, copy in zip((0, 1, 2), self.fds, strict=True):
+                if not (_is_open(fd) and os.path.sameopenfile(fd, copy)):
+                    os.dup2(copy, fd)
+            sys.stdin = self.streams[0]
+            if (sys.stdout, sys.stderr) != self.streams[1:] or any(s.closed for s in self.streams[1:]):
+                _output_to_stderr()  # fresh streams on the descriptors put back
+                self.streams = (sys.stdin, sys.stdout, sys.stderr)
+            return True
+        except (OSError, ValueError):
+            return False
+
+
+def _is_open(fd: int) -> bool:
+    try:
+        os.fstat(fd)
+    except OSError:
+        return False
+    return True
+
+
+def end_group() -> None:
+    """Kill every other process of this process's group (what the task started: an outside code left running,
+    a helper holding stderr) and reap those that are its children; Linux (/proc) only, elsewhere nothing."""
+    me = os.getpid()
+    if os.getpgid(0) != me:
+        return
+    try:
+        entries = os.listdir("/proc")
+    except OSError:
+        return
+    for entry in entries:
+        if not entry.isdigit() or int(entry) == me:
+            continue
+        try:
+            with open(f"/proc/{entry}/stat", "rb") as fh:
+                fields = fh.read().rsplit(b")", 1)[1].split()
+        except (OSError, IndexError):
+            continue
+        if len(fields) > 2 and int(fields[2]) == me:  # after the name: state, ppid, pgrp
+            with contextlib.suppress(OSError):
+                os.kill(int(entry), signal.SIGKILL)
+    with contextlib.suppress(ChildProcessError, OSError):
+        while os.waitpid(-1, os.WNOHANG)[0] > 0:
+            pass
 
 
 PR_SET_PDEATHSIG = 1  # prctl(2): the signal this process gets when the thread that forked it ends
