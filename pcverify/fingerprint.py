@@ -124,7 +124,8 @@ def _origin(spec: ModuleSpec) -> str | None:
     return origin if spec.has_location and isinstance(origin, str) and os.path.isfile(origin) else None
 
 
-def _installed(origin: str) -> bool:
+def installed(origin: str) -> bool:
+    """Whether a file lies in an installed distribution's folder (a module there counts by its version)."""
     return not INSTALLED.isdisjoint(PurePath(origin).parts)
 
 
@@ -221,7 +222,7 @@ def source_closure(module: str) -> dict[str, str]:
         if top not in roots and top not in installed_tops:
             spec = find_spec(top, memo)
             origin = None if spec is None else _origin(spec)
-            installed_tops[top] = _distributions(top) if origin and _installed(origin) else {}
+            installed_tops[top] = _distributions(top) if origin and installed(origin) else {}
         if installed_tops.get(top):
             out.update(installed_tops[top])
             continue
@@ -231,7 +232,7 @@ def source_closure(module: str) -> dict[str, str]:
         origin = None if spec is None else _origin(spec)
         if origin is None:
             continue
-        if top not in roots and _installed(origin) and _distributions(top):
+        if top not in roots and installed(origin) and _distributions(top):
             out.update(_distributions(top))  # a module of a namespace package inside an installed distribution
             continue
         # relative imports resolve against the spec's name (pkg.mod for `python -m pkg.mod`, not __main__)

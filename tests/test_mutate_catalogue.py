@@ -10,8 +10,9 @@ import json
 import time
 from pathlib import Path
 
+from pcverify.fingerprint import installed
 from pcverify.harness.cli import main
-from pcverify.harness.study.mutants import beside_file, read_mutants_file
+from pcverify.harness.study.mutants import Mutant, beside_file, read_mutants_file
 from pcverify.harness.study.shipped import study_files
 
 STUDY = Path(__file__).resolve().parent / "mutate" / "continuum-heat-ci.toml"
@@ -45,3 +46,12 @@ def test_every_shipped_catalogue_loads_and_each_edit_applies_to_code() -> None:
             assert edited != source and m.changes_code(source, edited), (name, m.name)
         total += len(mutants)
     assert total >= 30
+
+
+def test_a_mutant_of_an_installed_distribution_is_never_seeded_from_the_baseline() -> None:
+    """A cell key counts an installed distribution by its version, which a mutant's edit leaves: seeded, the
+    mutant's cells were read back from the baseline and it survived without running (numpy's interp, say)."""
+    numpy_mutant = Mutant(name="numpy-init", file="__init__.py", breaks="x", package="numpy")
+    assert installed(str(numpy_mutant.path()))
+    assert not numpy_mutant.seedable()
+    assert Mutant(name="kernel", file="solvers/particles/mca/kernel.py", breaks="x").seedable()

@@ -1,7 +1,8 @@
 """Result cache: one JSON file per study cell, keyed by a content hash, shared safely between processes.
 
 Writes are atomic, so an interrupted study never leaves a half-written entry; an entry that fails to parse or
-whose key, checksum or fields do not match is reported as corrupt and recomputed.  A cell being computed holds
+whose key, checksum or fields do not match is reported as corrupt and recomputed, and one whose solve read a file
+or imported a module that has changed since (`dependencies`) is stale and recomputed.  A cell being computed holds
 a lock file that other processes wait on, taken over when its holder died or after STALE_LOCK_S (docs/outputs.md,
 "The cache"), one takeover at a time under the folder's `.takeover.guard`.  Every caller follows one protocol:
 `claim` a cell, `release` it with its entry, or `wait` for its holder's.
@@ -21,6 +22,7 @@ from typing import Any
 
 from tqdm import tqdm
 
+from pcverify.harness.run.dependencies import stale
 from pcverify.harness.run.files import (
     HOST,
     atomic_write,
@@ -133,6 +135,9 @@ class Cache:
         problem = schema_problem(doc["result"])
         if problem:
             return None, f"corrupt: {problem}"
+        why = stale(doc["result"].get("depends"))
+        if why:
+            return None, f"stale: {why}"
         return doc["result"], "hit"
 
     def store(self, key: str, result: dict[str, Any]) -> None:

@@ -31,6 +31,7 @@ from tqdm import tqdm
 from pcverify.fingerprint import code_fingerprint, module_fingerprint
 from pcverify.harness.judge import compare
 from pcverify.harness.run.cache import CLAIMED, HELD, Cache, cell_key
+from pcverify.harness.run.dependencies import dependencies, recording
 from pcverify.harness.run.interrupt import check_interrupted, ignore_sigint_in_worker
 from pcverify.harness.run.limits import DEFAULT_TIME_LIMIT, EstimateError, check_work
 from pcverify.harness.run.progress import progress_bar
@@ -183,7 +184,7 @@ def compute_cell(cell: Cell, raise_scene_errors: bool = False) -> dict[str, Any]
             return base | {"status": "failed", "reason": str(exc)}
         return base | {"status": "failed", "reason": _checks_raised(cell, exc)}
     try:
-        with threadpool_limits(limits=1, user_api="blas"):  # results must not depend on --jobs
+        with threadpool_limits(limits=1, user_api="blas"), recording(cell.solver) as rec:  # BLAS: as with --jobs 1
             cpu = time.process_time()
             out = cell.task.run(solver, scene, resolution, dict(cell.solver_params))
             cpu = time.process_time() - cpu
@@ -203,6 +204,8 @@ def compute_cell(cell: Cell, raise_scene_errors: bool = False) -> dict[str, Any]
     res.setdefault("h", resolution.spacing(scene.box.width))
     cold = cell.solver not in _SOLVED_HERE
     _SOLVED_HERE.add(cell.solver)
+    depends = dependencies(rec, type(solver).__module__)  # what the key cannot see: the cache checks it on reading
+    out = out | ({"depends": depends} if depends["files"] or depends["modules"] else {})
     return out | base | {"resolution": res, "errors": compare.errors(scene, out.get("samples")),
                          "scalar_errors": compare.scalar_errors(scene, out.get("summary")),
                          "cost": solve_cost(cpu, out.get("wall_s"), out.get("work") or {}) | {"cold": cold}}
@@ -384,6 +387,8 @@ def _execute(study: Study, cache: Cache, jobs: int, progress: bool, scheduler: s
             entry = None  # it ran out of a shorter time limit than this run allows: computed again
         if state.startswith("corrupt"):
             counts["corrupt"] += 1
+            tqdm.write(f"cache entry {key} ({cells[i].describe()}) is {state}; recomputing", file=sys.stderr)
+        elif state.startswith("stale"):
             tqdm.write(f"cache entry {key} ({cells[i].describe()}) is {state}; recomputing", file=sys.stderr)
         if entry is not None:
             counts["cached"] += 1

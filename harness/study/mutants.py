@@ -26,7 +26,7 @@ from importlib import metadata
 from pathlib import Path, PurePosixPath
 from typing import Any
 
-from pcverify.fingerprint import find_spec
+from pcverify.fingerprint import find_spec, installed
 from pcverify.harness.study.schema import MUTANT, Field, Table, check, row_where
 from pcverify.harness.study.shipped import BESIDE
 from pcverify.harness.study.studyfile import read_study_document
@@ -117,10 +117,11 @@ class Mutant:
         """Whether a cell key covers every code this mutant can change (the solver's closure, the task, the compare
         step, the scene's content): then a cell whose key it leaves unchanged computes the same result, and the
         baseline's entries may be reused.  Not so for pcverify's own top-level modules (the fingerprint, the
-        numba guard), nor the harness outside judge and report (how cells run and studies are read)."""
+        numba guard), nor the harness outside judge and report (how cells run and studies are read), nor a module
+        of an installed distribution (a key counts it by the distribution's version, which the edit leaves)."""
         module = self.module()
         if self.package != "pcverify":
-            return True
+            return not installed(str(self.path()))
         return module.startswith(("pcverify.solvers.", "pcverify.references.", "pcverify.scene.",
                                   "pcverify.harness.judge.", "pcverify.harness.report.")) or module in (
             "pcverify.solvers", "pcverify.references", "pcverify.scene")
