@@ -403,10 +403,11 @@ STICK_SLIP = SceneSpec(
     "stick-slip",
     "The block-sliding slider pressed by normal_stress on its clamped base and pulled along z by a spring of "
     "stiffness spring_stiffness whose far end moves at speed (pulling at the slider's centre of mass), with "
-    "static and kinetic friction mu_static >= mu_kinetic: the analytic stick-slip cycle of a rigid block "
-    "(references/stick_slip.py: peak mu_static N, force drop 2 (mu_static - mu_kinetic) N, period, largest "
-    "slip velocity); defaults: the spring's 0.95 kHz far below the slider's lowest elastic frequency (~150 "
-    "kHz), 3 cycles after the first in duration; n even",
+    "static and kinetic friction mu_static >= mu_kinetic: against a rigid block on the slider's discrete "
+    "Cundall-Strack contacts pulled at the same height (the friction's moment; at the run's lattice spacing), and "
+    "the analytic cycle of a rigid block (peak mu_static N, force drop 2 (mu_static - mu_kinetic) N, period, "
+    "largest slip velocity; its kinetic half from the measured breakaway); defaults: the spring's 0.95 kHz far "
+    "below the slider's lowest elastic frequency (~150 kHz), 3 cycles after the first in duration; n even",
     (
         *DIMENSIONS,
         Param("normal_stress", 1e6, "Pa", "pressure on the slider's top face", low=0.0, high=1e9, low_open=True),
@@ -426,7 +427,7 @@ INCLINE = SceneSpec(
     "The block-sliding slider on its clamped base under its own weight only, the body force gravity tilted by "
     "angle from the contact's normal towards +z, friction pair mu_static >= mu_kinetic: a rigid block sticks "
     "while tan(angle) <= mu_static, else slides with the acceleration gravity (sin(angle) - mu_kinetic "
-    "cos(angle)) (references/stick_slip.py); gravity is large by default (1e5 m/s^2: the slider's weight "
+    "cos(angle)) (references/contact.py); gravity is large by default (1e5 m/s^2: the slider's weight "
     "137 N) so that the contact is pressed as in stick-slip; n even",
     (
         *DIMENSIONS,
