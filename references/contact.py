@@ -6,6 +6,7 @@ names, units, signs).  The closed forms: (docs/physics.md, "Analytic references"
 
 from __future__ import annotations
 
+import functools
 import math
 from typing import Any, NamedTuple
 
@@ -147,6 +148,144 @@ def incline_acceleration(scene: Scene) -> float | None:
     return contact.gravity * (math.sin(theta) - contact.mu_kinetic * math.cos(theta))
 
 
+class Contacts(NamedTuple):
+    """A rigid slider's discrete contacts, collapsed into rows across the sliding direction: each row's position
+    along it from the footprint's centre (m) and its contact area (m^2); the height (m) above the interface of the
+    slider's centre of mass, where the scene's spring pulls."""
+
+    z: np.ndarray
+    area: np.ndarray
+    height: float
+
+
+def slider_contacts(scene: Scene, spacing: float) -> Contacts:
+    """The contacts of a stick-slip scene's slider on the cubic lattice of the given spacing: one per node of its
+    bottom node plane (the first above the interface), each its node's cell clipped by the slider, so end rows
+    carry half a cell; the height is the mass-weighted mean of the slider's node planes above the interface
+    (their cells clipped by the slider likewise)."""
+    contact = scene.contact
+    ext = np.asarray(scene.box.extent, dtype=float)
+    ax, dr = contact.axis_index, contact.direction_index
+    across = 3 - ax - dr
+    lo, hi = contact.span if contact.span is not None else (0.0, float(ext[dr]))
+
+    def cells(first: float, last: float) -> tuple[np.ndarray, np.ndarray]:
+        nodes = np.arange(math.ceil(first / spacing - 1e-6), math.floor(last / spacing + 1e-6) + 1) * spacing
+        return nodes, np.minimum(nodes + spacing / 2, last) - np.maximum(nodes - spacing / 2, first)
+
+    z, width = cells(lo, hi)
+    y, thick = cells(contact.position, float(ext[ax]))
+    return Contacts(z=z - 0.5 * (lo + hi), area=width * float(ext[across]),
+                    height=float((thick * (y - contact.position)).sum() / thick.sum()))
+
+
+class Rows(NamedTuple):
+    """A rigid block's run: per step the time (s), the spring force (N) and the block's velocity (m/s)."""
+
+    t: np.ndarray
+    force: np.ndarray
+    velocity: np.ndarray
+
+
+def contact_block(s: Setting, contacts: Contacts, kt: float, duration: float, pull_height: float | None = None,
+                  damping: float = 0.0, steps_per_period: int = 60) -> Rows:
+    """A rigid block on discrete Cundall-Strack contacts, pulled from rest by the spring (its far end from the
+    spring's unstretched length at t = 0): per contact a tangential spring kt (Pa/m) times its area, limited by
+    mu_s sigma while it sticks and by mu_k sigma once it slips, stuck again when the block's velocity turns
+    against its stress.  The block slides but does not turn: the contacts' normal stresses are its quasi-static
+    equilibrium on equal normal springs (the pitching vibration, ~1e5 Hz, far above the cycle), linear along the
+    sliding direction, their resultant N and their moment about the footprint's centre the friction's R h plus
+    the spring's F (pull_height - h) (h = contacts.height; pull_height None: at h).  Leapfrog at 1 /
+    steps_per_period of the block's period on its stuck contacts.  Undamped (damping 0) as the scene's slider
+    moving as a whole (its damping acts relative to its mean velocity); damping > 0 adds a viscous stress on each
+    stuck contact, that fraction of critical for the block on all of them (1: the ringing a re-stick starts dies
+    within a period; without it a later breakaway comes early by up to the drop, as the ringing's crest
+    reaches mu_s sigma first)."""
+    h = contacts.height
+    hs = h if pull_height is None else pull_height
+    z, area = contacts.z, contacts.area
+    total, second = area.sum(), (area * z * z).sum()
+    omega_c = math.sqrt(kt * total / s.mass)
+    dt = 2.0 * math.pi / omega_c / steps_per_period
+    viscous = 2.0 * damping * s.mass * omega_c / total  # Pa s/m on a stuck contact
+    n = math.ceil(duration / dt)
+    tau = np.zeros_like(z)  # the contacts' tangential stress (Pa), on the block against +z
+    slipping = np.zeros(z.shape, dtype=bool)
+    t = np.arange(n + 1) * dt
+    force, vel = np.zeros(n + 1), np.zeros(n + 1)
+    x, v, resist = 0.0, 0.0, 0.0
+    for i in range(n):
+        f = s.stiffness * (s.speed * t[i] - x)
+        force[i] = f
+        v += dt * (f - resist) / s.mass
+        x += dt * v
+        vel[i + 1] = v
+        sigma = s.normal_force / total + (z * (h * resist + (hs - h) * f) / second if second > 0 else 0.0)
+        slipping &= tau * v > 0.0
+        trial = tau + kt * v * dt
+        limit = np.where(slipping, s.mu_kinetic, s.mu_static) * sigma
+        over = np.abs(trial) > limit
+        slipping |= over
+        tau = np.where(over, np.sign(trial) * s.mu_kinetic * sigma, trial)
+        resist = float((area * tau).sum()) + viscous * float(area[~slipping].sum()) * v
+    force[n] = s.stiffness * (s.speed * t[n] - x)
+    return Rows(t=t, force=force, velocity=vel)
+
+
+CONTACT_DAMPING = 0.0  # undamped, as the scene's slider moving as a whole (1: critically damped, the bracket)
+CYCLE_NAMES = ("spring_peak_N", "spring_trough_N", "force_drop_N", "spring_max_N", "slip_s", "slip_velocity_peak",
+               "stick_s", "period_s")
+
+
+def cycle_of(rows: Rows, speed: float, slip_speed: float = 0.1, rest_speed: float = 0.02) -> dict[str, float]:
+    """The cycle of a block's rows as the scene's measurement defines it: slips where the velocity exceeds
+    slip_speed x speed, from and to the nearest rows below rest_speed x speed; first_peak_N the first slip's
+    starting force; the rest means over the typical cycles: peak, trough, drop, largest force, slip time and
+    largest velocity of every slip after the first, the stick before each slip after the second (the stick
+    after the first slip follows an untypical slip), the period from each slip after the first to the next."""
+    t, force, vel = rows
+    fast = np.flatnonzero(np.diff(np.r_[False, vel > slip_speed * speed, False]))
+    still = vel <= rest_speed * speed
+    bounds = []
+    for a, b in zip(fast[::2], fast[1::2], strict=True):
+        before, after = np.flatnonzero(still[:a]), np.flatnonzero(still[b:])
+        if len(before) and len(after):
+            bounds.append((int(before[-1]), int(b + after[0])))
+    out: dict[str, Any] = {"first_peak_N": float(force[bounds[0][0]]) if bounds else math.nan}
+    values: dict[str, list[float]] = {k: [] for k in CYCLE_NAMES}
+    for k in range(1, len(bounds)):
+        a, b = bounds[k]
+        values["spring_peak_N"].append(force[a])
+        values["spring_trough_N"].append(force[b])
+        values["force_drop_N"].append(force[a] - force[b])
+        values["spring_max_N"].append(force[a:b + 1].max())
+        values["slip_s"].append(t[b] - t[a])
+        values["slip_velocity_peak"].append(vel[a:b + 1].max())
+        if k >= 2:
+            values["stick_s"].append(t[a] - t[bounds[k - 1][1]])
+        if k + 1 < len(bounds):
+            values["period_s"].append(t[bounds[k + 1][0]] - t[a])
+    return out | {k: float(np.mean(v)) if v else math.nan for k, v in values.items()}
+
+
+@functools.lru_cache(maxsize=64)
+def _contact_cycle(scene: Scene, spacing: float, kt: float, damping: float) -> tuple[tuple[str, float], ...]:
+    contacts = slider_contacts(scene, spacing)
+    rows = contact_block(setting(scene), contacts, kt, scene.contact.duration, damping=damping)
+    return tuple(cycle_of(rows, scene.contact.speed).items())
+
+
+def contact_cycle(scene: Scene, spacing: float, kt: float | None = None, damping: float = CONTACT_DAMPING
+                  ) -> dict[str, float]:
+    """The cycle (`cycle_of`) of the rigid block on the contacts of the scene's slider at the lattice spacing
+    (m), pulled at its centre of mass for the scene's duration; kt (Pa/m) by default the bonded pair's shear
+    stiffness 2 G / spacing, G = E / (2 (1 + nu))."""
+    if kt is None:
+        mat = scene.material
+        kt = 2.0 * mat.youngs_modulus / (2.0 * (1.0 + mat.poisson_ratio)) / spacing
+    return dict(_contact_cycle(scene, float(spacing), float(kt), float(damping)))
+
+
 SCALARS = (
     Scalar("contact_pressure_mean", "Pa", "area-weighted mean pressure of the closed contacts (positive pressing)"),
     Scalar("contact_pressure_uniformity", "", "(max - min) / mean of the closed contacts' pressure"),
@@ -165,11 +304,17 @@ GIVEN_PEAK = ("spring_trough_N", "spring_max_N", "stick_s", "slip_s", "period_s"
 
 
 def _cycle(scene: Scene, summary: dict[str, Any]) -> dict[str, float]:
-    """The rigid block's cycle, and its kinetic half from the measured breakaway (NAME_given_peak: NaN unless the
-    summary's spring_peak_N is above mu_k N)."""
+    """The rigid block's cycle, its kinetic half from the measured breakaway (NAME_given_peak: NaN unless the
+    summary's spring_peak_N is above mu_k N), and the cycle of the rigid block on the slider's contacts at the
+    run's lattice spacing and contact stiffness (NAME_given_contacts: only when the summary reports them)."""
     peak = number(summary.get("spring_peak_N"))
     given = given_peak(setting(scene), peak if peak is not None else math.nan)
-    return expected(scene) | {f"{name}_given_peak": given.get(f"{name}_given_peak", math.nan) for name in GIVEN_PEAK}
+    out = expected(scene) | {f"{name}_given_peak": given.get(f"{name}_given_peak", math.nan) for name in GIVEN_PEAK}
+    spacing = number(summary.get("lattice_spacing"))
+    if spacing is not None and spacing > 0:
+        out |= {f"{name}_given_contacts": value for name, value in
+                contact_cycle(scene, spacing, number(summary.get("contact_stiffness_Pa_per_m"))).items()}
+    return out
 
 
 def _pressure(scene: Scene, summary: dict[str, Any]) -> dict[str, float]:
@@ -258,10 +403,11 @@ STICK_SLIP = SceneSpec(
     "stick-slip",
     "The block-sliding slider pressed by normal_stress on its clamped base and pulled along z by a spring of "
     "stiffness spring_stiffness whose far end moves at speed (pulling at the slider's centre of mass), with "
-    "static and kinetic friction mu_static >= mu_kinetic: the analytic stick-slip cycle of a rigid block "
-    "(references/stick_slip.py: peak mu_static N, force drop 2 (mu_static - mu_kinetic) N, period, largest "
-    "slip velocity); defaults: the spring's 0.95 kHz far below the slider's lowest elastic frequency (~150 "
-    "kHz), 3 cycles after the first in duration; n even",
+    "static and kinetic friction mu_static >= mu_kinetic: against a rigid block on the slider's discrete "
+    "Cundall-Strack contacts pulled at the same height (the friction's moment; at the run's lattice spacing), and "
+    "the analytic cycle of a rigid block (peak mu_static N, force drop 2 (mu_static - mu_kinetic) N, period, "
+    "largest slip velocity; its kinetic half from the measured breakaway); defaults: the spring's 0.95 kHz far "
+    "below the slider's lowest elastic frequency (~150 kHz), 3 cycles after the first in duration; n even",
     (
         *DIMENSIONS,
         Param("normal_stress", 1e6, "Pa", "pressure on the slider's top face", low=0.0, high=1e9, low_open=True),
@@ -281,7 +427,7 @@ INCLINE = SceneSpec(
     "The block-sliding slider on its clamped base under its own weight only, the body force gravity tilted by "
     "angle from the contact's normal towards +z, friction pair mu_static >= mu_kinetic: a rigid block sticks "
     "while tan(angle) <= mu_static, else slides with the acceleration gravity (sin(angle) - mu_kinetic "
-    "cos(angle)) (references/stick_slip.py); gravity is large by default (1e5 m/s^2: the slider's weight "
+    "cos(angle)) (references/contact.py); gravity is large by default (1e5 m/s^2: the slider's weight "
     "137 N) so that the contact is pressed as in stick-slip; n even",
     (
         *DIMENSIONS,

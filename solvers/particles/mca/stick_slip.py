@@ -2,8 +2,10 @@
 spring_stiffness) whose far end moves at the contact's speed (docs/physics.md, the MCA model's stick-slip).
 
 The cycle is measured from the spring's rows alone, not from the friction law's bookkeeping: slips between
-SLIP_SPEED and REST_SPEED of the drive speed, each slip after the first giving peak, trough, drop, slip time and
-stick; the thresholds' bias and the damping relative to the slider's mean velocity: (docs/physics.md, "Contact scenes").
+SLIP_SPEED and REST_SPEED of the drive speed, each slip after the first giving peak, trough, drop, largest force,
+slip time, largest velocity and the period to the next slip; each slip after the second the stick before it (the
+first slip starts from the first, untypical breakaway, and the stick after it is untypical too); the thresholds'
+bias and the damping relative to the slider's mean velocity: (docs/physics.md, "Contact scenes").
 """
 
 from __future__ import annotations
@@ -76,7 +78,8 @@ def _run(scene: Scene, n: int, p: dict[str, Any]) -> tuple[dict[str, Any], Autom
     steps = math.ceil(contact.duration / model.dt)
     summary: dict[str, Any] = {"dt": model.dt, "slider_mass": mass, "normal_force_applied": normal_force,
                                "law_mu_kinetic": contact.mu_kinetic, "law_mu_static": contact.mu_static,
-                               "run_steps_needed": steps}
+                               "run_steps_needed": steps, "lattice_spacing": float(aut.spacing[contact.axis_index]),
+                               "contact_stiffness_Pa_per_m": law.kt}
     out: dict[str, Any] = {"field": None, "quantity": "", "summary": summary, "model": model, "state": st}
     failed = preload(model, st, contact.normal_stress * float(aut.spacing.min()) ** 2, steps, p, summary)
     if failed:
@@ -206,7 +209,8 @@ def measure(rows: np.ndarray, speed: float) -> dict[str, Any]:
         cycles["spring_max_N"].append(float(force[a:b + 1].max()))
         cycles["slip_s"].append(float(t[b] - t[a]))
         cycles["slip_velocity_peak"].append(float(vel[a:b + 1].max()))
-        cycles["stick_s"].append(float(t[a] - t[bounds[k - 1][1]]))
+        if k >= 2:  # the stick after the first slip follows an untypical slip (from the first breakaway)
+            cycles["stick_s"].append(float(t[a] - t[bounds[k - 1][1]]))
         if k + 1 < len(bounds):
             cycles["period_s"].append(float(t[bounds[k + 1][0]] - t[a]))
     out["stick_slip_cycles"] = max(len(bounds) - 1, 0)
