@@ -1,10 +1,9 @@
 """The MCA kernel's recorded elastic energy and the rotational springs (krot G S r0 |phi_j - phi_i|^2 / 2).
 
-The kernel applies the rotational springs' moments but its potential energy (kernel.potential_energy, the
-history's U) leaves their energy out.  Measured on block-sliding at 0.025 m/s with the static law (mu_s = 0.5,
-n = 4): the window's energy balance is off by 5.7e-4 of the drive's work, fluctuating with the slider's 84 kHz
-stick-slip vibration; with the springs' energy added to U it closes to 4.1e-6 (mu_s = mu1: 3.4e-6 -> 9.8e-7).
-The fix is one more sum in kernel.potential_energy; until it lands these tests are expected to fail (strict).
+The kernel applies the rotational springs' moments, so its potential energy (kernel.potential_energy, the
+history's U) must hold their energy.  Left out, block-sliding at 0.025 m/s with the static law (mu_s = 0.5,
+n = 4) had its window's energy balance off by 5.7e-4 of the drive's work, fluctuating with the slider's 84 kHz
+stick-slip vibration; with the springs' energy in U it closes to 4.1e-6 (mu_s = mu1: 3.4e-6 -> 9.8e-7).
 """
 
 from __future__ import annotations
@@ -18,7 +17,6 @@ from pcverify.solvers.particles.mca.automata import bar_automata
 from pcverify.solvers.particles.mca.model import Elastic, Model
 
 KROT = 0.01
-PENDING = pytest.mark.xfail(strict=True, reason="kernel.potential_energy leaves out the krot springs' energy")
 
 
 def _model() -> tuple[Model, mk.State]:
@@ -32,7 +30,6 @@ def _springs(model: Model, st: mk.State) -> float:
     return float((0.5 * KROT * model.elastic.shear * st.area * st.r0 * (d**2).sum(axis=1)).sum())
 
 
-@PENDING
 def test_potential_energy_holds_the_rotational_springs():
     """One automaton turned in place (no displacement, no pair stress): the only energy is its springs'."""
     model, st = _model()
@@ -43,7 +40,6 @@ def test_potential_energy_holds_the_rotational_springs():
     assert mk.potential_energy(st, model.params, rr) == pytest.approx(expected, rel=1e-12)
 
 
-@PENDING
 def test_an_undamped_spinning_lattice_keeps_its_energy():
     """A free lattice, undamped, one automaton set spinning: kinetic plus recorded elastic energy stay constant
     to velocity Verlet's fluctuation, at most (omega dt)^2 / 8 <= 0.125 of the energy at cfl 0.5 (derived

@@ -446,9 +446,10 @@ def _average_stress(vol, pi, pj, r0, area, sig, tau, nvec, savg):
 
 @njit(cache=True)
 def potential_energy(st, par, rr):
-    """Elastic energy sum_p [kn S (r - r0)^2 / (2 r0) + S r0 |tau|^2 / (4G)] + sum_i lam Omega theta^2 / 2
-    (exact for the elastic, undamaged state the kernel integrates; unlinked pairs in contact use kc);
-    rr: the pairs' current lengths."""
+    """Elastic energy sum_p [kn S (r - r0)^2 / (2 r0) + S r0 |tau|^2 / (4G)] + sum_i lam Omega theta^2 / 2, with
+    rotations + sum_p krot G S r0 |phi_j - phi_i|^2 / 2 over the linked pairs (the springs whose moments the
+    kernel applies); exact for the elastic, undamaged state the kernel integrates; unlinked pairs in contact use
+    kc; rr: the pairs' current lengths."""
     u = 0.0
     g_mod = par.shear
     r0, area, linked, tau, theta, vol = st.r0, st.area, st.linked, st.tau, st.theta, st.vol
@@ -461,6 +462,18 @@ def potential_energy(st, par, rr):
         u += area[p] * r0[p] * (tau[p, 0] ** 2 + tau[p, 1] ** 2 + tau[p, 2] ** 2) / (4.0 * g_mod)
     for i in range(vol.shape[0]):
         u += 0.5 * par.lam * vol[i] * theta[i] * theta[i]
+    rot = st.rot
+    if rot is not None and par.krot > 0.0:
+        kr = 0.5 * par.krot * g_mod
+        phi = rot.phi
+        for p in range(r0.shape[0]):
+            if linked[p] == 1:
+                i = st.pi[p]
+                j = st.pj[p]
+                d0 = phi[j, 0] - phi[i, 0]
+                d1 = phi[j, 1] - phi[i, 1]
+                d2 = phi[j, 2] - phi[i, 2]
+                u += kr * area[p] * r0[p] * (d0 * d0 + d1 * d1 + d2 * d2)
     return u
 
 
