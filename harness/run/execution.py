@@ -13,6 +13,7 @@ import contextlib
 import contextvars
 import copy
 import datetime
+import logging
 import math
 import os
 import platform
@@ -319,7 +320,16 @@ def connect(address: str, timeout: float = 5.0) -> Any:
         exc = box["error"]
         raise SceneError(f"scheduler={shown(address)} is not reachable ({type(exc).__name__}: "
                          f"{shown(str(exc))}); {allowed}")
+    _quiet_dask_logs()
     return box["client"]
+
+
+def _quiet_dask_logs() -> None:
+    """Dask's own log records (a lost scheduler or worker is an ERROR with chained tracebacks, from its
+    threads, even after the study) are kept off stderr: each cell it failed says why in one line."""
+    names = [n for n in list(logging.root.manager.loggerDict) if n.split(".")[0] in ("distributed", "tornado")]
+    for name in {"distributed", "tornado", *names}:
+        logging.getLogger(name).setLevel(logging.CRITICAL + 1)
 
 
 def _smallest(cells: list[Cell], todo: list[int], kind: Any) -> dict[Any, int]:
