@@ -454,7 +454,8 @@ def forces(x, v, f, theta, mass, kn, lam, dt, con, rot):
 @njit(cache=True)
 def _static(con, s, rot, n0, n1, n2, t0, t1, t2, speed, sig, rough, area, stop, dt, k, fct):
     """Static friction of slave s (Cundall-Strack): the trial stress is its spring's, carried with the contact's
-    frame (turned onto n, then about n by the two sides' mean spin: objective), plus kt V_t dt.  Stuck, the limit
+    frame (the minimal rotation onto n, then the twist about n of the step's rotation by the two sides' mean
+    spin: exactly the rigid turn, in steps of any size), plus kt V_t dt.  Stuck, the limit
     is mu_s (1 + K) sigma_N; beyond it the contact slips at the kinetic mu1 (1 + K) sigma_N, until its slip
     velocity stops or reverses against its stress (V_t . tau <= 0; a fall of |tau| alone does not re-stick it).
     Plus the viscous mu0 V_t.  Dissipated: the stress times the slip increment, by the trapezoid rule, so the
@@ -476,12 +477,21 @@ def _static(con, s, rot, n0, n1, n2, t0, t1, t2, speed, sig, rough, area, stop, 
         else:  # turned by more than 90 degrees within a step: nothing to carry
             a0 = a1 = a2 = 0.0
     if rot is not None:
+        # the twist about n of the rotation exp(dt W) by the two sides' mean spin W: with q its quaternion, the
+        # rotation is the minimal one taking the old normal onto n (above, exact for a rigid turn) after the
+        # turn about the normal by 2 atan2(sin(|W| dt / 2) (W / |W|) . n, cos(|W| dt / 2)) (swing-twist)
         w = rot.w
-        spin = w[k, 0] * n0 + w[k, 1] * n1 + w[k, 2] * n2
+        g0 = 0.5 * w[k, 0]
+        g1 = 0.5 * w[k, 1]
+        g2 = 0.5 * w[k, 2]
         for q in range(3):
             j = con.facets[fct, q]
-            spin += con.w[s, q] * (w[j, 0] * n0 + w[j, 1] * n1 + w[j, 2] * n2)
-        ang = 0.5 * dt * spin
+            g0 += 0.5 * con.w[s, q] * w[j, 0]
+            g1 += 0.5 * con.w[s, q] * w[j, 1]
+            g2 += 0.5 * con.w[s, q] * w[j, 2]
+        half = 0.5 * dt * math.sqrt(g0 * g0 + g1 * g1 + g2 * g2)
+        sinc = math.sin(half) / half if half > 0.0 else 1.0
+        ang = 2.0 * math.atan2(sinc * 0.5 * dt * (g0 * n0 + g1 * n1 + g2 * n2), math.cos(half))
         if ang != 0.0:
             c0, c1, c2 = _cross(n0, n1, n2, a0, a1, a2)
             ca = math.cos(ang)
