@@ -20,13 +20,14 @@ from .automata import Automata
 
 EDGE = 0.5  # a foot point this far outside a facet (barycentric units) still counts (half a spacing)
 # A slave keeps its facet while its foot is at most this far outside it (barycentric units: a fraction of the
-# facet's height, about a spacing).  Without it a foot on an edge or corner shared by two facets of a slightly
-# bent surface went to whichever its last round-off favoured: in a static-law preload two slaves switched
-# facets 84 times in 400 steps, each switch turning the normal by the facets' kink (3.5e-6 rad), and the
-# relaxation never settled.  The foot's motion in a preload is elastic, strain x spacing (1.4e-5 a at 1 MPa),
-# so 1e-3 holds it with margin; kept beyond its edge the slave's weights are clipped (the couple that leaves is
-# taken up, as for EDGE) and its height is over the kept facet's plane, off the neighbour's by at most 1e-3 a
-# times their kink; a sliding slave moves on after 1e-3 of a spacing more (at 1 m/s: a few dozen steps).
+# facet's height, about a spacing).  Without it a foot on an edge or corner shared by two facets of a slightly bent
+# surface went to whichever its last round-off favoured: in a static-law preload two slaves switched facets 84 times
+# in 400 steps, each switch turning the normal by the facets' kink (3.5e-6 rad), and the relaxation never settled
+# (the two feet lay 3.4e-7 outside both facets and moved by 1e-11).  A foot's offsets in a pressed contact are
+# elastic, of the order of the strain (1.4e-5 at 1 MPa), so 1e-3 holds it with margin; kept beyond its edge the
+# slave's weights are clipped (the couple that leaves is taken up, as for EDGE) and its height is over the kept
+# facet's plane, off the neighbour's by at most 1e-3 a times their kink; a sliding slave moves on after 1e-3 of a
+# spacing more (at 1 m/s: a few dozen steps).
 STAY = 1e-3
 
 
