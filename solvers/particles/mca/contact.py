@@ -456,8 +456,8 @@ def forces(x, v, f, theta, mass, kn, lam, dt, con, rot):
 def _static(con, s, rot, n0, n1, n2, t0, t1, t2, speed, sig, rough, area, stop, dt, k, fct):
     """Static friction of slave s (Cundall-Strack): the trial stress is its spring's, carried with the contact's
     frame (the minimal rotation onto n, then the twist about n of the step's rotation by the two sides' mean
-    spin: exactly the rigid turn, in steps of any size), plus kt V_t dt.  Stuck, the limit
-    is mu_s (1 + K) sigma_N; beyond it the contact slips at the kinetic mu1 (1 + K) sigma_N, until its slip
+    spin: a rigid turn exactly, in steps of any size below 90 degrees), plus kt V_t dt.  Stuck, the limit is
+    mu_s (1 + K) sigma_N; beyond it the contact slips at the kinetic mu1 (1 + K) sigma_N, until its slip
     velocity stops or reverses against its stress (V_t . tau <= 0; a fall of |tau| alone does not re-stick it).
     Plus the viscous mu0 V_t.  Dissipated: the stress times the slip increment, by the trapezoid rule, so the
     spring's energy and the dissipation add up to the work done.  Returns the friction force and the power."""
@@ -478,9 +478,9 @@ def _static(con, s, rot, n0, n1, n2, t0, t1, t2, speed, sig, rough, area, stop, 
         else:  # turned by more than 90 degrees within a step: nothing to carry
             a0 = a1 = a2 = 0.0
     if rot is not None:
-        # the twist about n of the rotation exp(dt W) by the two sides' mean spin W: with q its quaternion, the
-        # rotation is the minimal one taking the old normal onto n (above, exact for a rigid turn) after the
-        # turn about the normal by 2 atan2(sin(|W| dt / 2) (W / |W|) . n, cos(|W| dt / 2)) (swing-twist)
+        # the step's rotation exp(dt W) by the two sides' mean spin W is (swing-twist decomposition) the minimal
+        # rotation taking the old normal onto n (above) after a turn about the normal by
+        # 2 atan2(sin(|W| dt / 2) (W / |W|) . n, cos(|W| dt / 2)): for a rigid turn the two give it exactly
         w = rot.w
         g0 = 0.5 * w[k, 0]
         g1 = 0.5 * w[k, 1]
