@@ -1,13 +1,14 @@
-"""A worker is clean for every task: what one task changed in its process (working folder, environment, file
-descriptors 0-2) is put back before the next, and the processes a task started end with it, whether it returns
-or is killed at its time limit.  Without this a cell that chdir'd or set a variable changed the results of the
-next cell in that worker; a cell that closed its stdout and stderr made the next cells fail with EBADF (the
-wrong cells blamed); an outside code started by a timed-out cell kept running after the study; a helper started
-without waiting held the study's stderr, so a caller reading it waited for the helper."""
+"""A worker is clean for every task: what one task changed in its process (working folder, environment, signal
+handlers, file descriptors 0-2) is put back before the next, and the processes a task started end with it,
+whether it returns or is killed at its time limit.  Without this a cell that chdir'd or set a variable changed
+the results of the next cell in that worker; a cell that closed its stdout and stderr made the next cells fail
+with EBADF (the wrong cells blamed); an outside code started by a timed-out cell kept running after the study;
+a helper started without waiting held the study's stderr, so a caller reading it waited for the helper."""
 
 from __future__ import annotations
 
 import os
+import signal
 import subprocess
 import sys
 import time
@@ -20,11 +21,13 @@ def _change_state(folder: str) -> int:
     os.chdir(folder)
     os.environ["PCVERIFY_LEAK"] = "from the task before"
     os.environ.pop("HOME", None)
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)  # a worker that ignores SIGTERM cannot be stopped by it
     return os.getpid()
 
 
-def _see_state() -> tuple[int, str, str | None, str | None]:
-    return os.getpid(), os.getcwd(), os.environ.get("PCVERIFY_LEAK"), os.environ.get("HOME")
+def _see_state() -> tuple[int, str, str | None, str | None, bool]:
+    return (os.getpid(), os.getcwd(), os.environ.get("PCVERIFY_LEAK"), os.environ.get("HOME"),
+            signal.getsignal(signal.SIGTERM) is signal.SIG_IGN)
 
 
 def _close_output() -> int:
@@ -75,9 +78,9 @@ def test_a_task_never_sees_the_working_folder_or_environment_of_the_one_before(t
         (_, first), (_, second) = pool.run([(1, _change_state, (str(tmp_path),)), (2, _see_state, ())], 1, 60.0)
     finally:
         pool.close()
-    pid, cwd, leak, home = second.value
+    pid, cwd, leak, home, ignores_sigterm = second.value
     assert pid == first.value  # the same worker ran both
-    assert (cwd, leak, home) == (os.getcwd(), None, os.environ.get("HOME"))
+    assert (cwd, leak, home, ignores_sigterm) == (os.getcwd(), None, os.environ.get("HOME"), False)
 
 
 def test_a_task_that_closes_its_output_leaves_the_next_task_its_output() -> None:

@@ -8,9 +8,10 @@ timed pass warms up and times in one process (`Pool.run_one` takes the first idl
 names its one task; only when other workers were busy beside it (the OOM killer picks the largest process) is
 the task run again alone before it is called the culprit.  A worker prints to stderr, ignores Ctrl-C and exits
 when the study's process has gone.  Each task starts from the worker's state as it was forked: its working
-folder, environment and file descriptors 0-2 are put back after every task (a worker whose state cannot be put
-back ends once it has replied), and the processes a task started end with it: a worker leads a process group of
-its own, whose other members are killed when a task ends and with the worker when it is retired.
+folder, environment, signal handlers and file descriptors 0-2 are put back after every task (a worker whose
+state cannot be put back ends once it has replied), and the processes a task started end with it: a worker
+leads a process group of its own, whose other members are killed when a task ends and with the worker when it
+is retired.
 """
 
 from __future__ import annotations
@@ -284,21 +285,29 @@ def _serve(conn: Connection, mine: Connection, others: list[Connection], parent:
 @dataclass
 class _State:
     """What a task may change in its worker and the next task must not see: the working folder, the environment,
-    file descriptors 0-2 (copies kept on descriptors of their own) and Python's std streams."""
+    the signal handlers, file descriptors 0-2 (copies kept on descriptors of their own) and Python's std
+    streams."""
 
     cwd: str
     environ: dict[str, str]
     fds: list[int]
     streams: tuple[Any, Any, Any]
+    handlers: dict[signal.Signals, Any]
 
     @classmethod
     def now(cls) -> _State:
-        return cls(os.getcwd(), dict(os.environ), [os.dup(fd) for fd in (0, 1, 2)], (sys.stdin, sys.stdout, sys.stderr))
+        handlers = {sig: signal.getsignal(sig) for sig in signal.valid_signals()
+                    if sig not in (signal.SIGKILL, signal.SIGSTOP)}
+        return cls(os.getcwd(), dict(os.environ), [os.dup(fd) for fd in (0, 1, 2)], (sys.stdin, sys.stdout, sys.stderr),
+                   {sig: h for sig, h in handlers.items() if h is not None})
 
     def restore(self) -> bool:
         """Put the worker back as it was; False when that failed (a copy of a descriptor closed by the task)."""
         try:
             os.chdir(self.cwd)
+            for sig, handler in self.handlers.items():
+                if signal.getsignal(sig) is not handler:
+                    signal.signal(sig, handler)
             if dict(os.environ) != self.environ:
                 os.environ.clear()
                 os.environ.update(self.environ)
