@@ -258,15 +258,7 @@ def geometry(x, vol, con, theta_new):
                     h, wa, wb, wd, m0, m1, m2 = _foot(x, con, old, k)
                     low = min(wa, wb, wd)
                     if -h0 < h < h0 and low >= -STAY:
-                        best = old
-                        bmin = low
-                        bh = h
-                        b0 = wa
-                        b1 = wb
-                        b2 = wd
-                        n0 = m0
-                        n1 = m1
-                        n2 = m2
+                        best, bmin, bh, b0, b1, b2, n0, n1, n2 = old, low, h, wa, wb, wd, m0, m1, m2
                     break
         if best < 0:
             for c in range(con.cand_ptr[s], con.cand_ptr[s + 1]):
@@ -276,15 +268,7 @@ def geometry(x, vol, con, theta_new):
                     continue
                 low = min(wa, wb, wd)
                 if low > bmin:
-                    best = f
-                    bmin = low
-                    bh = h
-                    b0 = wa
-                    b1 = wb
-                    b2 = wd
-                    n0 = m0
-                    n1 = m1
-                    n2 = m2
+                    best, bmin, bh, b0, b1, b2, n0, n1, n2 = f, low, h, wa, wb, wd, m0, m1, m2
                     if low >= 0.0:  # the foot lies in this facet: the nearest containing one is taken
                         break
         if best < 0 or bmin < -EDGE:
