@@ -39,7 +39,7 @@ PLANNED = {
     "calibration": {},
     "contact-friction": {"to run": 38},
     "continuum-heat": {"to run": 74},  # 54 + the slab with a source (6 steady, 10 transient, 4 insulated)
-    "elasticity": {"to run": 101},  # 79 + the rotational modes (2) + the packing groups (8 bending, 3 compression)
+    "elasticity": {"to run": 134},  # 79 + the rotational modes (2) + the packing groups (8 bending, 3 compression) + LAMMPS BPM (33)
     # + the plastic, degradation and damped-gradient fracture groups (3 each)
     "heat-particles": {"to run": 200},
     "macromolecule": {"to run": 106},  # 93 + the force law against its specification (3) + five top-mode run ends
