@@ -213,7 +213,7 @@ def skipped(scene: Scene, solver: Solver, resolution: Resolution, reason: str) -
     """A Solution that records a skip and its reason (never a pass, never silent)."""
     return Solution(
         scene=scene.name, solver=solver.name, params={}, resolution={"n": resolution.n, "refine": resolution.refine},
-        samples={}, unknowns=0, wall_s=0.0, status="skipped", reason=reason,
+        samples={}, unknowns=0, wall_s=0.0, status="skipped", reason=reason, quantity=scene.quantity,
     )
 
 

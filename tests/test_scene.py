@@ -19,6 +19,8 @@ from pcverify.scene import (
     Scene,
     SceneError,
 )
+from pcverify.solvers.protocol import skipped
+from pcverify.solvers.registry import get_solver
 
 
 @pytest.mark.parametrize("n, count", [(2, 16), (3, 63), (4, 160), (5, 325), (11, 3751)])
@@ -200,3 +202,10 @@ def test_param_kind_inferred_from_default_and_choices():
     assert Param("delta", 3, "", "an integer default stays a number").parse("2.5") == 2.5
     with pytest.raises(TypeError, match="kind=<class 'list'> is not valid"):
         Param("bad", 1, kind=list)
+
+
+def test_a_skipped_solution_carries_its_scenes_quantity() -> None:
+    """A skip on an elasticity scene said "T/t_max" (the heat default of a Solution)."""
+    scene = make_scene("bar-compression")
+    sol = skipped(scene, get_solver("skfem-elastic"), Resolution(2), "a reason")
+    assert sol.quantity == scene.quantity != "T/t_max"
