@@ -469,3 +469,20 @@ def test_an_order_fitted_on_errors_that_do_not_decrease_is_flagged_pre_asymptoti
                             "target": 1.0, "tolerance": 5.0}], "t.toml")
     notes = [verdicts("s", claims, {"fits": f})["note"].item() for f in fits]
     assert "pre-asymptotic" in notes[0] and "pre-asymptotic" not in notes[1]
+
+
+def test_the_mode_classifier_and_the_scene_factory_are_public_and_lazy() -> None:
+    """A plugin author reaches the shipped mode classifier and scenes for unit tests through `pcverify` alone;
+    `import pcverify` itself loads neither the harness nor the classifier."""
+    script = ("import sys, pcverify\nassert 'pcverify.harness.study.catalogue' not in sys.modules\n"
+              "assert 'pcverify.solvers.modes' not in sys.modules\n"
+              "from pcverify import MODE_KINDS, classify_modes, lowest_of_each_kind, make_scene\n"
+              "from pcverify.solvers import modes\n"
+              "assert classify_modes is modes.classify and lowest_of_each_kind is modes.lowest_of_each_kind\n"
+              "assert MODE_KINDS == modes.KINDS\n"
+              "scene = make_scene('bar-modes', length=0.05)\n"
+              "assert scene.name == 'bar-modes' and scene.box.length == 0.05\n"
+              "try:\n    pcverify.no_such_name\nexcept AttributeError as exc:\n    print(exc)\n")
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120, check=False)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "module 'pcverify' has no attribute 'no_such_name'"
