@@ -12,7 +12,8 @@ from pathlib import Path
 
 from pcverify.fingerprint import installed
 from pcverify.harness.cli import main
-from pcverify.harness.study.mutants import Mutant, beside_file, read_mutants_file
+from pcverify.harness.study.mutants import Mutant, beside_file, catalogue, read_mutants_file, solver_packages
+from pcverify.harness.study.study import load_study
 from pcverify.harness.study.shipped import study_files
 
 STUDY = Path(__file__).resolve().parent / "mutate" / "continuum-heat-ci.toml"
@@ -55,3 +56,47 @@ def test_a_mutant_of_an_installed_distribution_is_never_seeded_from_the_baseline
     assert installed(str(numpy_mutant.path()))
     assert not numpy_mutant.seedable()
     assert Mutant(name="kernel", file="solvers/particles/mca/kernel.py", breaks="x").seedable()
+
+
+USER_STUDY = '''
+name = "mine"
+shipped_mutants = ["mca"]
+
+[[group]]
+id = "compression"
+scene = "bar-compression"
+solvers = ["mca"]
+n = [2]
+
+[[claim]]
+id = "modulus"
+text = "the MCA's effective Young's modulus"
+table = "compression-cells"
+metric = "E_eff"
+reference = "analytic"
+target = 70e9
+tolerance_rel = 1e-6
+tolerance_basis = "derived: the many-body identity holds to round-off"
+'''
+
+
+def test_a_users_study_opts_in_to_the_shipped_catalogue_of_a_solver_it_runs(tmp_path, capsys) -> None:
+    """`shipped_mutants = ["mca"]`: the shipped studies' mutants of modules the MCA reaches are run against the
+    user's claims (named <study>.<mutant>, without the shipped study's expectations); without it a user's claims
+    on a shipped solver could only be called descriptive."""
+    (tmp_path / "mine.toml").write_text(USER_STUDY)
+    study = load_study(str(tmp_path / "mine.toml"))
+    found = catalogue(study.mutants, study.path, solver_packages(study), [c.id for c in study.claims],
+                      study.shipped_mutants)
+    names = {m.name for m in found}
+    assert "elasticity.mca-normal-modulus-doubled" in names and "contact-friction.friction-sign" in names
+    assert not any("richardson" in n or "skfem" in n for n in names)  # the judge's and scikit-fem's are not the MCA's
+    assert all(m.expect == () and m.module().startswith("pcverify.") for m in found)
+    assert main(["mutate", str(tmp_path / "mine.toml"), "--out", str(tmp_path / "out"), "--mutant",
+                 "elasticity.mca-normal-modulus-doubled", "--json", "--strict"]) == 0
+    (doc,) = json.loads(capsys.readouterr().out)
+    assert [(m["name"], m["status"], m["caught_by"]) for m in doc["mutants"]] == [
+        ("elasticity.mca-normal-modulus-doubled", "killed", ["modulus"])]
+    (tmp_path / "bad.toml").write_text(USER_STUDY.replace('shipped_mutants = ["mca"]', 'shipped_mutants = ["mcaa"]'))
+    assert main(["mutate", str(tmp_path / "bad.toml")]) == 2
+    assert "shipped_mutants = 'mcaa' is not a shipped solver; allowed: one of" in capsys.readouterr().err

@@ -38,7 +38,8 @@ def run_mutants(args: argparse.Namespace) -> int:
         names = sorted(study_files()) if args.name == "default" else [args.name]
         with output_to_stderr():
             whole = [load_study(n, args.allow_large) for n in names]
-            found = [catalogue(s.mutants, s.path, solver_packages(s), [c.id for c in s.claims]) for s in whole]
+            found = [catalogue(s.mutants, s.path, solver_packages(s), [c.id for c in s.claims], s.shipped_mutants)
+                     for s in whole]
             studies = [claimed(s) for s in whole]
             if args.group:  # one study (the command line checks it)
                 studies = [claimed(select_groups(whole[0], args.group))]

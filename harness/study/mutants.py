@@ -17,6 +17,7 @@ is one error line naming the mutant.
 from __future__ import annotations
 
 import ast
+import dataclasses
 import hashlib
 import json
 import re
@@ -26,9 +27,9 @@ from importlib import metadata
 from pathlib import Path, PurePosixPath
 from typing import Any
 
-from pcverify.fingerprint import find_spec, installed
+from pcverify.fingerprint import find_spec, installed, source_closure
 from pcverify.harness.study.schema import MUTANT, Field, Table, check, row_where
-from pcverify.harness.study.shipped import BESIDE
+from pcverify.harness.study.shipped import BESIDE, study_files
 from pcverify.harness.study.studyfile import read_study_document
 from pcverify.scene import SceneError, shown
 from pcverify.solvers.registry import SolverUnavailable, get_solver
@@ -242,12 +243,30 @@ def entry_point_mutants(packages: Iterable[str]) -> list[Mutant]:
     return out
 
 
+def shipped_catalogue(solvers: Iterable[str]) -> list[Mutant]:
+    """The mutants the shipped studies catalogue (their `[[mutant]]` tables and mutants files) that edit a module
+    one of the shipped `solvers` reaches by import, offered to another study (its `shipped_mutants`): each named
+    `<shipped study>.<name>`, its `expect` dropped (it names that study's claims); one of each definition."""
+    reached = set().union(*(source_closure(type(get_solver(name)).__module__) for name in solvers))
+    out: dict[tuple[Any, ...], Mutant] = {}
+    for study, path in sorted(study_files().items()):
+        found = parse_mutants(read_study_document(path).get("mutant", []), f"study file {path.name}")
+        found += read_mutants_file(beside_file(path)) if beside_file(path).is_file() else []
+        for m in found:
+            if m.package == "pcverify" and m.module() in reached:  # a module the solver reaches by import
+                key = (m.package, m.file, m.find, m.replace, m.count, m.diff)
+                out.setdefault(key, dataclasses.replace(m, name=f"{study}.{m.name}", expect=(),
+                                                        origin=f"the shipped catalogue of {study} ({m.origin})"))
+    return list(out.values())
+
+
 def catalogue(declared: list[Mutant], study_path: Path | None, packages: Iterable[str],
-              claims: Iterable[str] | None = None) -> list[Mutant]:
-    """Every mutant of a study: its `[[mutant]]` tables (`declared`), its mutants file, the plugins' entry points;
-    a name declared twice is an error naming both places.  With the study's `claims`, an `expect` of its own
-    mutants (tables and file) that names no claim of it is an error (a plugin's entry-point mutants may expect
-    the claims of the plugin's own study)."""
+              claims: Iterable[str] | None = None, shipped: Iterable[str] = ()) -> list[Mutant]:
+    """Every mutant of a study: its `[[mutant]]` tables (`declared`), its mutants file, the shipped catalogues'
+    mutants of the `shipped` solvers (`shipped_catalogue`), the plugins' entry points; a name declared twice is an
+    error naming both places.  With the study's `claims`, an `expect` of its own mutants (tables and file) that
+    names no claim of it is an error (a plugin's entry-point mutants may expect the claims of the plugin's own
+    study)."""
     found = list(declared)
     if study_path is not None and beside_file(study_path).is_file():
         found += read_mutants_file(beside_file(study_path))
@@ -258,6 +277,7 @@ def catalogue(declared: list[Mutant], study_path: Path | None, packages: Iterabl
             if unknown:
                 raise SceneError(f"mutant {m.name!r} ({m.origin}): expect = {unknown[0]!r} is not a claim of the "
                                  f"study; allowed: one of {', '.join(sorted(known)) or '(the study has no claims)'}")
+    found += shipped_catalogue(shipped)
     found += entry_point_mutants(packages)
     seen: dict[str, Mutant] = {}
     for m in found:

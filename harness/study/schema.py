@@ -453,6 +453,9 @@ STUDY = Table("a study file", (
     NAME, Field("title", "text", "the study's heading in the report (default: the file's name without .toml)"),
     Field("plugins", "text", "modules imported in every worker (a module beside the study file needs no install)",
           hint="a dotted module name", shape="value or list", min_items=0),
+    Field("shipped_mutants", "text", "shipped solvers whose mutants in the shipped studies' catalogues pcverify "
+          "mutate also runs this study's claims against (those that edit a module the solver reaches)",
+          hint="a shipped solver's name", shape="value or list", min_items=0),
     *(Field(name, "tables", WHAT_TABLES_ARE[name], table=table, min_items=0) for name, table in TABLES.items())))
 
 

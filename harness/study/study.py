@@ -38,7 +38,7 @@ from pcverify.harness.study.studyfile import (
 )
 from pcverify.harness.study.tasks import SOLVE, CellTask, ask_supports
 from pcverify.scene import Scene, SceneError
-from pcverify.solvers.registry import SolverUnavailable, get_solver, named
+from pcverify.solvers.registry import SHIPPED, SolverUnavailable, get_solver, named
 
 
 @dataclass(frozen=True)
@@ -103,6 +103,7 @@ class Study:
     calibrations: list[Calibration] = field(default_factory=list)
     selected: tuple[str, ...] = ()  # `--group` ids: a report of this study merges with the study's full report
     mutants: list[Mutant] = field(default_factory=list)  # its own [[mutant]] tables (`pcverify mutate`)
+    shipped_mutants: tuple[str, ...] = ()  # shipped solvers whose catalogued mutants it is run against too
 
     @property
     def plugin_folder(self) -> str | None:
@@ -140,8 +141,13 @@ def load_study(name_or_path: str, allow_large: bool = False) -> Study:
     require_solvers(sorted({c.solver for g in groups for c in g.cells} | {c.solver for c in calibrations}),
                     f"study file {path.name}")
     mutants = parse_mutants(doc.get("mutant", []), f"study file {path.name}")
+    shipped = tuple(as_list(doc.get("shipped_mutants", [])))
+    for solver in shipped:
+        if solver not in SHIPPED:
+            raise SceneError(f"study file {path.name}: shipped_mutants = {solver!r} is not a shipped solver; "
+                             f"allowed: one of {', '.join(sorted(SHIPPED))}")
     return Study(name, doc.get("title", path.stem), groups, claims, plugins, path.resolve(),
-                 calibrations, mutants=mutants)
+                 calibrations, mutants=mutants, shipped_mutants=shipped)
 
 
 def study_name(doc: dict[str, Any], path: Path) -> str:
