@@ -23,7 +23,7 @@ CLAIM = ('[[claim]]\nid = "c"\ntext = "exact"\ntable = "g-cells"\nmetric = "err.
 
 REFUSED = [
     ("top-level key misspelt", 'name = "s"\ngrop = 1\n[[group]]\n' + GROUP,
-     "grop is not a field of a study file; allowed: name, title, plugins, scene, group"),
+     "grop is not a field of a study file; allowed: name, title, plugins, shipped_mutants, scene, group"),
     ("scene_param at top level", 'name = "s"\nscene_param = { t_max = 400.0 }\n[[group]]\n' + GROUP,
      "scene_param is not a field of a study file"),
     ("scene_param in a group", BASE + "scene_param = { t_max = 400.0 }\n",

@@ -119,6 +119,8 @@ PASTED = {
     **{("elasticity", f"{c}-hooke-{q}"): (v, None) for c in ("continuum", "mca", "mca-cells")
        for q, v in (("E", "70e9"), ("nu", "0.33"))},
     ("elasticity", "mca-fracture-strength"): ("400e6", None),
+    ("elasticity", "bpm-E"): ("70e9", None),
+    ("elasticity", "bpm-fracture-strength"): ("400e6", None),
     ("elasticity", "mca-fracture-strength-k2"): ("200e6", None),  # sigma_c / k of the group's k = 2
     **{("elasticity", f"mca-{c}-strength"): ("400e6", None) for c in ("plastic", "degradation")},
     ("elasticity", "mca-plastic-yield"): ("300e6", None),

@@ -462,18 +462,26 @@ def potential_energy(st, par, rr):
         u += area[p] * r0[p] * (tau[p, 0] ** 2 + tau[p, 1] ** 2 + tau[p, 2] ** 2) / (4.0 * g_mod)
     for i in range(vol.shape[0]):
         u += 0.5 * par.lam * vol[i] * theta[i] * theta[i]
-    rot = st.rot
-    if rot is not None and par.krot > 0.0:
-        kr = 0.5 * par.krot * g_mod
-        phi = rot.phi
-        for p in range(r0.shape[0]):
-            if linked[p] == 1:
-                i = st.pi[p]
-                j = st.pj[p]
-                d0 = phi[j, 0] - phi[i, 0]
-                d1 = phi[j, 1] - phi[i, 1]
-                d2 = phi[j, 2] - phi[i, 2]
-                u += kr * area[p] * r0[p] * (d0 * d0 + d1 * d1 + d2 * d2)
+    return u + _rotation_energy(st, par, st.rot)
+
+
+@njit(cache=True)
+def _rotation_energy(st, par, rot):
+    """sum over the linked pairs of krot G S r0 |phi_j - phi_i|^2 / 2 (0 without rotations: numba prunes the
+    branch on the argument's type, so a kernel without rotations has no rotation code)."""
+    if rot is None or par.krot <= 0.0:
+        return 0.0
+    kr = 0.5 * par.krot * par.shear
+    phi = rot.phi
+    u = 0.0
+    for p in range(st.r0.shape[0]):
+        if st.linked[p] == 1:
+            i = st.pi[p]
+            j = st.pj[p]
+            d0 = phi[j, 0] - phi[i, 0]
+            d1 = phi[j, 1] - phi[i, 1]
+            d2 = phi[j, 2] - phi[i, 2]
+            u += kr * st.area[p] * st.r0[p] * (d0 * d0 + d1 * d1 + d2 * d2)
     return u
 
 
