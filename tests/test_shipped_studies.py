@@ -39,7 +39,8 @@ PLANNED = {
     "calibration": {},
     "contact-friction": {"to run": 38},
     "continuum-heat": {"to run": 74},  # 54 + the slab with a source (6 steady, 10 transient, 4 insulated)
-    "elasticity": {"to run": 134},  # 79 + the rotational modes (2) + the packing groups (8 bending, 3 compression) + LAMMPS BPM (33)
+    "elasticity": {"to run": 134},  # 79 + the rotational modes (2) + the packing groups (8 bending, 3 compression)
+    # + LAMMPS BPM beside the MCA (33)
     # + the plastic, degradation and damped-gradient fracture groups (3 each)
     "heat-particles": {"to run": 200},
     "macromolecule": {"to run": 106},  # 93 + the force law against its specification (3) + five top-mode run ends
@@ -158,16 +159,16 @@ def _check_stability(results, verdicts) -> None:
 
 def _check_stick_slip(results, verdicts) -> None:
     s = results[("cycle", "mca", 4)]["summary"]
-    assert s["stick_slip_cycles"] >= 2 and 30.0 < s["spring_peak_N"] < 40.0  # measured 3 cycles, 36.96 N
+    assert s["stick_slip_cycles"] >= 2 and 30.0 < s["spring_peak_N"] < 40.0  # measured 3 cycles, 36.83 N
     assert s["contacts_closed_min"] == 16  # the slider's 16 contacts stay closed: no chatter
     v = _verdicts(verdicts)
     for claim in ("stick-slip-breakaway", "stick-slip-breakaway-above-kinetic", "stick-slip-breakaway-nearer-static",
-                  "stick-slip-trough-given-peak",
-                  "stick-slip-period-given-peak", "stick-slip-velocity-given-peak",
-                  "stick-slip-largest-force-given-peak"):
+                  "stick-slip-trough-given-peak", "stick-slip-period-given-peak", "stick-slip-stick-given-peak",
+                  "stick-slip-velocity-given-peak", "stick-slip-largest-force-given-peak", "stick-slip-peak-contacts",
+                  "stick-slip-first-peak-contacts", "stick-slip-drop-contacts", "stick-slip-velocity-contacts"):
         assert v[(claim, "n=4")] == "pass", claim
-    for claim in ("stick-slip-peak", "stick-slip-drop", "stick-slip-period", "stick-slip-velocity"):
-        assert v[(claim, "n=4")] == "fail", claim  # the elastic slider breaks away below mu_s N: findings
+    # a finding: the MCA's period is 2.6 % longer than the rigid block's on the same discrete contacts
+    assert v[("stick-slip-period-contacts", "n=4")] == "fail"
 
 
 def _check_manufactured(results, verdicts) -> None:
