@@ -35,7 +35,9 @@ VERDICT_COLUMNS = ("study", "claim", "statement", "case", "solver", "reference",
 LOOSE = 10.0  # a tolerance more than this many times the deviation measured, and not derived, is loose
 
 
-def _rows(df: pd.DataFrame, select: dict[str, Any]) -> pd.DataFrame:
+def select_rows(df: pd.DataFrame, select: dict[str, Any]) -> pd.DataFrame:
+    """The rows of `df` whose columns hold the selected values ({ column = value or [values] }); none when a
+    selected column is absent."""
     for col, want in select.items():
         if col not in df.columns:
             return df.iloc[0:0]
@@ -246,7 +248,7 @@ def judge(study: str, claim: Claim, tables: dict[str, pd.DataFrame], command: Co
     absent = _absent(df, claim.select)
     if absent:
         return whole(f"no row of table {claim.table} has {', '.join(absent)}: a case the claim names is missing")
-    rows = _rows(df, claim.select)
+    rows = select_rows(df, claim.select)
     others = None
     if claim.against or claim.against_table:
         table = tables.get(claim.against_table or claim.table, pd.DataFrame())
@@ -254,7 +256,7 @@ def judge(study: str, claim: Claim, tables: dict[str, pd.DataFrame], command: Co
         if absent:
             return whole(f"no row of table {claim.against_table or claim.table} has {', '.join(absent)}: the "
                          "target's rows are missing")
-        others = _rows(table, claim.against)
+        others = select_rows(table, claim.against)
     per = list(claim.per)
     cases = sorted(tuple(c) for c in rows[per].dropna().drop_duplicates().itertuples(index=False)) if per else []
     return [_judge_case(claim, base, rows, others, case, command) for case in cases or [None]]

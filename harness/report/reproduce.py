@@ -21,6 +21,7 @@ from pcverify.harness.judge.verdict import Command
 from pcverify.harness.study.catalogue import entries as scene_entries
 from pcverify.harness.study.catalogue import get_spec
 from pcverify.harness.study.claims import Claim
+from pcverify.harness.study.panels import Panel
 from pcverify.harness.study.shipped import study_files
 from pcverify.harness.study.study import Group, Study
 from pcverify.scene import SceneError
@@ -65,8 +66,12 @@ def select_groups(study: Study, ids: list[str]) -> Study:
         return all(table_group(study, t) in keep or any(t.startswith(f"{c.id}-") for c in kept_calibrations)
                    for t in (claim.table, claim.against_table or claim.table))
 
+    def whole(panel: Panel) -> bool:  # a panel is redrawn only when every table it reads is recomputed
+        return all(table_group(study, t) in keep for r in panel.rows for t in (r.table, r.reference_table) if t)
+
     return dataclasses.replace(study, groups=[g for g in study.groups if g.id in keep], selected=tuple(ids),
-                               claims=[c for c in study.claims if kept(c)], calibrations=kept_calibrations)
+                               claims=[c for c in study.claims if kept(c)], calibrations=kept_calibrations,
+                               panels=[p for p in study.panels if whole(p)])
 
 
 def study_command(study: Study, groups: list[str]) -> str:

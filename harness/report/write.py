@@ -18,6 +18,7 @@ import numpy as np
 import pandas as pd
 
 from pcverify.harness.judge import verdict
+from pcverify.harness.judge.side_by_side import panel_table
 from pcverify.harness.judge.tables import cells_table
 from pcverify.harness.report import figures, page
 from pcverify.harness.report.findings import STATES, findings, summary_lines
@@ -152,6 +153,10 @@ def write_study_report(study: Any, results: list[dict[str, Any]], out: Path, run
             section["tables"].append(f"{name}.csv")
         all_tables.update(tables)
         manifest["sections"].append(section)
+    for panel in getattr(study, "panels", []):  # after every group: a panel reads their tables
+        _write_table(panel_table(panel, all_tables), folder / panel.id)
+        manifest["sections"].append({"id": panel.id, "title": panel.title, "tables": [f"{panel.id}.csv"],
+                                     "figures": [], "vtu": []})
     cells = pd.concat(group_cells, ignore_index=True) if group_cells else pd.DataFrame()
     manifest["orders"] = _orders(study, all_tables)
     table = None

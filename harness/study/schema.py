@@ -442,13 +442,42 @@ MUTANT = Table("[[mutant]]", (
           shape="value or list", min_items=0),
 ), key="name", one_of=("find", "diff"))
 
+PANEL_ROW = Table("[[panel.row]]", (
+    Field("label", "text", "the quantity, as the panel shows it (with its unit)", pattern=r"(?s).{1,120}",
+          required=True),
+    Field("table", "text", "the table its values come from: a group's table name, e.g. G-cells or G-levels",
+          required=True),
+    Field("metric", "text", "the column shown", required=True),
+    Field("select", "table", "the rows read: { column = value or [values] }; one row per solver is shown",
+          values=TEXT_TABLE, default={}),
+    Field("scale", "real", "values and reference are multiplied by it (1e-9: Pa to GPa)", low=0.0, low_open=True,
+          default=1.0),
+    Field("reference", "real", "the reference value (in the table's unit, before scale)"),
+    Field("reference_table", "text", "a table whose value is the reference (instead of a number)"),
+    Field("reference_metric", "text", "the column of reference_table read", default="extrapolated"),
+    Field("reference_select", "table", "the row of reference_table read: { column = value }", values=TEXT_TABLE,
+          default={}),
+    Field("reference_kind", "text", "the kind of reference the number stands on", choices=REFERENCE_KINDS,
+          required=True),
+), key="label", one_of=("reference", "reference_table"))
+PANEL = Table("[[panel]]", (
+    Field("id", "text", "names the panel's table (<id>.csv) and its section in the report", hint=ID.hint,
+          pattern=SAFE_NAME, required=True, unique=True),
+    TITLE,
+    Field("solvers", "text", "the solvers side by side, one column each (the tables' solver column)",
+          hint="a solver name", shape="list", required=True),
+    Field("row", "tables", "the quantities, one row each", table=PANEL_ROW, required=True),
+), key="id")
+
 TABLES = {"scene": SCENE, "group": GROUP, "claim": CLAIM, "calibration": CALIBRATION,
-          "mutant": MUTANT}  # [[<name>]] tables
+          "mutant": MUTANT, "panel": PANEL}  # [[<name>]] tables
 WHAT_TABLES_ARE = {"scene": "scenes the study defines from the shipped building blocks",
                    "group": "groups of cells: one scene, its solvers, resolutions and parameters, and an analysis",
                    "claim": "statements judged on the study's tables: pass, fail or inconclusive",
                    "calibration": "a solver's free parameters fitted on some cells and judged on others",
-                   "mutant": "deliberate defects the study's claims should catch (pcverify mutate)"}
+                   "mutant": "deliberate defects the study's claims should catch (pcverify mutate)",
+                   "panel": "quantities of several solvers and their reference side by side, read from the groups' "
+                            "tables (shown in the report, not judged)"}
 STUDY = Table("a study file", (
     NAME, Field("title", "text", "the study's heading in the report (default: the file's name without .toml)"),
     Field("plugins", "text", "modules imported in every worker (a module beside the study file needs no install)",

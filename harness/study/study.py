@@ -22,6 +22,7 @@ from pcverify.harness.study.calibspec import Calibration, parse_calibrations
 from pcverify.harness.study.catalogue import reference_of, register_scene, spec_from_table
 from pcverify.harness.study.claims import Claim, parse_claims
 from pcverify.harness.study.mutants import Mutant, parse_mutants
+from pcverify.harness.study.panels import Panel, parse_panels
 from pcverify.harness.study.plugins import load_plugins
 from pcverify.harness.study.schema import GROUP, MAX_CELLS, NAME, SCENE, as_list, check_value, row_where
 from pcverify.harness.study.shipped import study_path
@@ -104,6 +105,7 @@ class Study:
     selected: tuple[str, ...] = ()  # `--group` ids: a report of this study merges with the study's full report
     mutants: list[Mutant] = field(default_factory=list)  # its own [[mutant]] tables (`pcverify mutate`)
     shipped_mutants: tuple[str, ...] = ()  # shipped solvers whose catalogued mutants it is run against too
+    panels: list[Panel] = field(default_factory=list)  # quantities of several solvers side by side (the report)
 
     @property
     def plugin_folder(self) -> str | None:
@@ -146,8 +148,9 @@ def load_study(name_or_path: str, allow_large: bool = False) -> Study:
         if solver not in SHIPPED:
             raise SceneError(f"study file {path.name}: shipped_mutants = {solver!r} is not a shipped solver; "
                              f"allowed: one of {', '.join(sorted(SHIPPED))}")
+    panels = parse_panels(doc.get("panel", []), f"study file {path.name}", [g.id for g in groups])
     return Study(name, doc.get("title", path.stem), groups, claims, plugins, path.resolve(),
-                 calibrations, mutants=mutants, shipped_mutants=shipped)
+                 calibrations, mutants=mutants, shipped_mutants=shipped, panels=panels)
 
 
 def study_name(doc: dict[str, Any], path: Path) -> str:
