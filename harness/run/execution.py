@@ -257,16 +257,28 @@ def run_cell(cell: Cell, raise_scene_errors: bool = False, time_limit: float | N
 
 
 def _result(cell: Cell, outcome: Outcome, limit: float) -> dict[str, Any]:
-    """A worker's outcome as the cell's result."""
+    """A worker's outcome as the cell's result; a failure's reason ends with the last error line the solve
+    printed when the reason does not say it already (a library that prints its error, then aborts or raises a
+    generic exception)."""
     if outcome.kind == "returned":
         if _SCENE_ERROR in outcome.value:
             raise SceneError(outcome.value[_SCENE_ERROR])
-        return outcome.value
+        result = outcome.value
+        if result.get("status") == "failed" and isinstance(result.get("reason"), str):
+            result = {**result, "reason": _with_printed(result["reason"], outcome.error_line)}
+        return result
     if outcome.kind == "timed-out":
-        return _failed(cell, outcome.reason, time_limit_s=limit)
+        return _failed(cell, _with_printed(outcome.reason, outcome.error_line), time_limit_s=limit)
     if outcome.kind == "died":
-        return _failed(cell, outcome.reason)
+        return _failed(cell, _with_printed(outcome.reason, outcome.error_line))
     return _failed(cell, f"its worker process could not run it: {outcome.reason}")
+
+
+def _with_printed(reason: str, line: str) -> str:
+    """`reason`, then "; it printed: LINE" unless the line is empty or the reason holds it already."""
+    if not line or " ".join(line.split()) in " ".join(reason.split()):
+        return reason
+    return f"{reason}; it printed: {line}"
 
 
 def _indexed(i: int, cell: Cell) -> tuple[int, dict[str, Any]]:

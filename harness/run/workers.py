@@ -6,12 +6,14 @@ runs past it is killed and replaced, its task getting the outcome that says so. 
 from this process when first needed and serves task after task, so compiled kernels stay warm and the serial
 timed pass warms up and times in one process (`Pool.run_one` takes the first idle worker).  A dead worker
 names its one task; only when other workers were busy beside it (the OOM killer picks the largest process) is
-the task run again alone before it is called the culprit.  A worker prints to stderr, ignores Ctrl-C and exits
-when the study's process has gone.  Each task starts from the worker's state as it was forked: its working
-folder, environment, signal handlers and file descriptors 0-2 are put back after every task (a worker whose
-state cannot be put back ends once it has replied), and the processes a task started end with it: a worker
-leads a process group of its own, whose other members are killed when a task ends and with the worker when it
-is retired.
+the task run again alone before it is called the culprit.  A worker prints to stderr through a pipe that the
+study's process drains as it waits (passing the bytes on to its own stderr at once), so the last error line a
+task printed (LAMMPS's "ERROR: ..." before it aborts, say) can be put into the reason of its failure; a worker
+ignores Ctrl-C and exits when the study's process has gone.  Each task starts from the worker's state as it
+was forked: its working folder, environment, signal handlers and file descriptors 0-2 are put back after every
+task (a worker whose state cannot be put back ends once it has replied), and the processes a task started end
+with it: a worker leads a process group of its own, whose other members are killed when a task ends and with
+the worker when it is retired.
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ import io
 import multiprocessing
 import os
 import pickle
+import re
 import signal
 import sys
 import time
@@ -35,6 +38,8 @@ from typing import Any
 from pcverify.harness.run.interrupt import STUDY_PID, deferred_interrupts, ignore_sigint_in_worker
 
 STOP_SIGNALS = {signal.SIGINT, signal.SIGTERM}
+ERROR_LINE = re.compile(r"\b(ERROR|Error|error|FATAL|Fatal|fatal|Abort|abort)\b")  # a line that says what failed
+OUTPUT_KEPT = 16384  # bytes of a task's output kept to find its last error line
 _FORK = multiprocessing.get_context("fork")  # a worker inherits the imported modules: no start-up import
 _KEEP: list[Any] = []  # a worker's inherited std streams, kept so that their buffers are never flushed twice
 
@@ -47,6 +52,7 @@ class Outcome:
     kind: str
     value: Any = None
     reason: str = ""
+    error_line: str = ""  # the last line the task printed that names an error (`ERROR_LINE`), if any
 
 
 Task = tuple[Any, Callable[..., Any], tuple[Any, ...]]  # (tag, function, arguments)
@@ -61,6 +67,8 @@ class _Worker:
     started: float = 0.0
     shared: bool = False  # another worker was busy while this task ran
     task: Task | None = None
+    output: int = -1  # the read end of the pipe that is the worker's stderr (and stdout)
+    printed: bytearray = field(default_factory=bytearray)  # the end of what the current task printed
 
 
 @dataclass
@@ -94,14 +102,19 @@ class Pool:
                         self._send(self._idle(busy), queue.popleft(), busy)
                 now = time.monotonic()
                 timeout = max(0.0, min(w.started + time_limit for w in busy) - now)
-                ready = set(wait([w.conn for w in busy] + [w.process.sentinel for w in busy], timeout))
+                ready = set(wait([w.conn for w in busy] + [w.process.sentinel for w in busy]
+                                 + [w.output for w in self.workers if w.output >= 0], timeout))
+                for w in list(self.workers):
+                    if w.output in ready:
+                        _drain(w)
                 for w in list(busy):
                     if w.conn in ready or w.process.sentinel in ready:
                         outcome = self._collect(w)
                     elif time.monotonic() - w.started >= time_limit:
+                        _drain(w)
                         self._retire(w)
                         outcome = Outcome("timed-out", reason=f"exceeded the time limit of {time_limit:g} s "
-                                          "(its worker process was killed)")
+                                          "(its worker process was killed)", error_line=_error_line(w.printed))
                     else:
                         continue
                     busy.remove(w)
@@ -128,8 +141,12 @@ class Pool:
             with contextlib.suppress(Exception):
                 stream.flush()
         mine, theirs = _FORK.Pipe()
+        output, stderr = os.pipe()
+        os.set_blocking(output, False)
         others = [w.conn for w in self.workers]
-        process = _FORK.Process(target=_serve, args=(theirs, mine, others, os.getpid()), name="pcverify-worker")
+        closed = [output, *(w.output for w in self.workers if w.output >= 0)]  # the worker's: only its stderr
+        process = _FORK.Process(target=_serve, args=(theirs, mine, others, os.getpid(), stderr, closed),
+                                name="pcverify-worker")
         # Ctrl-C and SIGTERM wait until the fork is done: the study's handler raises KeyboardInterrupt, which
         # inside the fork's own hooks (logging's at-fork lock release) is printed as a traceback and lost
         # (and, delivered to another thread, they are only remembered until the fork is done)
@@ -140,14 +157,17 @@ class Pool:
         finally:
             signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
         theirs.close()
-        worker = _Worker(process, mine)
+        os.close(stderr)
+        worker = _Worker(process, mine, output=output)
         self.workers.append(worker)
         return worker
 
     def _send(self, w: _Worker, task: Task, busy: list[_Worker]) -> None:
         tag, fn, args = task
         self._seq += 1
+        _drain(w)  # what it printed since its last task is not this task's
         w.tag, w.seq, w.task, w.started, w.shared = tag, self._seq, task, time.monotonic(), bool(busy)
+        w.printed.clear()
         for other in busy:
             other.shared = True
         busy.append(w)
@@ -161,21 +181,28 @@ class Pool:
             pass  # the worker died meanwhile: its sentinel says so
 
     def _collect(self, w: _Worker) -> Outcome:
-        """The finished task's outcome: its reply, or how its worker died."""
+        """The finished task's outcome: its reply, or how its worker died (with the last error line it printed)."""
         try:
             if w.conn.poll():
                 seq, kind, payload = w.conn.recv()
                 if seq == w.seq:
-                    return Outcome("returned", payload) if kind == "ok" else Outcome("raised", reason=payload)
+                    _drain(w)  # everything it printed before replying is in the pipe by now
+                    line = _error_line(w.printed)
+                    return (Outcome("returned", payload, error_line=line) if kind == "ok"
+                            else Outcome("raised", reason=payload, error_line=line))
         except (EOFError, OSError, pickle.UnpicklingError, ValueError, TypeError):
             pass
+        with contextlib.suppress(Exception):
+            w.process.join(1.0)  # its exit code, and the last of its output in the pipe
+        _drain(w)
         self._retire(w)
         return Outcome("died", reason=f"its worker process ended without a result "
-                                      f"({exit_description(w.process.exitcode)})")
+                                      f"({exit_description(w.process.exitcode)})", error_line=_error_line(w.printed))
 
     def _retire(self, w: _Worker) -> None:
         """Kill a worker and the processes of its group (its tasks' children; no-op if they have ended) and forget
-        it."""
+        it (what it printed passed on first)."""
+        _drain(w)
         with contextlib.suppress(Exception):
             if w.process.pid is not None and os.getpgid(w.process.pid) == w.process.pid:
                 os.killpg(w.process.pid, signal.SIGKILL)
@@ -185,6 +212,10 @@ class Pool:
             w.process.join(5.0)
         with contextlib.suppress(Exception):
             w.conn.close()
+        if w.output >= 0:
+            with contextlib.suppress(OSError):
+                os.close(w.output)
+            w.output = -1
         if w in self.workers:
             self.workers.remove(w)
 
@@ -192,6 +223,37 @@ class Pool:
         """Stop every worker of this pool."""
         for w in list(self.workers):
             self._retire(w)
+
+
+def _drain(w: _Worker) -> None:
+    """Pass on what worker `w` printed to this process's stderr (file descriptor 2, as if the worker had written
+    there) and keep its end for the current task's error line."""
+    while w.output >= 0:
+        try:
+            data = os.read(w.output, 65536)
+        except (BlockingIOError, InterruptedError):
+            return
+        except OSError:
+            data = b""
+        if not data:  # the worker and everything that held its stderr have ended
+            with contextlib.suppress(OSError):
+                os.close(w.output)
+            w.output = -1
+            return
+        w.printed += data
+        del w.printed[:-OUTPUT_KEPT]
+        view = memoryview(data)
+        with contextlib.suppress(OSError):
+            while view:
+                view = view[os.write(2, view):]
+
+
+def _error_line(printed: bytes) -> str:
+    """The last line of `printed` that names an error (`ERROR_LINE`), stripped; "" if none."""
+    for line in reversed(bytes(printed).decode(errors="backslashreplace").splitlines()):
+        if ERROR_LINE.search(line):
+            return " ".join(line.split())[:500]
+    return ""
 
 
 def exit_description(code: int | None) -> str:
@@ -241,10 +303,16 @@ def _refuse(reason: str) -> Any:
     raise RuntimeError(reason)
 
 
-def _serve(conn: Connection, mine: Connection, others: list[Connection], parent: int) -> None:
+def _serve(conn: Connection, mine: Connection, others: list[Connection], parent: int, stderr: int,
+           closed: list[int]) -> None:
     """A worker's life: receive (seq, pickled (fn, args)), reply (seq, "ok", value) or (seq, "error", text),
-    until the pipe closes."""
+    until the pipe closes.  Its stderr is the pipe `stderr`; `closed` are the parent's read ends it inherited."""
     _die_with(parent)
+    os.dup2(stderr, 2)
+    os.close(stderr)
+    for fd in closed:
+        with contextlib.suppress(OSError):
+            os.close(fd)
     mine.close()
     for other in others:  # the parent's ends of the other workers' pipes: theirs alone
         with contextlib.suppress(OSError):
