@@ -100,7 +100,10 @@ def test_a_study_panel_shows_the_groups_values(tmp_path):
         assert panel[f"{solver} dev"][1] == pytest.approx((median - ref) / abs(ref), rel=1e-12)
     manifest = (out / "side" / "manifest.json").read_text()
     assert '"both.csv"' in manifest
-    assert "FiPy and scikit-fem side by side" in (out / "index.html").read_text()
+    html = (out / "index.html").read_text()
+    assert "FiPy and scikit-fem side by side" in html
+    assert "<details class='table' open><summary><b>both</b>" in html  # a panel is shown, not folded away
+    assert "<details class='table'><summary><b>faces-cells</b>" in html
 
 
 @pytest.mark.parametrize("edit, words", [

@@ -265,10 +265,11 @@ def data_table(df: pd.DataFrame, table_id: str) -> str:
     return "".join(out) + (f"<p class='meta'>{more} more rows in the CSV.</p>" if more > 0 else "")
 
 
-def table_details(df: pd.DataFrame, href: str, table_id: str) -> str:
-    """A collapsed table: its name, size and CSV link in the summary line."""
+def table_details(df: pd.DataFrame, href: str, table_id: str, shown: bool = False) -> str:
+    """A table, collapsed unless `shown`: its name, size and CSV link in the summary line."""
     name = Path(href).stem
-    return (f"<details class='table'><summary><b>{e(name)}</b> ({len(df)} rows × {len(df.columns)} columns) · "
+    opened = " open" if shown else ""
+    return (f"<details class='table'{opened}><summary><b>{e(name)}</b> ({len(df)} rows × {len(df.columns)} columns) · "
             f"<a href='{e(href)}'>CSV</a></summary>{data_table(df, table_id)}</details>")
 
 
@@ -287,7 +288,8 @@ def figure(folder: Path, study: str, name: str) -> str:
 
 
 def study_section(folder: Path, man: dict[str, Any], records: list[dict[str, Any]], read: Any, extra: str = "") -> str:
-    """A study: its verdict counts and command, then per group its figures and collapsed tables, then `extra` (the
+    """A study: its verdict counts and command, then per group its figures and collapsed tables (a panel's shown
+    open), then `extra` (the
     HTML of its mutants and sensitivity, if `pcverify mutate` or `pcverify sensitivity` ran)."""
     name = man["name"]
     mine = [r for r in records if r["study"] == name]
@@ -302,7 +304,8 @@ def study_section(folder: Path, man: dict[str, Any], records: list[dict[str, Any
     for sec in man["sections"]:
         parts.append(f"<h3 id='{anchor(name, sec['id'])}'>{e(sec['title'])}</h3>")
         parts += [figure(folder, name, f) for f in sec["figures"]]
-        parts += [table_details(read(folder / t), f"{name}/{t}", anchor(name, Path(t).stem)) for t in sec["tables"]]
+        parts += [table_details(read(folder / t), f"{name}/{t}", anchor(name, Path(t).stem), bool(sec.get("open")))
+                  for t in sec["tables"]]
         if sec.get("vtu"):
             parts.append(f"<p class='meta'>VTU point clouds (ParaView): {len(sec['vtu'])} files under "
                          f"<a href='{e(name)}/vtu/'>{e(name)}/vtu/</a></p>")

@@ -156,7 +156,7 @@ def write_study_report(study: Any, results: list[dict[str, Any]], out: Path, run
     for panel in getattr(study, "panels", []):  # after every group: a panel reads their tables
         _write_table(panel_table(panel, all_tables), folder / panel.id)
         manifest["sections"].append({"id": panel.id, "title": panel.title, "tables": [f"{panel.id}.csv"],
-                                     "figures": [], "vtu": []})
+                                     "figures": [], "vtu": [], "open": True})
     cells = pd.concat(group_cells, ignore_index=True) if group_cells else pd.DataFrame()
     manifest["orders"] = _orders(study, all_tables)
     table = None
