@@ -269,10 +269,17 @@ def cycle_of(rows: Rows, speed: float, slip_speed: float = 0.1, rest_speed: floa
 
 
 @functools.lru_cache(maxsize=64)
-def _contact_cycle(scene: Scene, spacing: float, kt: float, damping: float) -> tuple[tuple[str, float], ...]:
+def _contact_rows(scene: Scene, spacing: float, kt: float, damping: float) -> Rows:
     contacts = slider_contacts(scene, spacing)
-    rows = contact_block(setting(scene), contacts, kt, scene.contact.duration, damping=damping)
-    return tuple(cycle_of(rows, scene.contact.speed).items())
+    return contact_block(setting(scene), contacts, kt, scene.contact.duration, damping=damping)
+
+
+def _shear_stiffness(scene: Scene, spacing: float, kt: float | None) -> float:
+    """kt (Pa/m) as given, or the bonded pair's shear stiffness 2 G / spacing, G = E / (2 (1 + nu))."""
+    if kt is not None:
+        return float(kt)
+    mat = scene.material
+    return 2.0 * mat.youngs_modulus / (2.0 * (1.0 + mat.poisson_ratio)) / spacing
 
 
 def contact_cycle(scene: Scene, spacing: float, kt: float | None = None, damping: float = CONTACT_DAMPING
@@ -280,10 +287,20 @@ def contact_cycle(scene: Scene, spacing: float, kt: float | None = None, damping
     """The cycle (`cycle_of`) of the rigid block on the contacts of the scene's slider at the lattice spacing
     (m), pulled at its centre of mass for the scene's duration; kt (Pa/m) by default the bonded pair's shear
     stiffness 2 G / spacing, G = E / (2 (1 + nu))."""
-    if kt is None:
-        mat = scene.material
-        kt = 2.0 * mat.youngs_modulus / (2.0 * (1.0 + mat.poisson_ratio)) / spacing
-    return dict(_contact_cycle(scene, float(spacing), float(kt), float(damping)))
+    rows = _contact_rows(scene, float(spacing), _shear_stiffness(scene, spacing, kt), float(damping))
+    return cycle_of(rows, scene.contact.speed)
+
+
+def _history(scene: Scene, t: np.ndarray, summary: dict[str, Any] | None = None) -> tuple[np.ndarray, str]:
+    """The spring force the history figure draws under a run: the rigid block on the slider's contacts at the
+    run's lattice spacing and contact stiffness when its summary reports them (what the contact-block claims
+    judge), else the rigid block's closed form."""
+    spacing = number((summary or {}).get("lattice_spacing"))
+    if spacing is None or spacing <= 0:
+        return spring_force(t, *setting(scene)), "rigid block (analytic)"
+    kt = number((summary or {}).get("contact_stiffness_Pa_per_m"))
+    rt, force, _ = _contact_rows(scene, spacing, _shear_stiffness(scene, spacing, kt), CONTACT_DAMPING)
+    return np.interp(t, rt, force), f"rigid block on the slider's contacts (spacing {spacing * 1e3:.3g} mm)"
 
 
 SCALARS = (
@@ -420,7 +437,7 @@ STICK_SLIP = SceneSpec(
     ),
     lambda p: _slider("stick-slip", p, {"stick-slip"}, normal_stress=p["normal_stress"], speed=p["speed"],
                       spring_stiffness=p["spring_stiffness"], mu_static=p["mu_static"], mu_kinetic=p["mu_kinetic"]),
-    Reference(scalars=_cycle, history=lambda scene, t: (spring_force(t, *setting(scene)), "rigid block (analytic)")),
+    Reference(scalars=_cycle, history=_history),
     SCALARS)
 INCLINE = SceneSpec(
     "incline",

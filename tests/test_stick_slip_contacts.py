@@ -14,7 +14,8 @@ import math
 import numpy as np
 import pytest
 
-from pcverify.harness.study.catalogue import make_scene
+from pcverify.harness.report.figures import _takes_summary
+from pcverify.harness.study.catalogue import get_spec, make_scene
 from pcverify.references import contact as ref
 from pcverify.solvers.particles.mca import stick_slip as mss
 from pcverify.solvers.particles.mca.automata import body_automata
@@ -115,3 +116,23 @@ def test_the_compare_step_holds_the_contact_blocks_cycle() -> None:
     assert got["expected"] == pytest.approx(ref.contact_cycle(SCENE, 0.01 / 3)["spring_peak_N"], rel=1e-12)
     assert got["error"] == pytest.approx(abs(36.0 / got["expected"] - 1.0), rel=1e-12)
     assert not any(k.endswith("_given_contacts") for k in scalar_errors(SCENE, {"spring_peak_N": 36.0}))
+
+
+def test_the_history_figure_draws_the_block_on_the_runs_contacts() -> None:
+    """Under a run the history figure draws the reference the contact-block claims judge: given the run's
+    lattice spacing (n = 4: 10 mm / 3) and contact stiffness, the block on the slider's contacts at that
+    spacing (its first cycle tops out at 35.6 N: the pull's moment above the interface), not the closed form's
+    mu_s N = 40 N, which it draws without a summary; and the figure passes the cell's summary on."""
+    curve = get_spec("stick-slip").reference.history
+    assert _takes_summary(curve) and not _takes_summary(lambda scene, t: None)
+    a = 0.01 / 3
+    t = np.linspace(0.0, SCENE.contact.duration, 7001)
+    block, label = curve(SCENE, t, {"lattice_spacing": a, "contact_stiffness_Pa_per_m": KT / a})
+    closed, closed_label = curve(SCENE, t)
+    rt, force, _ = ref.contact_block(ref.setting(SCENE), ref.slider_contacts(SCENE, a), KT / a,
+                                     SCENE.contact.duration, damping=ref.CONTACT_DAMPING)
+    assert np.allclose(block, np.interp(t, rt, force), rtol=0, atol=1e-9)
+    first = t < 2.1e-3  # the first cycle of both
+    closed_cycle = ref.cycle(*ref.setting(SCENE))  # the closed form overshoots mu_s N while it slips
+    assert block[first].max() < 36.0 and closed[first].max() == pytest.approx(closed_cycle.largest, rel=1e-4)
+    assert "contacts" in label and "analytic" in closed_label

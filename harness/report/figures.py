@@ -11,10 +11,12 @@ for by name (its `figures` list).
 
 from __future__ import annotations
 
+import inspect
 import io
 import json
 import math
 import textwrap
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -638,7 +640,10 @@ def history(results: list[dict[str, Any]], path: Path, title: str) -> bool:
             spec = get_spec(r["scene"])
             curve = spec.reference.history if spec.reference is not None else None
             t = np.linspace(0.0, float(rows[-1, 0]) if len(rows) else 0.0, 2000)
-            found = curve(spec.make(**r.get("scene_params", {})), t) if curve is not None and len(rows) else None
+            found = None
+            if curve is not None and len(rows):
+                scene = spec.make(**r.get("scene_params", {}))
+                found = curve(scene, t, r.get("summary") or {}) if _takes_summary(curve) else curve(scene, t)
             if found is not None:
                 plot_once(ax, t, found[0], "", found[1], **CONTINUUM_STYLES[1])
         ax.set_title(f"n = {n}", fontsize=8)
@@ -647,6 +652,16 @@ def history(results: list[dict[str, Any]], path: Path, title: str) -> bool:
         ax.grid(True, alpha=0.3)
         legend_outside(ax)
     return _save(fig, path, title)
+
+
+def _takes_summary(curve: Callable[..., Any]) -> bool:
+    """Whether a reference's history curve takes the cell's summary as a third argument (it may be drawn for
+    the run's own lattice; a curve of two arguments is the scene's alone)."""
+    try:
+        inspect.signature(curve).bind(None, None, None)
+    except (TypeError, ValueError):
+        return False
+    return True
 
 
 GROUP_FIGURES = {"edge-profiles": edge_profiles, "render-3d": render_3d, "history": history}

@@ -41,13 +41,14 @@ class Reference:
     - `scalars(scene, summary)`: {name: expected value} of summary scalars; `summary` is the cell's own
       summary (a reference may be conditional on a measured value, e.g. the kinetic half of a stick-slip
       cycle given the measured breakaway force), {} when asked before any solve;
-    - `history(scene, t)`: (values, label) of the reference curve drawn under the history figure at times t,
-      or None;
+    - `history(scene, t)` or `history(scene, t, summary)`: (values, label) of the reference curve drawn under
+      the history figure at times t, or None; a curve of three arguments gets the cell's summary, so it may be
+      drawn for the run's own lattice (the stick-slip block on the slider's contacts at its spacing);
     - `kind`: what the numbers stand on (analytic, theory, paper)."""
 
     field: Callable[[Scene, np.ndarray], np.ndarray | None] | None = None
     scalars: Callable[[Scene, dict[str, Any]], dict[str, float]] | None = None
-    history: Callable[[Scene, np.ndarray], tuple[np.ndarray, str] | None] | None = None
+    history: Callable[..., tuple[np.ndarray, str] | None] | None = None
     kind: str = "analytic"
 
 
