@@ -20,8 +20,8 @@ def balance_error(stored: ArrayLike, work: Sequence[ArrayLike], normalisation: f
     fraction, and each solver reports a different one (different quantities, kept apart):
     - largest energy flow (macromolecule, `simulate.energy_balance_error`): max(|E_start|, |E_end|,
       |W_drive|, |W_bath|, dissipated, 1e-300), the largest energy that was held, came in or went out;
-    - peak elastic energy (MCA fracture, `energy_error` of the undamped elastic phase): max(max U, 1e-300),
-      the strain energy the loading stored before the first link broke;
+    - peak elastic energy (MCA fracture, `energy_error` of the elastic phase; damped, it is the loss):
+      max(max U, 1e-300), the strain energy the loading stored before the first link broke;
     - window work (MCA sliding contact, `energy_balance_error`): |work of the drive and the load over the
       sliding window|, the energy put in while sliding (0 when nothing was: NaN).
     """
