@@ -111,8 +111,7 @@ class Pool:
                     if w.conn in ready or w.process.sentinel in ready:
                         outcome = self._collect(w)
                     elif time.monotonic() - w.started >= time_limit:
-                        _drain(w)
-                        self._retire(w)
+                        self._retire(w)  # what it printed is drained first
                         outcome = Outcome("timed-out", reason=f"exceeded the time limit of {time_limit:g} s "
                                           "(its worker process was killed)", error_line=_error_line(w.printed))
                     else:
@@ -193,8 +192,7 @@ class Pool:
         except (EOFError, OSError, pickle.UnpicklingError, ValueError, TypeError):
             pass
         with contextlib.suppress(Exception):
-            w.process.join(1.0)  # its exit code, and the last of its output in the pipe
-        _drain(w)
+            w.process.join(1.0)  # its exit code, and the last of its output in the pipe (drained by _retire)
         self._retire(w)
         return Outcome("died", reason=f"its worker process ended without a result "
                                       f"({exit_description(w.process.exitcode)})", error_line=_error_line(w.printed))
