@@ -312,6 +312,8 @@ SCALARS = (
            "every energy term changes) per the drive's and the load's work there"),
     Scalar("spring_peak_N", "N", "spring force at breakaway, mean over the cycles after the first (also "
            "spring_trough_N, force_drop_N, spring_max_N; stick_s, slip_s, period_s in s; slip_velocity_peak in m/s)"),
+    Scalar("largest_spring_force_N", "N", "the largest spring force over the whole run, every row (up to a blow-up, "
+           "if one stops the run): defined with or without a cycle"),
     Scalar("slide_acceleration", "m/s^2", "the slider's acceleration down an incline (0 while it sticks)"),
     Scalar("heat_share_base", "", "share of the friction heat the lower block holds at t_end"),
     Scalar("interface_rise_base_ratio", "", "rise next to the plane in the base against two semi-infinite solids "

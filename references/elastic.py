@@ -66,6 +66,32 @@ def mca_rotational_hz(shear_modulus: float, density: float, spacing: float, krot
     return math.sqrt(lowest_eigenvalue(diag * scale**2, -spring * scale[:-1] * scale[1:])) / (2 * math.pi)
 
 
+def rod_axial_hz(youngs_modulus: float, density: float, length: float) -> float:
+    """Lowest axial eigenfrequency (Hz) of a rod clamped at one end, free at the other, in elementary rod theory
+    (plane sections, no lateral inertia): c / (4 L), c = sqrt(E / rho).  The 3-D bar clamped over its face is
+    stiffer (the clamp stops the face's Poisson contraction) and its lateral inertia makes it softer; both are
+    of order (nu a / L)^2."""
+    if min(youngs_modulus, density, length) <= 0:
+        raise ValueError("youngs_modulus, density and length must be positive")
+    return math.sqrt(youngs_modulus / density) / (4.0 * length)
+
+
+def saint_venant_torsion_hz(shear_modulus: float, density: float, width: float, height: float,
+                            length: float) -> float:
+    """Lowest torsional eigenfrequency (Hz) of a prismatic bar of w x h section clamped at one end, free at the
+    other, in Saint-Venant's theory (free warping): sqrt(G J / (rho I_p)) / (4 L), J = beta b c^3 (b >= c the
+    sides, beta from the series of the stress function), I_p = w h (w^2 + h^2) / 12.  A clamp that stops the
+    warping of its face makes the 3-D bar a little stiffer."""
+    if min(shear_modulus, density, width, height, length) <= 0:
+        raise ValueError("shear_modulus, density, width, height and length must be positive")
+    b, c = max(width, height), min(width, height)
+    odd = np.arange(1, 400, 2, dtype=float)
+    beta = (1.0 - 192.0 / math.pi**5 * (c / b) * float(np.sum(np.tanh(odd * math.pi * b / (2 * c)) / odd**5))) / 3
+    torsion_constant = beta * b * c**3
+    polar = width * height * (width**2 + height**2) / 12.0
+    return math.sqrt(shear_modulus * torsion_constant / (density * polar)) / (4.0 * length)
+
+
 def lowest_eigenvalue(diag: np.ndarray, off: np.ndarray) -> float:
     """The lowest eigenvalue of the symmetric tridiagonal matrix (diag, off), to the last bit, by bisection on the
     Sturm count (a negative pivot of A - s I: an eigenvalue below s); numpy only (the catalogue imports no scipy)."""

@@ -176,6 +176,14 @@ def lowest_of_each_kind(kinds: list[str], freqs: np.ndarray) -> dict[str, float]
     return out
 
 
+def kind_summary(kinds: list[str], freqs: np.ndarray) -> dict[str, Any]:
+    """What a solver's summary reports of its classified modes: f_<kind>_hz (`lowest_of_each_kind`) and
+    continuum_frequencies_hz, the frequencies of the modes a continuum has (the rotational ones left out), in
+    order: a spectrum to compare across models whatever kinds the classifier gives the rest."""
+    continuum = np.asarray(freqs, dtype=float)[np.array([kind != "rotational" for kind in kinds], dtype=bool)]
+    return {"continuum_frequencies_hz": continuum} | lowest_of_each_kind(kinds, freqs)
+
+
 def _times(mass: Any, phi: np.ndarray) -> np.ndarray:
     """M phi for M given as its diagonal (ndof,) or as a matrix."""
     return mass[:, None] * phi if isinstance(mass, np.ndarray) and mass.ndim == 1 else mass @ phi

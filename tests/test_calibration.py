@@ -253,13 +253,14 @@ def test_report_replays_the_calibration_from_the_cache_alone(tmp_path):
 
 def test_shipped_calibration_study_is_well_formed():
     """The shipped study: five macromolecule parameters on one calibration cell with ten held-out cells, and
-    MCA's krot with eleven (torsion and axial at n = 4 share the fitted run, flagged, not refused)."""
+    MCA's krot with fifteen (torsion, axial and the third mode of a continuum kind at n = 4 share the fitted run,
+    flagged, not refused)."""
     study = load_study("calibration")
     mm, mca = study.calibrations
     assert [p.name for p in mm.parameters] == ["damping_ratio", "drive_amplitude", "drive_frequency", "f_top", "p"]
     assert [(c.scene.name, c.n) for c in mm.calibrate] == [("bar-heat-faces", 4)]
     assert len(mm.validate) == 10 and mm.tolerance == 0.10
-    assert [p.name for p in mca.parameters] == ["krot"] and len(mca.validate) == 11 and mca.tolerance == 0.05
+    assert [p.name for p in mca.parameters] == ["krot"] and len(mca.validate) == 15 and mca.tolerance == 0.05
     assert {c.key() for c in mca.calibrate} <= {c.key() for c in mca.validate}
     assert not {c.measure() for c in mca.calibrate} & {c.measure() for c in mca.validate}
 

@@ -80,6 +80,9 @@ def test_the_rule_names_rotational_whatever_the_parity_and_leaves_translations_a
     assert modes.rotational("bending-x", {"axial": 0.0}) == "bending-x"  # no rotations: scikit-fem's layout
     assert modes.lowest_of_each_kind(["bending-x", "rotational", "axial"], np.arange(3.0)) == {
         "f_bending_x_hz": 0.0, "f_rotational_hz": 1.0, "f_axial_hz": 2.0}
+    summary = modes.kind_summary(["bending-x", "rotational", "axial"], np.arange(3.0))
+    assert list(summary.pop("continuum_frequencies_hz")) == [0.0, 2.0]  # the rotational mode left out
+    assert summary == modes.lowest_of_each_kind(["bending-x", "rotational", "axial"], np.arange(3.0))
 
 
 def test_the_analytic_chain_reduces_to_the_interior_formula():
@@ -118,3 +121,14 @@ def test_the_elasticity_claims_pin_the_chain_and_allow_three_krot():
     mutants = tomllib.loads((STUDIES / "elasticity.mutants.toml").read_text())["mutant"]
     halved = next(m for m in mutants if m["name"] == "mca-rotational-inertia-halved")
     assert set(halved["expect"]) == {c["id"] for c in claims}
+
+
+def test_the_continuum_spectrum_leaves_out_the_rotational_modes(calibration_cell):
+    """The modes a continuum has, in order: bending pair, torsion, ..., however many rotational modes lie between
+    (the elasticity study's claim on fc3_hz reads the third)."""
+    kinds = calibration_cell["mode_kinds"]
+    spectrum = calibration_cell["continuum_frequencies_hz"]
+    assert len(spectrum) == 8
+    assert list(spectrum) == [f for f, k in zip(calibration_cell["frequencies_hz"], kinds, strict=True)
+                              if k != "rotational"]
+    assert spectrum[2] == pytest.approx(calibration_cell["f_torsion_hz"], rel=1e-15)

@@ -13,13 +13,16 @@ import math
 import re
 
 import numpy as np
+import pandas as pd
 import pytest
 from red_team import check_tally, tally
 from scipy.integrate import solve_ivp
 
 from pcverify.harness.cli import main
 from pcverify.harness.judge.compare import scalar_errors
+from pcverify.harness.judge.verdict import judge
 from pcverify.harness.study.catalogue import make_scene
+from pcverify.harness.study.study import load_study
 from pcverify.references import contact as ref
 from pcverify.scene import Contact, SceneError
 from pcverify.solvers.particles.mca import stick_slip as mss
@@ -78,6 +81,8 @@ def test_the_closed_form_cycle_is_the_rigid_blocks_integrated_directly() -> None
                              ("period_s", c.period, 1e-3), ("slip_s", c.slip, 6e-3), ("stick_s", c.stick, 6e-3),
                              ("slip_velocity_peak", c.slip_velocity, 1e-3)):
         assert m[name] == pytest.approx(exact, rel=tol), name
+    # every slip of the block from mu_s N reaches the same largest force: the bound the study's claim judges with
+    assert m["largest_spring_force_N"] == pytest.approx(c.largest, rel=1e-4)
     assert c.peak == 40.0 and c.drop == pytest.approx(20.0) and c.period == pytest.approx(1.4582854e-3, rel=1e-6)
 
 
@@ -192,3 +197,15 @@ def test_the_regularised_law_does_not_stick(capsys) -> None:
 
 def test_zz_stick_slip_tally() -> None:
     check_tally({"stick-slip scene": 8, "stick-slip contact": 6})
+
+
+def test_the_force_bound_is_judged_on_a_run_a_blow_up_stopped() -> None:
+    """A slider that runs away (a spring pushing it, say) blows up before it makes a cycle: the cycle claims have
+    nothing to read, the bound on every row of the run measures it on the rows kept up to the blow-up."""
+    claim = next(c for c in load_study("stick-slip").claims if c.id == "stick-slip-force-bounded")
+    rows = pd.DataFrame({"group": "cycle", "scene": "stick-slip", "solver": "mca", "n": [4, 6],
+                         "status": ["ok", "unstable"], "reason": ["", "kinetic energy above the blow-up limit"],
+                         "largest_spring_force_N": [38.0, 595.0], "ref.spring_max_N": [40.84, 40.84]})
+    verdicts = {v["case"]: v for v in judge("stick-slip", claim, {"cycle-cells": rows})}
+    assert verdicts["n=4"]["verdict"] == "pass"
+    assert verdicts["n=6"]["verdict"] == "fail" and verdicts["n=6"]["value"] == 595.0

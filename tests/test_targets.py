@@ -130,6 +130,9 @@ PASTED = {
     ("contact-friction", "contact-pressure"): ("70e6", None),
     ("contact-friction", "heating-dissimilar-share"): ("0.41421356237309503", None),
     ("stick-slip", "stick-slip-breakaway"): ("40.0", None),
+    ("stick-slip", "stick-slip-force-bounded"): ("40.8397", None),  # the rigid block's largest force from mu_s N
+    ("elasticity", "continuum-axial-rod-theory"): ("41666.67", None),  # the closed forms in the claims' texts
+    ("elasticity", "continuum-torsion-saint-venant"): ("23462.85", None),
     ("stick-slip", "stick-slip-breakaway-above-kinetic"): ("30.0", None),
     ("stick-slip", "stick-slip-breakaway-nearer-static"): ("35.0", None),
     **{("stick-slip", f"incline-stick-{a}"): ("0.0", None) for a in (15, 18, 20)},

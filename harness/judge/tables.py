@@ -41,10 +41,12 @@ def params_label(result: dict[str, Any], values: bool = True) -> str:
 
 
 def scalars(result: dict[str, Any]) -> dict[str, Any]:
-    """The scalar summary of a cell, with a list of frequencies spread into f1_hz, f2_hz, ..."""
+    """The scalar summary of a cell, with its lists of frequencies spread: all modes into f1_hz, f2_hz, ..., the
+    modes a continuum has (a particle model's rotational modes left out) into fc1_hz, fc2_hz, ..."""
     summary = result.get("summary") or {}
     out = {k: v for k, v in summary.items() if isinstance(v, (int, float)) or v is None}
-    out.update({f"f{k + 1}_hz": f for k, f in enumerate(summary.get("frequencies_hz") or []) if f is not None})
+    for key, prefix in (("frequencies_hz", "f"), ("continuum_frequencies_hz", "fc")):
+        out.update({f"{prefix}{k + 1}_hz": f for k, f in enumerate(summary.get(key) or []) if f is not None})
     return out
 
 

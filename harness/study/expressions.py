@@ -3,7 +3,8 @@ the cell's resolution, e.g. `delta = "3 * h"` (a horizon of three spacings) or `
 
 The names an expression may use: `n` (the lattice resolution), `refine`, `a` (the lattice spacing of the scene's
 box at n, m) and `h` (= a / refine, m).  Numbers, + - * / ** and parentheses, and the functions sqrt, exp, log,
-min, max, abs, round (and, for a claim's target, mca_rotational_hz).  A text is an expression only where the
+min, max, abs, round (and, for a claim's target, the closed forms mca_rotational_hz, rod_axial_hz and
+saint_venant_torsion_hz).  A text is an expression only where the
 parameter is a number (a text parameter keeps its text).
 Each cell gets the value of its own resolution, checked against the parameter's range like any value; the
 expression itself travels with the cell (its key, its tables) so a reader sees "delta=0.0015 (= 3 * h)".
@@ -17,7 +18,7 @@ import operator
 from collections.abc import Callable
 from typing import Any
 
-from pcverify.references.elastic import mca_rotational_hz
+from pcverify.references.elastic import mca_rotational_hz, rod_axial_hz, saint_venant_torsion_hz
 from pcverify.scene import Param, SceneError, shown
 
 NAMES = ("n", "refine", "a", "h")
@@ -26,6 +27,10 @@ FUNCTIONS: dict[str, Callable[..., float]] = {
     # the analytic chain of the MCA bar's lowest rotational mode (a target: shear modulus, density, spacing, krot,
     # and the spacings across, across and along)
     "mca_rotational_hz": lambda g, rho, a, krot, nx, ny, nz: mca_rotational_hz(g, rho, a, krot, (nx, ny, nz)),
+    # the clamped bar's lowest axial (E, rho, length) and torsional (G, rho, width, height, length) frequencies in
+    # elementary rod and Saint-Venant theory: references independent of any mesh and of the mode classifier
+    "rod_axial_hz": rod_axial_hz,
+    "saint_venant_torsion_hz": saint_venant_torsion_hz,
 }
 _BINARY = {ast.Add: operator.add, ast.Sub: operator.sub, ast.Mult: operator.mul, ast.Div: operator.truediv,
            ast.Pow: operator.pow}

@@ -24,7 +24,7 @@ from pcverify.solvers.continuum.grid import HEX_CORNERS, StructuredGrid
 from pcverify.solvers.continuum.linear_solver import SpdSolver, smoothed_aggregation
 from pcverify.solvers.continuum.parameters import SKFEM_ELASTIC
 from pcverify.solvers.continuum.work import ELASTIC_BYTES_PER_DOF, grid_nodes
-from pcverify.solvers.modes import classify, cut_is_complete, lowest_of_each_kind, symmetric_lateral
+from pcverify.solvers.modes import classify, cut_is_complete, kind_summary, symmetric_lateral
 from pcverify.solvers.protocol import Solution, WorkEstimate, effective_params
 
 PARAMETERS = SKFEM_ELASTIC
@@ -344,7 +344,7 @@ class SkfemElastic:
         mphi = mass[free] @ cls.phi
         resid = np.linalg.norm(kphi - mphi * vals[None, :], axis=0) / np.linalg.norm(kphi, axis=0)
         summary: dict[str, Any] = {"frequencies_hz": freqs, "mode_kinds": cls.kinds}
-        summary.update(lowest_of_each_kind(cls.kinds, freqs))
+        summary.update(kind_summary(cls.kinds, freqs))
         extra = {"summary": summary, "mode_parities": cls.parities, "axial_mass_fraction": cls.shares["axial"],
                  "eigen_residuals": resid}
         return mode_shape(cls.phi[:, 0]), extra, solver

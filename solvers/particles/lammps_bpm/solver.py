@@ -20,7 +20,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from pcverify.scene import FaceClamp, FaceSupport, Resolution, Scene, SceneError
-from pcverify.solvers.modes import classify, cut_is_complete, lowest_of_each_kind, symmetric_lateral
+from pcverify.solvers.modes import classify, cut_is_complete, kind_summary, symmetric_lateral
 from pcverify.solvers.protocol import Solution, WorkEstimate, effective_params, read_notes
 
 from .driver import Bpm, LammpsError
@@ -265,7 +265,7 @@ def _modes(scene: Scene, lat: Lattice, p: dict[str, Any]) -> dict[str, Any]:
                    order=(1.0, 0.0), energy=(symmetric_lateral,)).first(count)
     freqs = np.sqrt(np.clip(vals[:count], 0.0, None)) / (2 * np.pi)
     summary: dict[str, Any] = {"frequencies_hz": freqs, "mode_kinds": cls.kinds, "lammps_version": version}
-    summary.update(lowest_of_each_kind(cls.kinds, freqs))
+    summary.update(kind_summary(cls.kinds, freqs))
     eig_s = time.perf_counter() - t0
     work = {"unknowns": nf, "kernel_s": wall + eig_s, "lammps_cpu_s": cpu, "lammps_wall_s": wall,
             "eigensolve_s": eig_s}

@@ -35,7 +35,7 @@ from pcverify.solvers.modes import (
     ModeKinds,
     classify,
     cut_is_complete,
-    lowest_of_each_kind,
+    kind_summary,
     rotational,
     symmetric_lateral,
 )
@@ -482,7 +482,7 @@ def _modes(scene: Scene, aut: Automata, p: dict[str, Any]) -> dict[str, Any]:
     freqs = np.sqrt(np.clip(vals[:keep], 0.0, None)) / (2 * np.pi)
     summary: dict[str, Any] = {"frequencies_hz": freqs, "mode_kinds": cls.kinds,
                                "rotational_mass_fraction": cls.shares.get("rotational", np.zeros(keep))}
-    summary.update(lowest_of_each_kind(cls.kinds, freqs))
+    summary.update(kind_summary(cls.kinds, freqs))
     work = {"unknowns": int(free.size), "kernel_s": time.perf_counter() - t0}
     return {"field": None, "unknowns": int(free.size), "quantity": "frequencies (Hz)", "summary": summary,
             "work": work}

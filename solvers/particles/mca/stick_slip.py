@@ -183,9 +183,11 @@ def _edge(vel: np.ndarray, start: int, step: int, limit: int, still: float) -> i
 
 
 def measure(rows: np.ndarray, speed: float) -> dict[str, Any]:
-    """The cycle measured from the spring's rows (t, force, velocity, u): the module docstring's quantities."""
+    """The cycle measured from the spring's rows (t, force, velocity, u): the module docstring's quantities, and
+    the largest spring force over every row (defined with or without a cycle)."""
+    largest = float(rows[:, 1].max()) if len(rows) else math.nan
     if len(rows) < 2 * MIN_PHASE_ROWS:
-        return {"stick_slip_cycles": 0, "slip_phases": 0, "slipping_share": math.nan}
+        return {"stick_slip_cycles": 0, "slip_phases": 0, "slipping_share": math.nan, "largest_spring_force_N": largest}
     t, force, vel = rows[:, 0], rows[:, 1], rows[:, 2]
     slips = phases(vel > SLIP_SPEED * speed)
     still = REST_SPEED * speed
@@ -197,6 +199,7 @@ def measure(rows: np.ndarray, speed: float) -> dict[str, Any]:
         bounds.append((start, end))
         previous = end
     out: dict[str, Any] = {"slip_phases": len(slips), "slipping_share": float(np.mean(vel > SLIP_SPEED * speed)),
+                           "largest_spring_force_N": largest,
                            "first_peak_N": float(force[bounds[0][0]]) if bounds else float(force.max())}
     cycles: dict[str, list[float]] = {k: [] for k in ("spring_peak_N", "spring_trough_N", "force_drop_N",
                                                       "spring_max_N", "slip_s", "slip_velocity_peak", "stick_s",
