@@ -19,6 +19,7 @@ import numpy as np
 import pytest
 
 import pcverify.solvers.modes as modes
+from pcverify.harness.judge.tables import scalars
 from pcverify.harness.study.catalogue import make_scene
 from pcverify.harness.study.study import load_study
 from pcverify.references.elastic import mca_rotational_hz
@@ -132,3 +133,11 @@ def test_the_continuum_spectrum_leaves_out_the_rotational_modes(calibration_cell
     assert list(spectrum) == [f for f, k in zip(calibration_cell["frequencies_hz"], kinds, strict=True)
                               if k != "rotational"]
     assert spectrum[2] == pytest.approx(calibration_cell["f_torsion_hz"], rel=1e-15)
+
+
+def test_a_cells_table_spreads_both_spectra():
+    """f<k>_hz every mode, fc<k>_hz the modes of a continuum kind: the columns claims and calibrations read."""
+    row = scalars({"summary": {"frequencies_hz": [1.0, 2.0, 3.0], "continuum_frequencies_hz": [1.0, 3.0],
+                               "mode_kinds": ["bending-x", "rotational", "axial"]}})
+    assert {k: v for k, v in row.items() if k.endswith("_hz")} == {"f1_hz": 1.0, "f2_hz": 2.0, "f3_hz": 3.0,
+                                                                  "fc1_hz": 1.0, "fc2_hz": 3.0}
