@@ -200,7 +200,7 @@ def measure(rows: np.ndarray, speed: float) -> dict[str, Any]:
         previous = end
     out: dict[str, Any] = {"slip_phases": len(slips), "slipping_share": float(np.mean(vel > SLIP_SPEED * speed)),
                            "largest_spring_force_N": largest,
-                           "first_peak_N": float(force[bounds[0][0]]) if bounds else float(force.max())}
+                           "first_peak_N": float(force[bounds[0][0]]) if bounds else largest}
     cycles: dict[str, list[float]] = {k: [] for k in ("spring_peak_N", "spring_trough_N", "force_drop_N",
                                                       "spring_max_N", "slip_s", "slip_velocity_peak", "stick_s",
                                                       "period_s")}
