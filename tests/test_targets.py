@@ -127,6 +127,7 @@ PASTED = {
     ("elasticity", "mca-degradation-knee"): ("320e6", None),
     **{("elasticity", c): ("7e9", None) for c in ("mca-plastic-hardening", "mca-degradation-slope")},
     **{("contact-friction", f"sliding-mu-rough-seeds-{w}"): ("0.3477464829275686", None) for w in ("drive", "clamp")},
+    ("contact-friction", "sliding-mu-regular-drive"): ("0.3477464829275686", None),
     ("contact-friction", "contact-pressure"): ("70e6", None),
     ("contact-friction", "heating-dissimilar-share"): ("0.41421356237309503", None),
     ("stick-slip", "stick-slip-breakaway"): ("40.0", None),
