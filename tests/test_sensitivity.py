@@ -109,7 +109,7 @@ def test_a_value_the_solver_refuses_is_not_perturbed_nor_a_blind_spot(doc: dict)
     assert "sens-slab:box.width" not in {b["input"] for b in doc["blind_spots"]}
 
 
-def test_a_case_moves_beyond_its_uncertainty_or_a_thousandth_of_its_tolerance() -> None:
+def test_a_case_moves_beyond_its_uncertainty_or_a_thousandth_of_its_tolerance_or_its_round_off_bound() -> None:
     base = {"case": "", "value": 1.0, "uncertainty": 0.01, "tolerance": 1.0, "verdict": "pass"}
     assert not case_change(base, base | {"value": 1.005})["moved"]
     assert case_change(base, base | {"value": 1.02})["moved"]
@@ -117,6 +117,11 @@ def test_a_case_moves_beyond_its_uncertainty_or_a_thousandth_of_its_tolerance() 
     bound = {"case": "", "value": 0.01, "target": 0.02, "tolerance": 0.0, "verdict": "pass"}  # at most 0.02
     assert not case_change(bound, bound | {"value": 0.010001})["moved"]
     assert case_change(bound, bound | {"value": 0.0101})["moved"]
+    zero = {"case": "", "value": 2.9e-14, "target": 0.0, "tolerance": 2.2e-12, "verdict": "pass",
+            "tolerance_basis": "derived: round-off: exactly 0 in exact arithmetic; at most 1e4 eps"}
+    assert not case_change(zero, zero | {"value": -4.6e-14})["moved"]  # round-off moving within its own bound
+    assert case_change(zero, zero | {"value": 3e-12})["moved"]
+    assert case_change(zero | {"tolerance_basis": "measured: 2.9e-14 (76x)"}, zero | {"value": -4.6e-14})["moved"]
     lost = case_change(base, {"value": None, "verdict": "inconclusive"})
     assert lost["moved"] and lost["verdict_changed"]
 

@@ -38,6 +38,7 @@ STEP = 1e-2  # default relative step
 MAX_STEP = 0.5
 ROUND_OFF = 1e-9  # a move below this share of the value is round-off
 TOLERANCE_SHARE = 1e-3  # a move below this share of the claim's tolerance (or bound) is one it could never notice
+ROUND_OFF_BASIS = "derived: round-off"  # a tolerance so based bounds round-off: a move within it is round-off
 NOT_SOLVER_INPUTS = ("name", "description", "params", "physics")  # a scene's labels and provenance
 BOX = "box"  # the input that scales the whole box (its size at fixed shape: a lattice fits it as before)
 OUTPUTS = ("status", "samples", "summary")  # what a cell's result says of the physics (`output_change`)
@@ -211,14 +212,16 @@ def _finite(value: float) -> float | None:
 
 def case_change(before: dict[str, Any], after: dict[str, Any] | None) -> dict[str, Any]:
     """How one claim case changed: its values, the change, the scale it is held against (the larger uncertainty,
-    ROUND_OFF of the value, TOLERANCE_SHARE of the tolerance, or of the target where the tolerance is 0), `moved`
-    (the change exceeds that scale, or the value appeared or vanished) and `verdict_changed`."""
+    ROUND_OFF of the value, TOLERANCE_SHARE of the tolerance, or of the target where the tolerance is 0, or the
+    whole tolerance where it bounds round-off), `moved` (the change exceeds that scale, or the value appeared or
+    vanished) and `verdict_changed`."""
     after = after or {}
     vb, vp = _number(before.get("value")), _number(after.get("value"))
     unc = [u for u in (_number(before.get("uncertainty")), _number(after.get("uncertainty"))) if math.isfinite(u)]
     bound = abs(_number(before.get("tolerance")) or _number(before.get("target")))  # a tolerance 0: the target bounds
+    share = 1.0 if str(before.get("tolerance_basis") or "").startswith(ROUND_OFF_BASIS) else TOLERANCE_SHARE
     scale = max([*unc, ROUND_OFF * max(abs(vb), abs(vp)) if math.isfinite(vb + vp) else 0.0,
-                 TOLERANCE_SHARE * bound if math.isfinite(bound) else 0.0])
+                 share * bound if math.isfinite(bound) else 0.0])
     delta = vp - vb
     moved = abs(delta) > scale if math.isfinite(delta) else math.isfinite(vb) != math.isfinite(vp)
     return {"case": before.get("case") or "", "before": _finite(vb), "after": _finite(vp), "delta": _finite(delta),
