@@ -12,7 +12,9 @@ from pathlib import Path
 
 import pytest
 
+from pcverify.fingerprint import source_closure
 from pcverify.harness.cli import main
+from pcverify.harness.run.perturbation import Perturbed
 from pcverify.harness.run.sensitivity import case_change
 
 STUDY = """
@@ -124,6 +126,14 @@ def test_a_case_moves_beyond_its_uncertainty_or_a_thousandth_of_its_tolerance_or
     assert case_change(zero | {"tolerance_basis": "measured: 2.9e-14 (76x)"}, zero | {"value": -4.6e-14})["moved"]
     lost = case_change(base, {"value": None, "verdict": "inconclusive"})
     assert lost["moved"] and lost["verdict_changed"]
+
+
+def test_the_perturbed_cells_cache_key_does_not_hold_the_judging_rules() -> None:
+    """A perturbed cell's key holds its task module's fingerprint: that module is not the one that judges what
+    moved, so a change of those rules keeps hours of perturbed cells in the cache."""
+    closure = source_closure(Perturbed.__module__)
+    assert "pcverify.harness.run.perturbation" in closure
+    assert "pcverify.harness.run.sensitivity" not in closure, sorted(closure)
 
 
 @pytest.mark.parametrize("args, words", [

@@ -21,17 +21,15 @@ from typing import Any
 
 import numpy as np
 
-from pcverify.fingerprint import module_fingerprint
 from pcverify.harness.judge.group_tables import group_tables
 from pcverify.harness.judge.tables import cells_table
 from pcverify.harness.judge.verdict import records, verdicts
 from pcverify.harness.run.cache import Cache
 from pcverify.harness.run.execution import execute, identify
+from pcverify.harness.run.perturbation import Perturbed
 from pcverify.harness.run.progress import progress_bar
 from pcverify.harness.study.study import Cell, Study
-from pcverify.harness.study.tasks import CellTask
-from pcverify.scene import Resolution, Scene, SceneError, shown
-from pcverify.solvers.protocol import Solver
+from pcverify.scene import SceneError, shown
 from pcverify.solvers.registry import SolverUnavailable, get_solver
 
 STEP = 1e-2  # default relative step
@@ -110,41 +108,6 @@ def inputs_of(cell: Cell) -> dict[Input, float]:
     leaves = {BOX: cell.scene.box.width} | scene_leaves(cell.scene)
     scene = {Input("scene", cell.scene.name, k): v for k, v in leaves.items()}
     return scene | {Input("solver", cell.solver, k): v for k, v in solver_numbers(cell).items()}
-
-
-@dataclass(frozen=True)
-class Perturbed:
-    """A cell task that hands the solver a perturbed input (`scene`: the perturbed scene, or `param`, `value`: a
-    solver parameter) and runs the cell's own task with it; `label` names the perturbation in the cache key."""
-
-    inner: CellTask
-    label: str
-    scene: Scene | None = None
-    param: str = ""
-    value: float = math.nan
-    original: float = math.nan  # the parameter's value in the cell
-
-    @property
-    def name(self) -> str:
-        return f"{self.inner.name} [{self.label}; {module_fingerprint(type(self.inner).__module__)}]"
-
-    def _params(self, params: dict[str, Any]) -> dict[str, Any]:
-        return params | ({self.param: self.value} if self.param else {})
-
-    def supports(self, solver: Solver, scene: Scene) -> tuple[bool, str]:
-        return self.inner.supports(solver, self.scene or scene)
-
-    def check(self, solver: Solver, params: dict[str, Any]) -> dict[str, Any]:
-        return self.inner.check(solver, self._params(params))
-
-    def run(self, solver: Solver, scene: Scene, resolution: Resolution, params: dict[str, Any]) -> dict[str, Any]:
-        """The inner task's result; a summary scalar that echoes the perturbed parameter (a row a claim selects
-        by it) reports the cell's value, so the claim's cases stay the same rows."""
-        out = self.inner.run(solver, self.scene or scene, resolution, self._params(params))
-        for part in ("summary", "params"):
-            if self.param and self.param in (out.get(part) or {}):
-                out[part] = out[part] | {self.param: self.original}
-        return out
 
 
 def perturbed_cell(cell: Cell, values: dict[Input, float], item: Input, step: float
