@@ -15,7 +15,7 @@ import pytest
 from pcverify.fingerprint import source_closure
 from pcverify.harness.cli import main
 from pcverify.harness.run.perturbation import Perturbed
-from pcverify.harness.run.sensitivity import case_change
+from pcverify.harness.run.sensitivity import case_change, not_run
 
 STUDY = """
 name = "sens"
@@ -126,6 +126,16 @@ def test_a_case_moves_beyond_its_uncertainty_or_a_thousandth_of_its_tolerance_or
     assert case_change(zero | {"tolerance_basis": "measured: 2.9e-14 (76x)"}, zero | {"value": -4.6e-14})["moved"]
     lost = case_change(base, {"value": None, "verdict": "inconclusive"})
     assert lost["moved"] and lost["verdict_changed"]
+
+
+def test_a_refusal_is_a_cell_its_solver_did_not_run_not_a_failed_outcome() -> None:
+    """A stability study's runs near a limit fail their energy balance under a 1 % step: those ran (they have
+    a cost) and are outcomes the claims judge; a scene the lattice cannot fit, a check that raised or a skip is
+    a refusal of the value."""
+    assert not_run({"status": "failed", "reason": "SceneError: n=2 does not fit the box"})
+    assert not_run({"status": "skipped", "reason": "constraint value 500 K is neither 0 nor t_max"})
+    ran = {"status": "failed", "reason": "energy balance off by 0.129", "cost": {"cpu_s": 1.0}, "summary": {}}
+    assert not not_run(ran) and not not_run(ran | {"status": "ok"})
 
 
 def test_the_perturbed_cells_cache_key_does_not_hold_the_judging_rules() -> None:

@@ -224,6 +224,13 @@ def output_change(before: dict[str, Any], after: dict[str, Any]) -> float:
     return float(diff.max(initial=0.0) / size) if size > 0 else float(diff.max(initial=0.0))
 
 
+def not_run(result: dict[str, Any]) -> bool:
+    """Whether a cell's solver refused to run it: skipped, or failed before its solve ended (a scene or parameter
+    check, an exception), which leaves no cost.  A solve that ran and reported a failed status (an energy
+    balance missed near a stability limit) is an outcome of the input, judged like any other."""
+    return result.get("status") == "skipped" or (result.get("status") == "failed" and "cost" not in result)
+
+
 def perturb(study: Study, results: list[dict[str, Any]], baseline: list[dict[str, Any]], item: Input, step: float,
             cache: Cache, jobs: int, found: list[dict[Input, float]]) -> dict[str, Any]:
     """One input perturbed in every cell that has it (`found`: each cell's inputs): those cells run through
@@ -242,7 +249,7 @@ def perturb(study: Study, results: list[dict[str, Any]], baseline: list[dict[str
     for i, res in zip(todo, ran, strict=True):
         mixed[i] = res
     refused = [(mixed[i]["status"], mixed[i].get("reason")) for i in todo
-               if mixed[i].get("status") in ("failed", "skipped") and mixed[i]["status"] != results[i].get("status")]
+               if not_run(mixed[i]) and mixed[i]["status"] != results[i].get("status")]
     if refused:  # the solver refuses the value (a box that no longer fits the lattice, a held value it cannot do)
         return entry | {"status": "refused", "reason": f"{len(refused)} of {len(todo)} cells {refused[0][0]}: "
                         f"{' '.join(str(refused[0][1]).split())[:300]}", "changed_cells": 0, "claims": {}}
