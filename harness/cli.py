@@ -258,7 +258,8 @@ def build_parser() -> argparse.ArgumentParser:
                    "under CACHE/sensitivity/STUDY/")
     add_limits(p, f"run a study of more than {MAX_CELLS} cells, or cells beyond the work and memory limits")
     p.add_argument("--json", action="store_true", help="print sensitivity.json, nothing else on stdout")
-    p.add_argument("--strict", action="store_true", help="exit 1 when an input is a blind spot (a CI gate)")
+    p.add_argument("--strict", action="store_true",
+                   help="exit 1 when an input is a blind spot or a claim is out of reach (a CI gate)")
 
     p = sub.add_parser("bench", help="run the benchmarks, save them, compare with the previous saved run")
     p.add_argument("--tests", default="tests/bench", help="benchmark folder (default tests/bench)")

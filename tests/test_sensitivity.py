@@ -8,6 +8,7 @@ from __future__ import annotations
 import contextlib
 import io
 import json
+import shutil
 from pathlib import Path
 
 import pytest
@@ -136,6 +137,65 @@ def test_a_refusal_is_a_cell_its_solver_did_not_run_not_a_failed_outcome() -> No
     assert not_run({"status": "skipped", "reason": "constraint value 500 K is neither 0 nor t_max"})
     ran = {"status": "failed", "reason": "energy balance off by 0.129", "cost": {"cpu_s": 1.0}, "summary": {}}
     assert not not_run(ran) and not not_run(ran | {"status": "ok"})
+
+
+CALIBRATED = """
+name = "sens-calib"
+plugins = ["calib_synthetic"]
+
+[[calibration]]
+id = "quad"
+solver = "calib-quadratic"
+solver_params = { noise = 0.002 }
+budget = 12
+design_points = 8
+seed = 0
+replicas = { seed = [1, 2] }
+tolerance = 0.05
+
+[[calibration.parameter]]
+name = "x"
+low = -1.0
+high = 1.0
+
+[[calibration.calibrate]]
+scene = "bar-heat-faces"
+n = 3
+metric = "q"
+error = "absolute"
+reference = { solver = "calib-quadratic", solver_params = { x = 0.3, noise = 0.0 } }
+
+[[calibration.validate]]
+scene = "bar-heat-faces"
+n = [4]
+metric = "q"
+error = "absolute"
+reference = { solver = "calib-quadratic", solver_params = { x = 0.3, noise = 0.0 } }
+
+[[claim]]
+id = "quad-noise-small"
+text = "the calibrated objective's replica noise is below 0.01"
+table = "quad-summary"
+metric = "noise [calibrated on]"
+reference = "theory"
+target = 0.01
+tolerance = 0.0
+sense = "at-most"
+"""
+
+
+def test_a_claim_on_a_calibrations_runs_is_out_of_reach_and_strict_says_so(tmp_path: Path) -> None:
+    """A calibration makes its own runs, which sensitivity does not perturb: a claim on its tables is listed as
+    out of reach, never silently left out, and --strict exits 1 (0 inputs, 0 blind spots is not a pass)."""
+    (tmp_path / "calib.toml").write_text(CALIBRATED, encoding="utf-8")
+    shutil.copy(Path(__file__).with_name("calib_synthetic.py"), tmp_path)  # a plugin beside its study file
+    buffer = io.StringIO()
+    with contextlib.redirect_stdout(buffer):
+        code = main(["sensitivity", str(tmp_path / "calib.toml"), "--out", str(tmp_path / "out"), "--json",
+                     "--strict"])
+    found = json.loads(buffer.getvalue())
+    assert found["claims_not_reached"] == ["quad-noise-small"] and found["counts"]["inputs"] == 0
+    assert code == 1
 
 
 def test_the_perturbed_cells_cache_key_does_not_hold_the_judging_rules() -> None:

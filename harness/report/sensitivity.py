@@ -38,9 +38,10 @@ def mark(changes: list[dict[str, Any]]) -> str:
 
 
 def sensitivity_document(study: str, step: float, claims: list[str], entries: list[dict[str, Any]],
-                         wall_s: float) -> dict[str, Any]:
+                         wall_s: float, not_reached: list[str] | None = None) -> dict[str, Any]:
     """sensitivity.json: per input its entry with the claims that see it, the blind spots, the inputs not
-    perturbed (zero, out of range both ways, or refused by a solver's checks)."""
+    perturbed (zero, out of range both ways, or refused by a solver's checks), and the claims no perturbation
+    reaches (`not_reached`: they read a calibration's tables, whose runs the calibration makes)."""
     for entry in entries:
         entry["seen_by"] = [c for c, changes in entry.get("claims", {}).items() if mark(changes)]
     perturbed = [x for x in entries if x["status"] == "perturbed"]
@@ -54,6 +55,7 @@ def sensitivity_document(study: str, step: float, claims: list[str], entries: li
     seeing = {c for x in perturbed for c in x["seen_by"]}
     return {"study": study, "step": step, "claims": claims, "inputs": entries, "blind_spots": blind,
             "claims_seeing_nothing": [c for c in claims if c not in seeing],
+            "claims_not_reached": list(not_reached or []),
             "not_perturbed": [{"input": x["input"], "reason": x["reason"]} for x in entries
                               if x["status"] in ("not perturbed", "refused")],
             "counts": {"inputs": len(entries), "perturbed": len(perturbed),
@@ -102,6 +104,9 @@ def sensitivity_section(folder: Path, name: str, doc: Any) -> str:
     if doc.get("claims_seeing_nothing"):
         parts.append("<p class='meta'>Claims no perturbed input moves: " + ", ".join(
             f"<code>{e(str(c))}</code>" for c in doc["claims_seeing_nothing"]) + "</p>")
+    if doc.get("claims_not_reached"):
+        parts.append("<p class='meta'>Claims no perturbation reaches (they read a calibration's runs): " + ", ".join(
+            f"<code>{e(str(c))}</code>" for c in doc["claims_not_reached"]) + "</p>")
     if doc.get("not_perturbed"):
         parts.append("<details><summary>Inputs not perturbed</summary><ul>" + "".join(
             f"<li><code>{e(str(b.get('input')))}</code>: {e(str(b.get('reason')))}</li>" for b in doc["not_perturbed"])

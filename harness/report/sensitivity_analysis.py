@@ -29,7 +29,8 @@ from pcverify.harness.study.study import Study, load_study
 
 def run_sensitivity(args: argparse.Namespace) -> int:
     """`pcverify sensitivity STUDY`: the baseline, then every input (or those --input names) perturbed; a line per
-    input and the blind spots (or sensitivity.json as JSON).  --strict: exit 1 when an input is a blind spot."""
+    input and the blind spots (or sensitivity.json as JSON).  --strict: exit 1 when an input is a blind spot or a
+    claim is out of reach."""
     with remember_sigint(), cell_time_limit(args.time_limit):
         with output_to_stderr():
             study = load_study(args.name, args.allow_large)
@@ -46,15 +47,16 @@ def run_sensitivity(args: argparse.Namespace) -> int:
             entries = sensitivity(read, results, baseline, [i for i in items if i in inside], args.step,
                                   Cache(cache.root / "sensitivity" / study.name), args.jobs, progress=not args.json)
         entries += [unread(study, read, i) for i in items if i not in inside]
+        reached = {c.id for c in read.claims}
         doc = sensitivity_document(study.name, args.step, [c.id for c in read.claims], entries,
-                                   time.perf_counter() - t0)
+                                   time.perf_counter() - t0, [c.id for c in study.claims if c.id not in reached])
         where = write_sensitivity_report(out, study.name, doc)
         write_index(out)
         if args.json:
             print(json.dumps(doc))
         else:
             print_sensitivity(doc, where)
-        return 1 if args.strict and doc["blind_spots"] else 0
+        return 1 if args.strict and (doc["blind_spots"] or doc["claims_not_reached"]) else 0
 
 
 def unread(study: Study, read: Study, item: Input) -> dict[str, Any]:
@@ -78,5 +80,8 @@ def print_sensitivity(doc: dict[str, Any], where: Path) -> None:
     n = doc["counts"]
     if doc["claims_seeing_nothing"]:
         print(f"  claims no perturbed input moves: {', '.join(doc['claims_seeing_nothing'])}")
+    if doc["claims_not_reached"]:
+        print(f"  claims no perturbation reaches (they read a calibration's runs, which sensitivity does not "
+              f"perturb): {', '.join(doc['claims_not_reached'])}")
     print(f"{doc['study']}: {n['inputs']} inputs, {n['perturbed']} perturbed by 1 + {doc['step']:g}: {n['seen']} seen, "
           f"{n['blind']} blind spots, in {doc['wall_s']:.0f} s -> {where}")
