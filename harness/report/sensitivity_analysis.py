@@ -47,9 +47,9 @@ def run_sensitivity(args: argparse.Namespace) -> int:
             entries = sensitivity(read, results, baseline, [i for i in items if i in inside], args.step,
                                   Cache(cache.root / "sensitivity" / study.name), args.jobs, progress=not args.json)
         entries += [unread(study, read, i) for i in items if i not in inside]
-        reached = {c.id for c in read.claims}
-        doc = sensitivity_document(study.name, args.step, [c.id for c in read.claims], entries,
-                                   time.perf_counter() - t0, [c.id for c in study.claims if c.id not in reached])
+        claims = [c.id for c in read.claims]
+        doc = sensitivity_document(study.name, args.step, claims, entries, time.perf_counter() - t0,
+                                   [c.id for c in study.claims if c.id not in claims])
         where = write_sensitivity_report(out, study.name, doc)
         write_index(out)
         if args.json:
