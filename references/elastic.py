@@ -141,6 +141,8 @@ SCALARS = (
     Scalar("failure_strain", "", "the driven face's displacement / L at the peak reaction"),
     Scalar("first_unlink_z", "", "mean rest z / L of the pairs' midpoints that unlinked in the first step with an "
            "unlink (also first_unlink_pairs, first_unlink_step)"),
+    Scalar("drag_stress", "Pa", "net force of the two held faces / (W H) of a damped pull, averaged over 30-90 % of "
+           "the time to the peak: what the viscous damping of the moving body takes"),
     Scalar("yield_stress", "Pa", "where the pulled bar's stress-strain curve leaves its elastic line: the meeting "
            "point of the lines fitted to its elastic and its post-linear part (plastic and degradation responses)"),
     Scalar("post_linear_modulus", "Pa", "slope of the stress-strain curve after the yield stress (the uniaxial "

@@ -380,6 +380,8 @@ def _fracture(scene: Scene, aut: Automata, p: dict[str, Any]) -> dict[str, Any]:
                 summary["E_eff"] = float(np.polyfit(rise[:, mk.H_U1] / length, rise[:, mk.H_R1] / area, 1)[0])
             if resp is not None and resp.kind != "elastic":  # an elastic bar's ringing would read as a knee
                 summary.update(bilinear_fit(h[before, mk.H_U1] / length, stress[before], peak_r / area))
+            if gamma > 0.0:
+                summary.update(drag_stress(h, peak_step * model.dt, area))
     summary.update(first)
     summary["unlink_events"] = int(st.counters[mk.C_UNLINK])
     summary["relink_events"] = int(st.counters[mk.C_RELINK])
@@ -495,6 +497,16 @@ def copied(value: Any) -> Any:
     if isinstance(value, tuple) and hasattr(value, "_fields"):
         return type(value)(*(copied(v) for v in value))
     return value
+
+
+def drag_stress(h: np.ndarray, t_peak: float, area: float) -> dict[str, float]:
+    """The net force of the two held faces per area, averaged over the rows between 30 % and 90 % of the time to
+    the peak: in a damped pull, once the start-up has decayed, what the viscous damping of the moving automata
+    takes out ({} when no row lies there)."""
+    window = (h[:, mk.H_T] > 0.3 * t_peak) & (h[:, mk.H_T] < 0.9 * t_peak)
+    if not window.any():
+        return {}
+    return {"drag_stress": float(np.mean(h[window, mk.H_R1] + h[window, mk.H_R2])) / area}
 
 
 def first_unlink(model: Model, st: mk.State, length: float, until: int) -> dict[str, Any]:
