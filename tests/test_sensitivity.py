@@ -8,6 +8,7 @@ from __future__ import annotations
 import contextlib
 import io
 import json
+import math
 import shutil
 from pathlib import Path
 
@@ -16,7 +17,7 @@ import pytest
 from pcverify.fingerprint import source_closure
 from pcverify.harness.cli import main
 from pcverify.harness.run.perturbation import Perturbed
-from pcverify.harness.run.sensitivity import case_change, not_run
+from pcverify.harness.run.sensitivity import case_change, moved_parts, not_run, output_change
 
 STUDY = """
 name = "sens"
@@ -218,3 +219,21 @@ def test_bad_input_is_one_line(args: list[str], words: str, capsys: pytest.Captu
     assert main([*args, "--out", str(tmp_path)]) == 2
     err = capsys.readouterr().err
     assert words in err and err.count("\n") == 1, err
+
+
+def test_a_small_quantitys_move_is_measured_against_itself_not_a_large_one_beside_it() -> None:
+    # the MCA's compressed bar: nu moved 1 % beside E_eff = 7e10 read as a change of 5e-14 (round-off, inert)
+    # when every number was held against the result's largest; each part is held against its own magnitude
+    field = {"nodes": {"points": [[0.0, 0.0, 0.0], [0.0, 0.0, 0.03]], "values": [0.0, 3e-5]}}
+    before = {"status": "ok", "samples": field, "summary": {"E_eff": 7e10, "nu_eff": 0.33, "wall_s": 1.0}}
+    after = {**before, "summary": {"E_eff": 7e10, "nu_eff": 0.3333, "wall_s": 9.0}}
+    assert output_change(before, after) == {"summary.nu_eff": pytest.approx(0.01, rel=1e-9)}
+    moved_field = {"nodes": {"points": field["nodes"]["points"], "values": [1e-20, 3.03e-5]}}
+    assert output_change(before, {**before, "samples": moved_field}) == {  # a field against its own largest
+        "samples.nodes.values": pytest.approx(0.01, rel=1e-9)}
+    assert output_change(before, {**before, "summary": {**before["summary"], "wall_s": 2.0}}) == {}
+    assert output_change(before, {**before, "status": "failed"}) == {"status": math.inf}
+    assert output_change(before, {**before, "summary": {"E_eff": 7e10}}) == {"summary.nu_eff": math.inf}
+    noise = {**before, "summary": {"E_eff": 7e10 * (1 + 1e-12), "nu_eff": 0.33}}
+    assert moved_parts([output_change(before, after), output_change(before, noise)]) == {
+        "summary.nu_eff": pytest.approx(0.01, rel=1e-9)}  # round-off is not a move

@@ -37,6 +37,13 @@ def mark(changes: list[dict[str, Any]]) -> str:
     return "moved" if any(c["moved"] for c in changes) else ""
 
 
+def _in(entry: dict[str, Any]) -> str:
+    """": PART CHANGE, ..." for the parts of the results that moved most (older documents do not say)."""
+    parts = [f"{name} {change:.1e}" if isinstance(change, float) else f"{name} {change}"
+             for name, change in (entry.get("moved_parts") or {}).items()]
+    return f": {', '.join(parts)}" if parts else ""
+
+
 def sensitivity_document(study: str, step: float, claims: list[str], entries: list[dict[str, Any]],
                          wall_s: float, not_reached: list[str] | None = None) -> dict[str, Any]:
     """sensitivity.json: per input its entry with the claims that see it, the blind spots, the inputs not
@@ -48,8 +55,8 @@ def sensitivity_document(study: str, step: float, claims: list[str], entries: li
     blind = [{"input": x["input"], "kind": "unseen" if x["changed_cells"] else "inert",
               "why": f"inert: no cell's result moved beyond round-off (largest relative change "
               f"{x['largest_change']:.1e})" if not x["changed_cells"] else f"unseen: {x['changed_cells']} of "
-              f"{x['cells']} cells' results moved (up to {x['largest_change'] or math.inf:.1e} relative), no claim "
-              "did"} for x in perturbed if not x["seen_by"]]
+              f"{x['cells']} cells' results moved (up to {x['largest_change'] or math.inf:.1e} relative"
+              f"{_in(x)}), no claim did"} for x in perturbed if not x["seen_by"]]
     blind += [{"input": x["input"], "kind": "unread", "why": f"unread: {x['reason']}"} for x in entries
               if x["status"] == "unread"]
     seeing = {c for x in perturbed for c in x["seen_by"]}

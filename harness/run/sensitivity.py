@@ -211,17 +211,45 @@ def _numbers(obj: Any) -> list[float]:
     return [math.nan] if obj is None else [] if isinstance(obj, (bool, str)) else [_number(obj)]
 
 
-def output_change(before: dict[str, Any], after: dict[str, Any]) -> float:
-    """How far a cell's result moved: the largest change of its samples' and summary's numbers relative to their
-    largest magnitude (inf when its status or the shape of its output changed, 0 when nothing moved)."""
+def _parts(obj: Any, path: str) -> dict[str, list[float]]:
+    """A result's numbers by part: each number outside a list, and each list (a sampled field, a history) whole,
+    keyed by its dotted path (timings left out)."""
+    if isinstance(obj, dict):
+        return {k: v for key in sorted(obj, key=str) if key not in TIMINGS
+                for k, v in _parts(obj[key], f"{path}.{key}").items()}
+    numbers = _numbers(obj)
+    return {path: numbers} if numbers else {}
+
+
+def output_change(before: dict[str, Any], after: dict[str, Any]) -> dict[str, float]:
+    """How far each part of a cell's result moved (its samples and summary: a number, or a list such as a sampled
+    field or a history), relative to that part's own largest magnitude, so that a small quantity (a Poisson ratio
+    beside a modulus) is not measured against a large one.  {"status": inf} when the status changed; inf for a
+    part whose shape changed or that appeared or vanished; parts that did not move are left out."""
     if before.get("status") != after.get("status"):
-        return math.inf
-    a, b = (np.array(_numbers([r.get(k) for k in OUTPUTS[1:]]), float) for r in (before, after))
-    if a.shape != b.shape or not np.array_equal(np.isnan(a), np.isnan(b)):
-        return math.inf
-    diff = np.nan_to_num(np.abs(b - a), nan=0.0)
-    size = float(np.nanmax(np.abs(a), initial=0.0))
-    return float(diff.max(initial=0.0) / size) if size > 0 else float(diff.max(initial=0.0))
+        return {"status": math.inf}
+    pa, pb = (_parts({k: r.get(k) for k in OUTPUTS[1:]}, "") for r in (before, after))
+    out = {}
+    for name in sorted(set(pa) | set(pb)):
+        a, b = (np.array(p.get(name, []), float) for p in (pa, pb))
+        if a.shape != b.shape or not np.array_equal(np.isnan(a), np.isnan(b)):
+            out[name.lstrip(".")] = math.inf
+            continue
+        diff = float(np.nan_to_num(np.abs(b - a), nan=0.0).max(initial=0.0))
+        size = float(np.nanmax(np.abs(a), initial=0.0))
+        if diff > 0:
+            out[name.lstrip(".")] = diff / size if size > 0 else diff
+    return out
+
+
+def moved_parts(changes: list[dict[str, float]], count: int = 3) -> dict[str, float]:
+    """The `count` parts that moved most beyond round-off over a perturbation's cells, with their largest change."""
+    most: dict[str, float] = {}
+    for cell in changes:
+        for name, change in cell.items():
+            most[name] = max(most.get(name, 0.0), change)
+    ranked = sorted(((c, n) for n, c in most.items() if c > ROUND_OFF), reverse=True)[:count]
+    return {n: _finite(c) if math.isfinite(c) else "inf" for c, n in ranked}
 
 
 def not_run(result: dict[str, Any]) -> bool:
@@ -253,10 +281,12 @@ def perturb(study: Study, results: list[dict[str, Any]], baseline: list[dict[str
     if refused:  # the solver refuses the value (a box that no longer fits the lattice, a held value it cannot do)
         return entry | {"status": "refused", "reason": f"{len(refused)} of {len(todo)} cells {refused[0][0]}: "
                         f"{' '.join(str(refused[0][1]).split())[:300]}", "changed_cells": 0, "claims": {}}
-    moves = [output_change(results[i], mixed[i]) for i in todo]
+    changes = [output_change(results[i], mixed[i]) for i in todo]
+    moves = [max(c.values(), default=0.0) for c in changes]
     claims = claim_changes(baseline, judged(study, mixed))
     return entry | {"status": "perturbed", "reason": "; ".join(reasons),
                     "changed_cells": sum(m > ROUND_OFF for m in moves), "largest_change": _finite(max(moves)),
+                    "moved_parts": moved_parts(changes),
                     "failed_cells": counts["failed"], "computed_cells": counts["done"], "claims": claims}
 
 
