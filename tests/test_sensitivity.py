@@ -17,7 +17,7 @@ import pytest
 from pcverify.fingerprint import source_closure
 from pcverify.harness.cli import main
 from pcverify.harness.run.perturbation import Perturbed
-from pcverify.harness.run.sensitivity import case_change, moved_parts, not_run, output_change
+from pcverify.harness.run.sensitivity import case_change, moved_parts, not_run, output_change, part_scales
 
 STUDY = """
 name = "sens"
@@ -234,6 +234,13 @@ def test_a_small_quantitys_move_is_measured_against_itself_not_a_large_one_besid
     assert output_change(before, {**before, "summary": {**before["summary"], "wall_s": 2.0}}) == {}
     assert output_change(before, {**before, "status": "failed"}) == {"status": math.inf}
     assert output_change(before, {**before, "summary": {"E_eff": 7e10}}) == {"summary.nu_eff": math.inf}
+    pair_only = {"status": "ok", "summary": {"E_eff": 7e10, "nu_eff": 1e-14}}  # nu = 0 but for round-off
+    scales = part_scales([before, pair_only])
+    assert scales == {".samples.nodes.points": 0.03, ".samples.nodes.values": 3e-5, ".summary.E_eff": 7e10,
+                      ".summary.nu_eff": 0.33}
+    noisy = {**pair_only, "summary": {"E_eff": 7e10, "nu_eff": 3e-14}}
+    assert output_change(pair_only, noisy) == {"summary.nu_eff": pytest.approx(2.0)}  # alone: a move of 200 %
+    assert output_change(pair_only, noisy, scales)["summary.nu_eff"] < 1e-13  # against nu elsewhere: round-off
     noise = {**before, "summary": {"E_eff": 7e10 * (1 + 1e-12), "nu_eff": 0.33}}
     assert moved_parts([output_change(before, after), output_change(before, noise)]) == {
         "summary.nu_eff": pytest.approx(0.01, rel=1e-9)}  # round-off is not a move

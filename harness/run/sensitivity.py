@@ -41,7 +41,8 @@ NOT_SOLVER_INPUTS = ("name", "description", "params", "physics")  # a scene's la
 BOX = "box"  # the input that scales the whole box (its size at fixed shape: a lattice fits it as before)
 OUTPUTS = ("status", "samples", "summary")  # what a cell's result says of the physics (`output_change`)
 TIMINGS = ("wall_s", "kernel_s", "kernel_wall_s", "kernel_cpu_s", "assembly_s", "solve_s", "postprocess_s",
-           "calibrated_wall_s", "cpu_s", "setup_s")  # seconds measured by a clock: not physics
+           "calibrated_wall_s", "cpu_s", "setup_s", "heat_kernel_s", "eigensolve_s", "lammps_wall_s",
+           "lammps_cpu_s")  # seconds measured by a clock: not physics
 
 
 @dataclass(frozen=True)
@@ -221,14 +222,27 @@ def _parts(obj: Any, path: str) -> dict[str, list[float]]:
     return {path: numbers} if numbers else {}
 
 
-def output_change(before: dict[str, Any], after: dict[str, Any]) -> dict[str, float]:
+def part_scales(results: list[dict[str, Any]]) -> dict[str, float]:
+    """Each part's largest magnitude over the study's baseline cells (the scale a change of it is held against)."""
+    scales: dict[str, float] = {}
+    for r in results:
+        for name, numbers in _parts({k: r[k] for k in OUTPUTS[1:] if r.get(k) is not None}, "").items():
+            size = float(np.nanmax(np.abs(np.array(numbers, float)), initial=0.0))
+            scales[name] = max(scales.get(name, 0.0), size)
+    return scales
+
+
+def output_change(before: dict[str, Any], after: dict[str, Any], scales: dict[str, float] | None = None
+                  ) -> dict[str, float]:
     """How far each part of a cell's result moved (its samples and summary: a number, or a list such as a sampled
-    field or a history), relative to that part's own largest magnitude, so that a small quantity (a Poisson ratio
-    beside a modulus) is not measured against a large one.  {"status": inf} when the status changed; inf for a
-    part whose shape changed or that appeared or vanished; parts that did not move are left out."""
+    field or a history), relative to that part's largest magnitude over the study (`scales`, `part_scales`; at
+    least its own): a small quantity (a Poisson ratio beside a modulus) is not measured against a large one, and a
+    value that is round-off of 0 in one cell (the pair-only MCA's Poisson ratio, 1e-14) against the same quantity
+    elsewhere.  {"status": inf} when the status changed; inf for a part whose shape changed or that appeared or
+    vanished; parts that did not move are left out."""
     if before.get("status") != after.get("status"):
         return {"status": math.inf}
-    pa, pb = (_parts({k: r.get(k) for k in OUTPUTS[1:]}, "") for r in (before, after))
+    pa, pb = (_parts({k: r[k] for k in OUTPUTS[1:] if r.get(k) is not None}, "") for r in (before, after))
     out = {}
     for name in sorted(set(pa) | set(pb)):
         a, b = (np.array(p.get(name, []), float) for p in (pa, pb))
@@ -236,7 +250,7 @@ def output_change(before: dict[str, Any], after: dict[str, Any]) -> dict[str, fl
             out[name.lstrip(".")] = math.inf
             continue
         diff = float(np.nan_to_num(np.abs(b - a), nan=0.0).max(initial=0.0))
-        size = float(np.nanmax(np.abs(a), initial=0.0))
+        size = max(float(np.nanmax(np.abs(a), initial=0.0)), (scales or {}).get(name, 0.0))
         if diff > 0:
             out[name.lstrip(".")] = diff / size if size > 0 else diff
     return out
@@ -281,7 +295,8 @@ def perturb(study: Study, results: list[dict[str, Any]], baseline: list[dict[str
     if refused:  # the solver refuses the value (a box that no longer fits the lattice, a held value it cannot do)
         return entry | {"status": "refused", "reason": f"{len(refused)} of {len(todo)} cells {refused[0][0]}: "
                         f"{' '.join(str(refused[0][1]).split())[:300]}", "changed_cells": 0, "claims": {}}
-    changes = [output_change(results[i], mixed[i]) for i in todo]
+    scales = part_scales(results)
+    changes = [output_change(results[i], mixed[i], scales) for i in todo]
     moves = [max(c.values(), default=0.0) for c in changes]
     claims = claim_changes(baseline, judged(study, mixed))
     return entry | {"status": "perturbed", "reason": "; ".join(reasons),
