@@ -256,8 +256,9 @@ def output_change(before: dict[str, Any], after: dict[str, Any], scales: dict[st
     return out
 
 
-def moved_parts(changes: list[dict[str, float]], count: int = 3) -> dict[str, float]:
-    """The `count` parts that moved most beyond round-off over a perturbation's cells, with their largest change."""
+def moved_parts(changes: list[dict[str, float]], count: int = 3) -> dict[str, float | str]:
+    """The `count` parts that moved most beyond round-off over a perturbation's cells, with their largest change
+    ("inf" for a status or a shape that changed: JSON has no infinity)."""
     most: dict[str, float] = {}
     for cell in changes:
         for name, change in cell.items():
