@@ -244,3 +244,4 @@ def test_a_small_quantitys_move_is_measured_against_itself_not_a_large_one_besid
     noise = {**before, "summary": {"E_eff": 7e10 * (1 + 1e-12), "nu_eff": 0.33}}
     assert moved_parts([output_change(before, after), output_change(before, noise)]) == {
         "summary.nu_eff": pytest.approx(0.01, rel=1e-9)}  # round-off is not a move
+    assert moved_parts([{"status": math.inf}]) == {"status": "inf"}  # JSON has no infinity
