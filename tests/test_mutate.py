@@ -485,7 +485,9 @@ MAIN_EDITS = (("solvers/particles/mca/solver.py", "MIN_PEAK_STEPS = 50", "MIN_PE
               ("solvers/particles/macromolecule/solver.py", "BYTES_PER_PARTICLE = 3_000", "BYTES_PER_PARTICLE = 3_001"),
               ("solvers/continuum/fipy_heat.py", "SUBSAMPLES = 8", "SUBSAMPLES = 9"),
               ("solvers/continuum/skfem_heat.py", '"heat-source-field", "interface-flux"})',
-               '"heat-source-field"})'))
+               '"heat-source-field"})'),
+              ("solvers/particles/lammps_bpm/solver.py", "HISTORY_ROWS = 2000", "HISTORY_ROWS = 2001"),
+              ("solvers/continuum/skfem_elastic.py", '"q2": ("ElementHex2", 4, 2)', '"q2": ("ElementHex2", 5, 2)'))
 
 
 def test_a_mutant_of_each_solver_package_main_module_reaches_its_verdicts(tmp_path, capsys) -> None:
