@@ -222,11 +222,16 @@ def _parts(obj: Any, path: str) -> dict[str, list[float]]:
     return {path: numbers} if numbers else {}
 
 
+def _result_parts(result: dict[str, Any]) -> dict[str, list[float]]:
+    """The parts (`_parts`) of a cell result's samples and summary."""
+    return _parts({k: result[k] for k in OUTPUTS[1:] if result.get(k) is not None}, "")
+
+
 def part_scales(results: list[dict[str, Any]]) -> dict[str, float]:
     """Each part's largest magnitude over the study's baseline cells (the scale a change of it is held against)."""
     scales: dict[str, float] = {}
     for r in results:
-        for name, numbers in _parts({k: r[k] for k in OUTPUTS[1:] if r.get(k) is not None}, "").items():
+        for name, numbers in _result_parts(r).items():
             size = float(np.nanmax(np.abs(np.array(numbers, float)), initial=0.0))
             scales[name] = max(scales.get(name, 0.0), size)
     return scales
@@ -242,7 +247,7 @@ def output_change(before: dict[str, Any], after: dict[str, Any], scales: dict[st
     vanished; parts that did not move are left out."""
     if before.get("status") != after.get("status"):
         return {"status": math.inf}
-    pa, pb = (_parts({k: r[k] for k in OUTPUTS[1:] if r.get(k) is not None}, "") for r in (before, after))
+    pa, pb = _result_parts(before), _result_parts(after)
     out = {}
     for name in sorted(set(pa) | set(pb)):
         a, b = (np.array(p.get(name, []), float) for p in (pa, pb))
@@ -275,9 +280,10 @@ def not_run(result: dict[str, Any]) -> bool:
 
 
 def perturb(study: Study, results: list[dict[str, Any]], baseline: list[dict[str, Any]], item: Input, step: float,
-            cache: Cache, jobs: int, found: list[dict[Input, float]]) -> dict[str, Any]:
+            cache: Cache, jobs: int, found: list[dict[Input, float]], scales: dict[str, float]) -> dict[str, Any]:
     """One input perturbed in every cell that has it (`found`: each cell's inputs): those cells run through
-    `cache` (the baseline's `results` stand for the others), the claims judged and compared with `baseline`."""
+    `cache` (the baseline's `results` stand for the others), the claims judged and compared with `baseline`,
+    each part of a result held against its `scales` (`part_scales` of `results`)."""
     cells = [c for g in study.groups for c in g.cells]
     made = [perturbed_cell(c, values, item, step) for c, values in zip(cells, found, strict=True)]
     todo = [i for i, (cell, _, _) in enumerate(made) if cell is not None]
@@ -296,7 +302,6 @@ def perturb(study: Study, results: list[dict[str, Any]], baseline: list[dict[str
     if refused:  # the solver refuses the value (a box that no longer fits the lattice, a held value it cannot do)
         return entry | {"status": "refused", "reason": f"{len(refused)} of {len(todo)} cells {refused[0][0]}: "
                         f"{' '.join(str(refused[0][1]).split())[:300]}", "changed_cells": 0, "claims": {}}
-    scales = part_scales(results)
     changes = [output_change(results[i], mixed[i], scales) for i in todo]
     moves = [max(c.values(), default=0.0) for c in changes]
     claims = claim_changes(baseline, judged(study, mixed))
@@ -311,12 +316,13 @@ def sensitivity(study: Study, results: list[dict[str, Any]], baseline: list[dict
                 done: Callable[[dict[str, Any]], None] = lambda e: None) -> list[dict[str, Any]]:
     """Every input of `items` perturbed in turn (`perturb`), a progress bar over the inputs."""
     found = [inputs_of(c) for g in study.groups for c in g.cells]
+    scales = part_scales(results)
     bar = progress_bar(len(items), f"{study.name}: sensitivity", "input", enabled=progress)
     out = []
     try:
         for item in items:
             bar.set_description(f"{study.name}: {item.name}"[:70])
-            out.append(perturb(study, results, baseline, item, step, cache, jobs, found))
+            out.append(perturb(study, results, baseline, item, step, cache, jobs, found, scales))
             done(out[-1])
             bar.update(1)
     finally:
